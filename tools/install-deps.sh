@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Installs every Debian 12 package bisturi needs to build, run and test. Run as root (or with
+# sudo). Idempotent: packages already present are left alone.
+#   --bench-peers   also install the peer libraries the comparison benchmarks use (OpenMesh)
+set -euo pipefail
+
+packages=(
+  build-essential cmake g++ pkg-config
+  libglm-dev                         # vector maths (scene positions)
+  libcli11-dev nlohmann-json3-dev    # command line, JSON reports
+  libgtest-dev libgmock-dev          # tests
+  libbenchmark-dev                   # benchmarks in tools/bench
+)
+if [[ "${1:-}" == "--bench-peers" ]]; then
+  packages+=(libopenmesh-dev)
+fi
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]} == 0)); then
+  echo "install-deps: all ${#packages[@]} packages already installed"
+  exit 0
+fi
+SUDO=""
+if [[ $(id -u) -ne 0 ]]; then SUDO="sudo"; fi
+echo "install-deps: installing ${missing[*]}"
+$SUDO apt-get update -qq
+DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq -o DPkg::Lock::Timeout=600 \
+  --no-install-recommends "${missing[@]}"
