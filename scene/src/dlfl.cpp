@@ -102,7 +102,8 @@ void Dlfl::free_edge(EdgeId e) {
 void Dlfl::free_rotation(VertexId v, RotationId r) {
   // Unlink r from v's rotation list.
   RotationId* link = &vertices_[v.idx].first;
-  while (link->valid() && *link != r) link = &rotations_[link->idx].next;
+  while (link->valid() && *link != r)
+    link = &rotations_[link->idx].next;
   if (link->valid()) *link = rotations_[r.idx].next;
   rotations_[r.idx] = RotationRecord{};
   free_rotations_.push_back(r.idx);
@@ -119,13 +120,13 @@ void Dlfl::reserve(std::size_t n, std::size_t c, std::size_t f, std::size_t e) {
 }
 
 std::size_t Dlfl::memory_bytes() const {
-  std::size_t bytes = corners_.capacity() * sizeof(CornerRecord) +
-                      faces_.capacity() * sizeof(FaceRecord) +
-                      edges_.capacity() * sizeof(CornerPair) +
-                      vertices_.capacity() * sizeof(VertexRecord) +
-                      rotations_.capacity() * sizeof(RotationRecord) +
-                      positions_.capacity() * sizeof(Vec3) + bounding_.capacity();
-  for (const auto& [edge, pairs] : extra_pairs_) bytes += pairs.capacity() * sizeof(CornerPair);
+  std::size_t bytes =
+      corners_.capacity() * sizeof(CornerRecord) + faces_.capacity() * sizeof(FaceRecord) +
+      edges_.capacity() * sizeof(CornerPair) + vertices_.capacity() * sizeof(VertexRecord) +
+      rotations_.capacity() * sizeof(RotationRecord) + positions_.capacity() * sizeof(Vec3) +
+      bounding_.capacity();
+  for (const auto& [edge, pairs] : extra_pairs_)
+    bytes += pairs.capacity() * sizeof(CornerPair);
   bytes += extra_pairs_.capacity() * sizeof(extra_pairs_[0]);
   bytes += (free_vertices_.capacity() + free_corners_.capacity() + free_faces_.capacity() +
             free_edges_.capacity() + free_rotations_.capacity()) *
@@ -141,8 +142,12 @@ bool Dlfl::alive(VertexId v) const {
 bool Dlfl::alive(CornerId c) const {
   return c.idx < corners_.size() && corners_[c.idx].vertex.valid();
 }
-bool Dlfl::alive(FaceId f) const { return f.idx < faces_.size() && faces_[f.idx].first.valid(); }
-bool Dlfl::alive(EdgeId e) const { return e.idx < edges_.size() && edges_[e.idx].a.valid(); }
+bool Dlfl::alive(FaceId f) const {
+  return f.idx < faces_.size() && faces_[f.idx].first.valid();
+}
+bool Dlfl::alive(EdgeId e) const {
+  return e.idx < edges_.size() && edges_[e.idx].a.valid();
+}
 bool Dlfl::alive(RotationId r) const {
   return r.idx < rotations_.size() && rotations_[r.idx].corner.valid();
 }
@@ -172,8 +177,9 @@ void Dlfl::require(EdgeId e, const char* op) const {
 // ---------------------------------------------------------------- navigation
 
 std::vector<CornerPair>* Dlfl::extra_pairs_of(EdgeId e) {
-  auto it = std::lower_bound(extra_pairs_.begin(), extra_pairs_.end(), e.idx,
-                             [](const auto& entry, std::uint32_t key) { return entry.first < key; });
+  auto it =
+      std::lower_bound(extra_pairs_.begin(), extra_pairs_.end(), e.idx,
+                       [](const auto& entry, std::uint32_t key) { return entry.first < key; });
   return (it != extra_pairs_.end() && it->first == e.idx) ? &it->second : nullptr;
 }
 
@@ -183,7 +189,8 @@ const std::vector<CornerPair>* Dlfl::extra_pairs_of(EdgeId e) const {
 
 std::vector<CornerPair> Dlfl::edge_pairs(EdgeId e) const {
   std::vector<CornerPair> pairs{edges_[e.idx]};
-  if (const auto* extra = extra_pairs_of(e)) pairs.insert(pairs.end(), extra->begin(), extra->end());
+  if (const auto* extra = extra_pairs_of(e))
+    pairs.insert(pairs.end(), extra->begin(), extra->end());
   return pairs;
 }
 
@@ -286,7 +293,8 @@ AddRotationResult Dlfl::add_rotation(VertexId v) {
   const RotationId r = new_rotation(c);
   // Append so that the first rotation stays first (clean_rotations keeps it).
   RotationId* link = &vertices_[v.idx].first;
-  while (link->valid()) link = &rotations_[link->idx].next;
+  while (link->valid())
+    link = &rotations_[link->idx].next;
   *link = r;
   ++topology_version_;
   return {r, c, f};

@@ -43,8 +43,8 @@ void Dlfl::compact() {
       corners_.size(), [&](std::size_t i) { return corners_[i].vertex.valid(); }, cmap);
   const std::size_t nf = dense_numbering(
       faces_.size(), [&](std::size_t i) { return faces_[i].first.valid(); }, fmap);
-  const std::size_t ne =
-      dense_numbering(edges_.size(), [&](std::size_t i) { return edges_[i].a.valid(); }, emap);
+  const std::size_t ne = dense_numbering(
+      edges_.size(), [&](std::size_t i) { return edges_[i].a.valid(); }, emap);
   const std::size_t nr = dense_numbering(
       rotations_.size(), [&](std::size_t i) { return rotations_[i].corner.valid(); }, rmap);
 
@@ -53,13 +53,18 @@ void Dlfl::compact() {
     c = CornerRecord{remap(c.vertex, vmap), remap(c.face, fmap), remap(c.next, cmap),
                      remap(c.prev, cmap), remap(c.edge, emap)};
   }
-  for (auto& f : faces_) f.first = remap(f.first, cmap);
-  for (auto& e : edges_) e = CornerPair{remap(e.a, cmap), remap(e.b, cmap)};
-  for (auto& v : vertices_) v.first = remap(v.first, rmap);
-  for (auto& r : rotations_) r = RotationRecord{remap(r.corner, cmap), remap(r.next, rmap)};
+  for (auto& f : faces_)
+    f.first = remap(f.first, cmap);
+  for (auto& e : edges_)
+    e = CornerPair{remap(e.a, cmap), remap(e.b, cmap)};
+  for (auto& v : vertices_)
+    v.first = remap(v.first, rmap);
+  for (auto& r : rotations_)
+    r = RotationRecord{remap(r.corner, cmap), remap(r.next, rmap)};
   for (auto& [edge, pairs] : extra_pairs_) {
     edge = emap[edge];
-    for (auto& p : pairs) p = CornerPair{remap(p.a, cmap), remap(p.b, cmap)};
+    for (auto& p : pairs)
+      p = CornerPair{remap(p.a, cmap), remap(p.b, cmap)};
   }
   // Dense numbering keeps the old order, so extra_pairs_ stays sorted by edge.
 

@@ -133,9 +133,9 @@ InsertEdgeResult Dlfl::insert_edge(CornerId c1, CornerId c2, const InsertEdgeOpt
   if (e.valid()) {
     auto* extra = extra_pairs_of(e);
     if (extra == nullptr) {
-      auto it = std::lower_bound(
-          extra_pairs_.begin(), extra_pairs_.end(), e.idx,
-          [](const auto& entry, std::uint32_t key) { return entry.first < key; });
+      auto it =
+          std::lower_bound(extra_pairs_.begin(), extra_pairs_.end(), e.idx,
+                           [](const auto& entry, std::uint32_t key) { return entry.first < key; });
       extra = &extra_pairs_.emplace(it, e.idx, std::vector<CornerPair>{})->second;
     }
     extra->push_back({x1, x2});
@@ -176,7 +176,8 @@ InsertEdgeResult Dlfl::insert_edge(CornerId c1, CornerId c2, const InsertEdgeOpt
     // The renamed corners run from the absorbed face's corner up to the kept face's corner.
     const CornerId from = f1_shorter ? c1 : c2;
     const CornerId until = f1_shorter ? c2 : c1;
-    for (CornerId c = from; c != until; c = corners_[c.idx].next) corners_[c.idx].face = kept;
+    for (CornerId c = from; c != until; c = corners_[c.idx].next)
+      corners_[c.idx].face = kept;
     corners_[x1.idx].face = kept;
     corners_[x2.idx].face = kept;
     bounding_[kept.idx] = (bounding_[f1.idx] || bounding_[f2.idx]) ? 1 : 0;
@@ -199,9 +200,8 @@ void Dlfl::remove_pair(EdgeId e, CornerId side) {
     primary = extra->front();
     extra->erase(extra->begin());
   } else {
-    extra->erase(std::find_if(extra->begin(), extra->end(), [side](const CornerPair& p) {
-      return p.a == side || p.b == side;
-    }));
+    extra->erase(std::find_if(extra->begin(), extra->end(),
+                              [side](const CornerPair& p) { return p.a == side || p.b == side; }));
   }
   if (extra->empty()) {
     extra_pairs_.erase(std::find_if(extra_pairs_.begin(), extra_pairs_.end(),
@@ -292,7 +292,8 @@ DeleteEdgeResult Dlfl::delete_pair(EdgeId e, CornerPair pair) {
     // After the splice the absorbed face's corners run from its first survivor to the kept one.
     const CornerId from = fa_shorter ? na : nb;
     const CornerId until = fa_shorter ? nb : na;
-    for (CornerId c = from; c != until; c = corners_[c.idx].next) corners_[c.idx].face = kept;
+    for (CornerId c = from; c != until; c = corners_[c.idx].next)
+      corners_[c.idx].face = kept;
     faces_[kept.idx].first = from;
     bounding_[kept.idx] = label;
     free_face(gone);

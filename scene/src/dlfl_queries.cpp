@@ -31,7 +31,8 @@ std::size_t vertex_valence(const Dlfl& mesh, VertexId v) {
 
 std::size_t rotation_count(const Dlfl& mesh, VertexId v) {
   std::size_t n = 0;
-  for (RotationId r = mesh.first_rotation(v); r.valid(); r = mesh.next_rotation(r)) ++n;
+  for (RotationId r = mesh.first_rotation(v); r.valid(); r = mesh.next_rotation(r))
+    ++n;
   return n;
 }
 
@@ -48,7 +49,8 @@ std::vector<CornerId> face_corners(const Dlfl& mesh, FaceId f) {
 
 std::vector<VertexId> face_vertices(const Dlfl& mesh, FaceId f) {
   std::vector<VertexId> out;
-  for (CornerId c : face_corners(mesh, f)) out.push_back(mesh.vertex(c));
+  for (CornerId c : face_corners(mesh, f))
+    out.push_back(mesh.vertex(c));
   return out;
 }
 
@@ -67,7 +69,8 @@ std::vector<std::vector<FaceId>> faces_around_vertex(const Dlfl& mesh, VertexId 
   std::vector<std::vector<FaceId>> out;
   for (RotationId r = mesh.first_rotation(v); r.valid(); r = mesh.next_rotation(r)) {
     auto& faces = out.emplace_back();
-    for (CornerId c : rotation_corners(mesh, r)) faces.push_back(mesh.face(c));
+    for (CornerId c : rotation_corners(mesh, r))
+      faces.push_back(mesh.face(c));
   }
   return out;
 }
@@ -99,7 +102,8 @@ std::vector<FaceId> boundary_loops(const Dlfl& mesh) {
 
 std::vector<EdgeId> non_manifold_edges(const Dlfl& mesh) {
   std::vector<EdgeId> out;
-  for (const auto& [edge, pairs] : mesh.extra_pair_lists()) out.emplace_back(edge);
+  for (const auto& [edge, pairs] : mesh.extra_pair_lists())
+    out.emplace_back(edge);
   return out;
 }
 
@@ -120,7 +124,7 @@ std::vector<Part> connected_parts(const Dlfl& mesh) {
     if (!mesh.alive(FaceId(i)) || seen[i]) continue;
     Part& part = parts.emplace_back();
     seen[i] = 1;
-    stack.push_back(FaceId(i));
+    stack.emplace_back(i);
     while (!stack.empty()) {
       const FaceId f = stack.back();
       stack.pop_back();
@@ -167,8 +171,7 @@ PartTopology part_topology(const Dlfl& mesh, const Part& part) {
   }
   t.edges = sides / 2;
   t.euler_characteristic = static_cast<std::int64_t>(t.vertices) -
-                           static_cast<std::int64_t>(t.edges) +
-                           static_cast<std::int64_t>(t.faces);
+                           static_cast<std::int64_t>(t.edges) + static_cast<std::int64_t>(t.faces);
   t.genus = (2 - (t.euler_characteristic + static_cast<std::int64_t>(t.rings))) / 2;
   return t;
 }
@@ -188,7 +191,8 @@ MeshStatistics mesh_statistics(const Dlfl& mesh) {
   }
   s.non_manifold_vertices = non_manifold_vertices(mesh).size();
   s.non_manifold_edges = non_manifold_edges(mesh).size();
-  for (const Part& p : connected_parts(mesh)) s.parts.push_back(part_topology(mesh, p));
+  for (const Part& p : connected_parts(mesh))
+    s.parts.push_back(part_topology(mesh, p));
   return s;
 }
 

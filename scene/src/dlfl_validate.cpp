@@ -40,7 +40,7 @@ class Validator {
     std::ostringstream out;
     (out << ... << parts);
     report_.problems.push_back(out.str());
-    if (report_.problems.size() == max_) report_.problems.push_back("(further problems omitted)");
+    if (report_.problems.size() == max_) report_.problems.emplace_back("(further problems omitted)");
   }
 
   template <class Tag, class IsLive>
@@ -57,23 +57,29 @@ class Validator {
       }
     }
     std::size_t dead = 0;
-    for (std::size_t i = 0; i < capacity; ++i) dead += is_live(i) ? 0 : 1;
+    for (std::size_t i = 0; i < capacity; ++i)
+      dead += is_live(i) ? 0 : 1;
     if (dead != list.size()) {
       problem(dead, " deleted ", what, " slots but ", list.size(), " in the free list");
     }
   }
 
   void check_free_lists() {
-    check_free_list<VertexTag>("vertex", m_.vertex_capacity(),
-                               [&](std::size_t i) { return m_.alive(VertexId(static_cast<std::uint32_t>(i))); });
-    check_free_list<CornerTag>("corner", m_.corner_capacity(),
-                               [&](std::size_t i) { return m_.alive(CornerId(static_cast<std::uint32_t>(i))); });
-    check_free_list<FaceTag>("face", m_.face_capacity(),
-                             [&](std::size_t i) { return m_.alive(FaceId(static_cast<std::uint32_t>(i))); });
-    check_free_list<EdgeTag>("edge", m_.edge_capacity(),
-                             [&](std::size_t i) { return m_.alive(EdgeId(static_cast<std::uint32_t>(i))); });
-    check_free_list<RotationTag>("rotation", m_.rotation_capacity(),
-                                 [&](std::size_t i) { return m_.alive(RotationId(static_cast<std::uint32_t>(i))); });
+    check_free_list<VertexTag>("vertex", m_.vertex_capacity(), [&](std::size_t i) {
+      return m_.alive(VertexId(static_cast<std::uint32_t>(i)));
+    });
+    check_free_list<CornerTag>("corner", m_.corner_capacity(), [&](std::size_t i) {
+      return m_.alive(CornerId(static_cast<std::uint32_t>(i)));
+    });
+    check_free_list<FaceTag>("face", m_.face_capacity(), [&](std::size_t i) {
+      return m_.alive(FaceId(static_cast<std::uint32_t>(i)));
+    });
+    check_free_list<EdgeTag>("edge", m_.edge_capacity(), [&](std::size_t i) {
+      return m_.alive(EdgeId(static_cast<std::uint32_t>(i)));
+    });
+    check_free_list<RotationTag>("rotation", m_.rotation_capacity(), [&](std::size_t i) {
+      return m_.alive(RotationId(static_cast<std::uint32_t>(i)));
+    });
   }
 
   // A partner lookup that reports instead of throwing.
@@ -84,8 +90,9 @@ class Validator {
     if (primary.a == c) return primary.b;
     if (primary.b == c) return primary.a;
     const auto& lists = m_.extra_pair_lists();
-    auto it = std::lower_bound(lists.begin(), lists.end(), e.idx,
-                               [](const auto& entry, std::uint32_t key) { return entry.first < key; });
+    auto it =
+        std::lower_bound(lists.begin(), lists.end(), e.idx,
+                         [](const auto& entry, std::uint32_t key) { return entry.first < key; });
     if (it == lists.end() || it->first != e.idx) return CornerId{};
     for (const auto& p : it->second) {
       if (p.a == c) return p.b;
@@ -170,8 +177,8 @@ class Validator {
     if (counted != m_.num_corners()) {
       for (std::uint32_t i = 0; i < cs.size(); ++i) {
         if (m_.alive(CornerId(i)) && !on_cycle[i]) {
-          problem(to_string(CornerId(i)), " is on no face cycle (it names ",
-                  to_string(cs[i].face), ")");
+          problem(to_string(CornerId(i)), " is on no face cycle (it names ", to_string(cs[i].face),
+                  ")");
         }
       }
     }
@@ -270,7 +277,8 @@ class Validator {
     bool first = true;
     for (const auto& [key, pairs] : m_.extra_pair_lists()) {
       const EdgeId e(key);
-      if (!first && key <= previous_key) problem("extra pair lists are not sorted at ", to_string(e));
+      if (!first && key <= previous_key)
+        problem("extra pair lists are not sorted at ", to_string(e));
       first = false;
       previous_key = key;
       if (!m_.alive(e)) {
@@ -318,8 +326,8 @@ class Validator {
       }
     }
     if (m_.positions().size() != m_.vertex_capacity()) {
-      problem("position array has ", m_.positions().size(), " entries for ",
-              m_.vertex_capacity(), " vertices");
+      problem("position array has ", m_.positions().size(), " entries for ", m_.vertex_capacity(),
+              " vertices");
     }
   }
 

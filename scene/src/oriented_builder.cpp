@@ -26,7 +26,7 @@ constexpr std::uint32_t kNone = kInvalidIndex;
 /// half-edge, so that every half-edge has a twin.
 struct TargetHalfEdges {
   std::vector<std::uint32_t> from, to, next, twin, face;
-  std::vector<std::uint32_t> hole_loops;  // one hole half-edge per boundary loop
+  std::vector<std::uint32_t> hole_loops;             // one hole half-edge per boundary loop
   std::vector<std::uint32_t> out_offsets, out_list;  // outgoing half-edges per vertex (CSR)
 };
 
@@ -49,9 +49,8 @@ void check_input(const PolygonMesh& mesh) {
     }
     for (std::size_t k = 0; k < face.size(); ++k) {
       if (face[k] >= nv) {
-        throw InputError("face " + std::to_string(f) + ": vertex index " +
-                         std::to_string(face[k]) + " is out of range (" + std::to_string(nv) +
-                         " vertices)");
+        throw InputError("face " + std::to_string(f) + ": vertex index " + std::to_string(face[k]) +
+                         " is out of range (" + std::to_string(nv) + " vertices)");
       }
       if (face[k] == face[(k + 1) % face.size()]) {
         throw InputError("face " + std::to_string(f) + " repeats vertex " +
@@ -63,11 +62,14 @@ void check_input(const PolygonMesh& mesh) {
 
 void build_out_lists(TargetHalfEdges& t, std::size_t nv) {
   t.out_offsets.assign(nv + 1, 0);
-  for (std::uint32_t u : t.from) ++t.out_offsets[u + 1];
-  for (std::size_t v = 0; v < nv; ++v) t.out_offsets[v + 1] += t.out_offsets[v];
+  for (std::uint32_t u : t.from)
+    ++t.out_offsets[u + 1];
+  for (std::size_t v = 0; v < nv; ++v)
+    t.out_offsets[v + 1] += t.out_offsets[v];
   t.out_list.assign(t.from.size(), 0);
   std::vector<std::uint32_t> fill(t.out_offsets.begin(), t.out_offsets.end() - 1);
-  for (std::uint32_t h = 0; h < t.from.size(); ++h) t.out_list[fill[t.from[h]]++] = h;
+  for (std::uint32_t h = 0; h < t.from.size(); ++h)
+    t.out_list[fill[t.from[h]]++] = h;
 }
 
 TargetHalfEdges read_target(const PolygonMesh& mesh) {
@@ -143,13 +145,15 @@ TargetHalfEdges read_target(const PolygonMesh& mesh) {
   for (std::uint32_t k = static_cast<std::uint32_t>(nh); k < t.from.size(); ++k) {
     if (traced[k]) continue;
     t.hole_loops.push_back(k);
-    for (std::uint32_t x = k; !traced[x]; x = t.next[x]) traced[x] = 1;
+    for (std::uint32_t x = k; !traced[x]; x = t.next[x])
+      traced[x] = 1;
   }
   build_out_lists(t, nv);
 
   // Each vertex must have one fan: its outgoing half-edges form one rotation cycle.
   std::vector<std::uint32_t> prev(t.from.size());
-  for (std::uint32_t h = 0; h < t.from.size(); ++h) prev[t.next[h]] = h;
+  for (std::uint32_t h = 0; h < t.from.size(); ++h)
+    prev[t.next[h]] = h;
   for (std::uint32_t u = 0; u < nv; ++u) {
     const std::uint32_t count = t.out_offsets[u + 1] - t.out_offsets[u];
     if (count == 0) continue;
@@ -190,6 +194,11 @@ std::vector<VertexId> append_oriented_manifold(Dlfl& dlfl, const PolygonMesh& me
   const TargetHalfEdges t = read_target(mesh);
 
   // ---- input accepted: build ----
+  // Final sizes are known: one corner per half-edge, one edge per twin pair, one face per
+  // polygon and per hole. Reserving avoids growth slack in the arrays that stay.
+  dlfl.reserve(dlfl.vertex_capacity() + nv, dlfl.corner_capacity() + t.from.size(),
+               dlfl.face_capacity() + mesh.face_count() + t.hole_loops.size(),
+               dlfl.edge_capacity() + t.from.size() / 2);
   std::vector<VertexId> vertices(nv);
   std::vector<CornerId> sphere(nv);
   for (std::size_t i = 0; i < nv; ++i) {
@@ -219,7 +228,8 @@ std::vector<VertexId> append_oriented_manifold(Dlfl& dlfl, const PolygonMesh& me
   InsertEdgeOptions insert_options;
   insert_options.check_label_orientation = false;
   auto insert = [&](std::uint32_t h) {
-    const InsertEdgeResult r = dlfl.insert_edge(corner_for(h), corner_for(t.twin[h]), insert_options);
+    const InsertEdgeResult r =
+        dlfl.insert_edge(corner_for(h), corner_for(t.twin[h]), insert_options);
     corner_of[h] = r.side12;
     corner_of[t.twin[h]] = r.side21;
     if (options.progress && ++done % report_every == 0) options.progress(done, total);
@@ -247,7 +257,8 @@ std::vector<VertexId> append_oriented_manifold(Dlfl& dlfl, const PolygonMesh& me
   for (std::uint32_t h = 0; h < nh; ++h) {
     if (!corner_of[h].valid()) insert(h);
   }
-  for (std::uint32_t k : t.hole_loops) dlfl.set_bounding(dlfl.face(corner_of[k]), true);
+  for (std::uint32_t k : t.hole_loops)
+    dlfl.set_bounding(dlfl.face(corner_of[k]), true);
   if (options.progress) options.progress(total, total);
   return vertices;
 }

@@ -6,7 +6,9 @@
 namespace bisturi {
 
 namespace {
-std::uint32_t u32(std::size_t i) { return static_cast<std::uint32_t>(i); }
+std::uint32_t u32(std::size_t i) {
+  return static_cast<std::uint32_t>(i);
+}
 
 /// Quads (or two triangles each) over an (nu x nv) lattice of vertex ids.
 template <class Id>
@@ -63,7 +65,8 @@ PolygonMesh torus_mesh(double major_radius, double minor_radius, std::size_t nu,
     for (std::size_t i = 0; i < nu; ++i) {
       const double theta = 2.0 * std::numbers::pi * double(i) / double(nu);
       const double r = major_radius + minor_radius * std::cos(phi);
-      m.positions.emplace_back(r * std::cos(theta), r * std::sin(theta), minor_radius * std::sin(phi));
+      m.positions.emplace_back(r * std::cos(theta), r * std::sin(theta),
+                               minor_radius * std::sin(phi));
     }
   }
   m.indices.reserve(nu * nv * (triangulate ? 6 : 4));
@@ -76,7 +79,8 @@ PolygonMesh torus_mesh(double major_radius, double minor_radius, std::size_t nu,
 PolygonMesh grid_mesh(std::size_t nx, std::size_t ny, double cell, bool triangulate) {
   PolygonMesh m;
   for (std::size_t j = 0; j <= ny; ++j) {
-    for (std::size_t i = 0; i <= nx; ++i) m.positions.emplace_back(cell * double(i), cell * double(j), 0.0);
+    for (std::size_t i = 0; i <= nx; ++i)
+      m.positions.emplace_back(cell * double(i), cell * double(j), 0.0);
   }
   add_quads(m, nx + 1, ny + 1, false, false, triangulate,
             [nx](std::size_t i, std::size_t j) { return u32(j * (nx + 1) + i); });

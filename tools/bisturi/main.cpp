@@ -2,22 +2,26 @@
 // libraries; libraries never print.
 
 #include <CLI/CLI.hpp>
+#include <exception>
 #include <iostream>
 
 #include "bisturi/runtime/version.h"
 #include "mesh_demo.h"
 
-int main(int argc, char** argv) {
+namespace {
+
+int run(int argc, char** argv) {
   CLI::App app{"bisturi: an immersive surgical-simulation runtime"};
   app.require_subcommand(0, 1);
   bool version = false;
   app.add_flag("--version", version, "print the version and exit");
 
   bisturi::cli::MeshDemoOptions demo;
-  CLI::App* demo_cmd =
-      app.add_subcommand("demo", "build DLFL solids (seed figures, a large torus) and print their statistics");
-  demo_cmd->add_option("--torus-segments", demo.torus_segments,
-                       "segments around the large torus (faces = segments^2)")
+  CLI::App* demo_cmd = app.add_subcommand(
+      "demo", "build DLFL solids (seed figures, a large torus) and print their statistics");
+  demo_cmd
+      ->add_option("--torus-segments", demo.torus_segments,
+                   "segments around the large torus (faces = segments^2)")
       ->check(CLI::Range(std::size_t{4}, std::size_t{4096}));
   demo_cmd->add_flag("--json", demo.json, "write the statistics as one JSON object on stdout");
   demo_cmd->add_flag("--quiet", demo.quiet, "no progress line");
@@ -30,4 +34,17 @@ int main(int argc, char** argv) {
   if (demo_cmd->parsed()) return bisturi::cli::run_mesh_demo(demo);
   std::cout << app.help();
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // Libraries report failures as exceptions that name the element and the reason; the user sees
+  // that message, never a crash.
+  try {
+    return run(argc, argv);
+  } catch (const std::exception& e) {
+    std::cerr << "bisturi: error: " << e.what() << "\n";
+    return 1;
+  }
 }

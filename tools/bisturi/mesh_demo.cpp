@@ -1,12 +1,12 @@
 #include "mesh_demo.h"
 
+#include <unistd.h>
 #include <chrono>
 #include <cstdio>
 #include <functional>
 #include <iostream>
 #include <nlohmann/json.hpp>
 #include <string>
-#include <unistd.h>
 #include <vector>
 
 #include "bisturi/scene/dlfl_queries.h"
@@ -42,7 +42,8 @@ Dlfl two_tetrahedra_sharing_a_vertex(const BuildOptions& options) {
   Dlfl dlfl;
   const auto first = append_oriented_manifold(dlfl, tetrahedron_mesh(), options);
   PolygonMesh second = tetrahedron_mesh();
-  for (auto& p : second.positions) p = -p;  // mirrored through the shared vertex at the origin
+  for (auto& p : second.positions)
+    p = -p;  // mirrored through the shared vertex at the origin
   BuildOptions join = options;
   join.join_vertices.assign(4, VertexId{});
   join.join_vertices[0] = first[0];
@@ -89,7 +90,8 @@ std::string check_expected(const MeshStatistics& s, const Expected& e) {
       return "expected every part to have chi = " + std::to_string(e.chi_each);
     }
   }
-  if (s.bounding_faces != e.rings_total) return "expected " + std::to_string(e.rings_total) + " rings";
+  if (s.bounding_faces != e.rings_total)
+    return "expected " + std::to_string(e.rings_total) + " rings";
   if (s.non_manifold_vertices != e.non_manifold_vertices) return "unexpected non-manifold vertices";
   if (s.non_manifold_edges != e.non_manifold_edges) return "unexpected non-manifold edges";
   return {};
@@ -111,7 +113,9 @@ int run_mesh_demo(const MeshDemoOptions& options) {
       {"two tetrahedra sharing a vertex", two_tetrahedra_sharing_a_vertex, {2, 2, 0, 1, 0}},
       {"two cubes sharing an edge", two_cubes_sharing_an_edge, {2, 2, 0, 2, 1}},
       {"open vessel segment (tube)",
-       [](const BuildOptions& o) { return build_oriented_manifold(tube_mesh(12.5, 40.0, 48, 32), o); },
+       [](const BuildOptions& o) {
+         return build_oriented_manifold(tube_mesh(12.5, 40.0, 48, 32), o);
+       },
        {1, 0, 2, 0, 0}},
       {"torus, " + std::to_string(n * n) + " triangles",
        [n](const BuildOptions& o) {
@@ -147,7 +151,8 @@ int run_mesh_demo(const MeshDemoOptions& options) {
     entry["valid"] = validation.ok();
     entry["expected_topology"] = mismatch.empty();
     entry["build_ms"] = build_ms;
-    entry["bytes_per_face"] = double(dlfl.memory_bytes()) / double(stats.faces - stats.bounding_faces);
+    entry["bytes_per_face"] =
+        double(dlfl.memory_bytes()) / double(stats.faces - stats.bounding_faces);
     if (!validation.ok()) entry["problems"] = validation.problems;
     if (!mismatch.empty()) entry["mismatch"] = mismatch;
     report["solids"].push_back(entry);
@@ -161,13 +166,12 @@ int run_mesh_demo(const MeshDemoOptions& options) {
                 << stats.non_manifold_edges << " edges\n";
       for (std::size_t i = 0; i < stats.parts.size(); ++i) {
         const auto& p = stats.parts[i];
-        std::cout << "  part " << i << ": V " << p.vertices << " E " << p.edges << " F "
-                  << p.faces << " rings " << p.rings << "  chi " << p.euler_characteristic
-                  << "  genus " << p.genus << "\n";
+        std::cout << "  part " << i << ": V " << p.vertices << " E " << p.edges << " F " << p.faces
+                  << " rings " << p.rings << "  chi " << p.euler_characteristic << "  genus "
+                  << p.genus << "\n";
       }
-      std::cout << "  built in " << build_ms << " ms, "
-                << entry["bytes_per_face"].get<double>() << " bytes/face, validate: "
-                << (validation.ok() ? "ok" : "FAILED") << "\n";
+      std::cout << "  built in " << build_ms << " ms, " << entry["bytes_per_face"].get<double>()
+                << " bytes/face, validate: " << (validation.ok() ? "ok" : "FAILED") << "\n";
       if (!validation.ok()) std::cout << validation.summary();
       if (!mismatch.empty()) std::cout << "  unexpected topology: " << mismatch << "\n";
     }

@@ -7,7 +7,8 @@
 namespace bisturi::cli {
 
 struct MeshDemoOptions {
-  std::size_t torus_segments = 256;  ///< the large torus has segments x segments/2 quads x 2 triangles
+  std::size_t torus_segments =
+      256;  ///< the large torus has segments x segments/2 quads x 2 triangles
   bool json = false;
   bool quiet = false;
 };

@@ -42,12 +42,12 @@ struct InsertEdgeOptions {
 
 struct InsertEdgeResult {
   EdgeId edge;
-  CornerId side12;  ///< corner at v1 that starts the new side v1 -> v2
-  CornerId side21;  ///< corner at v2 that starts the new side v2 -> v1
-  bool split = false;           ///< true: c1 and c2 were cofacial and their face was split
-  FaceId face_forward;          ///< face holding side12 (f1' of procedure 1, or the merged face)
-  FaceId face_backward;         ///< face holding side21 (f1'' of procedure 1, or the merged face)
-  bool joined_existing = false; ///< the pair joined an edge that already lives in another rotation
+  CornerId side12;               ///< corner at v1 that starts the new side v1 -> v2
+  CornerId side21;               ///< corner at v2 that starts the new side v2 -> v1
+  bool split = false;            ///< true: c1 and c2 were cofacial and their face was split
+  FaceId face_forward;           ///< face holding side12 (f1' of procedure 1, or the merged face)
+  FaceId face_backward;          ///< face holding side21 (f1'' of procedure 1, or the merged face)
+  bool joined_existing = false;  ///< the pair joined an edge that already lives in another rotation
 };
 
 struct DeleteEdgeResult {
@@ -139,7 +139,9 @@ class Dlfl {
   [[nodiscard]] bool alive(RotationId r) const;
 
   /// Live element counts.
-  [[nodiscard]] std::size_t num_vertices() const { return vertices_.size() - free_vertices_.size(); }
+  [[nodiscard]] std::size_t num_vertices() const {
+    return vertices_.size() - free_vertices_.size();
+  }
   [[nodiscard]] std::size_t num_corners() const { return corners_.size() - free_corners_.size(); }
   [[nodiscard]] std::size_t num_faces() const { return faces_.size() - free_faces_.size(); }
   [[nodiscard]] std::size_t num_edges() const { return edges_.size() - free_edges_.size(); }

@@ -90,14 +90,17 @@ class PropertyRegistry {
   // Called by the Dlfl only.
   void resize(std::size_t n) {
     size_ = n;
-    for (auto& [name, a] : arrays_) a->resize(n);
+    for (auto& [name, a] : arrays_)
+      a->resize(n);
   }
   void reset(std::uint32_t i) {
-    for (auto& [name, a] : arrays_) a->reset(i);
+    for (auto& [name, a] : arrays_)
+      a->reset(i);
   }
   void renumber(const std::vector<std::uint32_t>& new_index, std::size_t new_size) {
     size_ = new_size;
-    for (auto& [name, a] : arrays_) a->renumber(new_index, new_size);
+    for (auto& [name, a] : arrays_)
+      a->renumber(new_index, new_size);
   }
 
  private:
