@@ -1,0 +1,135 @@
+#include "weld.h"
+
+#include <array>
+#include <bit>
+#include <cmath>
+#include <string>
+
+#include "bisturi/scene/errors.h"
+
+namespace bisturi::construction {
+
+namespace {
+
+constexpr std::uint32_t kEmpty = 0xffffffffu;
+
+std::uint64_t mix(std::uint64_t h) {
+  // splitmix64 finaliser: spreads nearby coordinates over the table.
+  h ^= h >> 30;
+  h *= 0xbf58476d1ce4e5b9ull;
+  h ^= h >> 27;
+  h *= 0x94d049bb133111ebull;
+  h ^= h >> 31;
+  return h;
+}
+
+std::uint64_t hash_bits(double x, double y, double z) {
+  // Adding 0.0 turns -0.0 into +0.0 so both hash (and compare) alike.
+  const std::uint64_t a = std::bit_cast<std::uint64_t>(x + 0.0);
+  const std::uint64_t b = std::bit_cast<std::uint64_t>(y + 0.0);
+  const std::uint64_t c = std::bit_cast<std::uint64_t>(z + 0.0);
+  return mix(a ^ mix(b ^ mix(c)));
+}
+
+std::size_t table_size_for(std::size_t n) {
+  std::size_t size = 16;
+  while (size < 2 * n)
+    size *= 2;
+  return size;
+}
+
+}  // namespace
+
+WeldResult weld_exact(std::span<const Dlfl::Vec3> positions) {
+  WeldResult out;
+  out.welded_index.resize(positions.size());
+  const std::size_t size = table_size_for(positions.size());
+  const std::size_t mask = size - 1;
+  std::vector<std::uint32_t> table(size, kEmpty);  // open addressing, linear probing
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    const Dlfl::Vec3& p = positions[i];
+    std::size_t slot = hash_bits(p.x, p.y, p.z) & mask;
+    while (true) {
+      const std::uint32_t kept = table[slot];
+      if (kept == kEmpty) {
+        table[slot] = static_cast<std::uint32_t>(out.positions.size());
+        out.welded_index[i] = table[slot];
+        out.positions.push_back(p);
+        break;
+      }
+      const Dlfl::Vec3& q = out.positions[kept];
+      if (p.x == q.x && p.y == q.y && p.z == q.z) {
+        out.welded_index[i] = kept;
+        break;
+      }
+      slot = (slot + 1) & mask;
+    }
+  }
+  return out;
+}
+
+WeldResult weld_within(std::span<const Dlfl::Vec3> positions, double tolerance) {
+  WeldResult out;
+  out.welded_index.resize(positions.size());
+  const double limit = 9.0e15;  // cell indices stay exact in double and fit in int64
+  auto cell_of = [&](const Dlfl::Vec3& p, std::size_t i) {
+    const double cx = std::floor(p.x / tolerance);
+    const double cy = std::floor(p.y / tolerance);
+    const double cz = std::floor(p.z / tolerance);
+    if (!(std::fabs(cx) < limit && std::fabs(cy) < limit && std::fabs(cz) < limit)) {
+      throw InputError("vertex " + std::to_string(i) +
+                       ": coordinates too large for a weld tolerance of " +
+                       std::to_string(tolerance));
+    }
+    return std::array<std::int64_t, 3>{static_cast<std::int64_t>(cx), static_cast<std::int64_t>(cy),
+                                       static_cast<std::int64_t>(cz)};
+  };
+  auto cell_hash = [](std::int64_t x, std::int64_t y, std::int64_t z) {
+    return mix(static_cast<std::uint64_t>(x) ^
+               mix(static_cast<std::uint64_t>(y) ^ mix(static_cast<std::uint64_t>(z))));
+  };
+  // Cells hold chains of kept vertices: table slot -> first kept vertex, next_in_cell links.
+  const std::size_t size = table_size_for(positions.size());
+  const std::size_t mask = size - 1;
+  std::vector<std::uint32_t> table(size, kEmpty);
+  std::vector<std::array<std::int64_t, 3>> cell_of_slot(size);
+  std::vector<std::uint32_t> next_in_cell;
+  const double tol2 = tolerance * tolerance;
+  auto find_slot = [&](const std::array<std::int64_t, 3>& c) {
+    std::size_t slot = cell_hash(c[0], c[1], c[2]) & mask;
+    while (table[slot] != kEmpty && cell_of_slot[slot] != c)
+      slot = (slot + 1) & mask;
+    return slot;
+  };
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    const Dlfl::Vec3& p = positions[i];
+    const auto c = cell_of(p, i);
+    std::uint32_t found = kEmpty;
+    for (int dz = -1; dz <= 1 && found == kEmpty; ++dz) {
+      for (int dy = -1; dy <= 1 && found == kEmpty; ++dy) {
+        for (int dx = -1; dx <= 1 && found == kEmpty; ++dx) {
+          const std::size_t slot = find_slot({c[0] + dx, c[1] + dy, c[2] + dz});
+          for (std::uint32_t k = table[slot]; k != kEmpty; k = next_in_cell[k]) {
+            const Dlfl::Vec3 d = out.positions[k] - p;
+            if (d.x * d.x + d.y * d.y + d.z * d.z <= tol2) {
+              found = k;
+              break;
+            }
+          }
+        }
+      }
+    }
+    if (found == kEmpty) {
+      found = static_cast<std::uint32_t>(out.positions.size());
+      out.positions.push_back(p);
+      const std::size_t slot = find_slot(c);
+      cell_of_slot[slot] = c;
+      next_in_cell.push_back(table[slot]);
+      table[slot] = found;
+    }
+    out.welded_index[i] = found;
+  }
+  return out;
+}
+
+}  // namespace bisturi::construction

@@ -1,0 +1,25 @@
+#pragma once
+// Internal: procedure 3 of the seed, vertex welding through hashing (linear expected time).
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "bisturi/scene/dlfl.h"
+
+namespace bisturi::construction {
+
+struct WeldResult {
+  std::vector<std::uint32_t> welded_index;  ///< per input vertex: its index among the kept ones
+  std::vector<Dlfl::Vec3> positions;        ///< kept vertices, in order of first appearance
+};
+
+/// Merges vertices with bit-identical coordinates (-0 and +0 are equal).
+WeldResult weld_exact(std::span<const Dlfl::Vec3> positions);
+
+/// Merges each vertex into the first earlier kept vertex within `tolerance` (a grid of cells of
+/// that size; only the 27 cells around a point are searched). Throws InputError when the
+/// coordinates are too large for the tolerance's grid.
+WeldResult weld_within(std::span<const Dlfl::Vec3> positions, double tolerance);
+
+}  // namespace bisturi::construction
