@@ -119,6 +119,13 @@ void Dlfl::reserve(std::size_t n, std::size_t c, std::size_t f, std::size_t e) {
   edges_.reserve(e);
 }
 
+void Dlfl::release_empty_free_lists() {
+  for (auto* list :
+       {&free_vertices_, &free_corners_, &free_faces_, &free_edges_, &free_rotations_}) {
+    if (list->empty()) list->shrink_to_fit();
+  }
+}
+
 std::size_t Dlfl::memory_bytes() const {
   std::size_t bytes =
       corners_.capacity() * sizeof(CornerRecord) + faces_.capacity() * sizeof(FaceRecord) +

@@ -27,9 +27,17 @@ EdgeGroups group_edges(std::span<const std::uint32_t> from, std::span<const std:
   for (std::size_t v = 0; v < vertex_count; ++v) {
     auto first = sorted.begin() + bucket_start[v];
     auto last = sorted.begin() + bucket_start[v + 1];
-    // Stable, so the sides of one edge keep input order (the first face first).
-    std::stable_sort(first, last,
-                     [&](std::uint32_t a, std::uint32_t b) { return other_end(a) < other_end(b); });
+    // Buckets hold a vertex's few edges: an insertion sort, stable so the sides of one edge
+    // keep input order (the first face first), and no allocation.
+    for (auto it = first; it != last; ++it) {
+      const std::uint32_t h = *it;
+      auto hole = it;
+      while (hole != first && other_end(*(hole - 1)) > other_end(h)) {
+        *hole = *(hole - 1);
+        --hole;
+      }
+      *hole = h;
+    }
     for (auto it = first; it != last; ++it) {
       if (it != first && other_end(*it) != other_end(*(it - 1))) {
         g.offsets.push_back(static_cast<std::uint32_t>(g.members.size()));

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <numeric>
-#include <unordered_map>
 
 namespace bisturi::construction {
 
@@ -28,48 +27,45 @@ class UnionFind {
   std::vector<std::uint32_t> parent_;
 };
 
-std::size_t count_duplicate_faces(const KeptFaces& kept) {
-  // Canonical cycle: start at the smallest vertex, in the direction whose second vertex is
-  // smaller, so a face and its reverse compare equal.
-  std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> seen;
+/// The face's corners from its smallest vertex, in the direction whose second vertex is
+/// smaller, so that a face and its reverse (from any start) read alike.
+void canonical_cycle(std::span<const std::uint32_t> face, std::vector<std::uint32_t>& out) {
+  const std::size_t n = face.size();
+  const auto m =
+      static_cast<std::size_t>(std::min_element(face.begin(), face.end()) - face.begin());
+  const bool forward = face[(m + 1) % n] <= face[(m + n - 1) % n];
+  out.clear();
+  for (std::size_t i = 0; i < n; ++i)
+    out.push_back(face[forward ? (m + i) % n : (m + n - i) % n]);
+}
+
+/// Faces with the same vertex cycle as an earlier face. Two such faces share every edge, so the
+/// candidates for a face are the earlier faces on the edge group of its first side: no hashing.
+std::size_t count_duplicate_faces(const KeptFaces& kept, const EdgeGroups& groups) {
   std::size_t duplicates = 0;
-  std::vector<std::uint32_t> canon, other;
+  std::vector<std::uint32_t> mine, theirs;
   const std::size_t nf = kept.offsets.size() - 1;
   for (std::uint32_t f = 0; f < nf; ++f) {
     const std::uint32_t b = kept.offsets[f];
-    const std::size_t n = kept.offsets[f + 1] - b;
-    const auto face = kept.from.subspan(b, n);
-    const std::size_t m =
-        static_cast<std::size_t>(std::min_element(face.begin(), face.end()) - face.begin());
-    canon.clear();
-    const bool forward = face[(m + 1) % n] <= face[(m + n - 1) % n];
-    for (std::size_t i = 0; i < n; ++i)
-      canon.push_back(face[forward ? (m + i) % n : (m + n - i) % n]);
-    std::uint64_t h = 1469598103934665603ull;
-    for (std::uint32_t v : canon)
-      h = (h ^ v) * 1099511628211ull;
-    auto& candidates = seen[h];
-    bool duplicate = false;
-    for (std::uint32_t g : candidates) {
-      const std::uint32_t gb = kept.offsets[g];
-      const std::size_t gn = kept.offsets[g + 1] - gb;
-      if (gn != n) continue;
-      const auto gface = kept.from.subspan(gb, gn);
-      const std::size_t gm =
-          static_cast<std::size_t>(std::min_element(gface.begin(), gface.end()) - gface.begin());
-      const bool gforward = gface[(gm + 1) % n] <= gface[(gm + n - 1) % n];
-      other.clear();
-      for (std::size_t i = 0; i < n; ++i)
-        other.push_back(gface[gforward ? (gm + i) % n : (gm + n - i) % n]);
-      if (other == canon) {
-        duplicate = true;
+    const auto face = kept.from.subspan(b, kept.offsets[f + 1] - b);
+    bool computed = false;
+    for (std::uint32_t side : groups.of(groups.group_of[b])) {
+      const std::uint32_t g = kept.face_of[side];
+      if (g >= f || kept.offsets[g + 1] - kept.offsets[g] != face.size()) continue;
+      // Cheap reject first: a duplicate holds every vertex of the face.
+      const auto other = kept.from.subspan(kept.offsets[g], face.size());
+      if (face.size() <= 16 && !std::all_of(face.begin(), face.end(), [&](std::uint32_t v) {
+            return std::find(other.begin(), other.end(), v) != other.end();
+          })) {
+        continue;
+      }
+      if (!computed) canonical_cycle(face, mine);
+      computed = true;
+      canonical_cycle(kept.from.subspan(kept.offsets[g], face.size()), theirs);
+      if (mine == theirs) {
+        ++duplicates;
         break;
       }
-    }
-    if (duplicate) {
-      ++duplicates;
-    } else {
-      candidates.push_back(f);
     }
   }
   return duplicates;
@@ -123,7 +119,7 @@ void fill_report(const KeptFaces& kept, const EdgeGroups& groups, const Orientat
   report.isolated_vertices = nv - report.vertices;
   report.edges = groups.count();
   report.faces = nf;
-  report.duplicate_faces = count_duplicate_faces(kept);
+  report.duplicate_faces = count_duplicate_faces(kept, groups);
 
   // Parts, one at a time, with stamps instead of clearing per-part arrays.
   std::vector<std::uint32_t> part_offsets(orientation.part_count + 1, 0);

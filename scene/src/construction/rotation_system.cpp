@@ -106,18 +106,27 @@ std::vector<VertexId> insert_rotation_system(Dlfl& dlfl, const RotationSystem& r
                dlfl.edge_capacity() + nh / 2);
 
   // One rotation per fan: the vertex's first fan takes the rotation create_vertex makes.
-  std::vector<std::vector<std::uint32_t>> fans_of(nv);
+  std::vector<std::uint32_t> fan_offsets(nv + 1, 0);  // fans of each vertex (CSR), in fan order
   for (std::uint32_t f = 0; f < nfans; ++f)
-    fans_of[rs.fan_vertex[f]].push_back(f);
+    ++fan_offsets[rs.fan_vertex[f] + 1];
+  for (std::size_t v = 0; v < nv; ++v)
+    fan_offsets[v + 1] += fan_offsets[v];
+  std::vector<std::uint32_t> fans_by_vertex(nfans);
+  {
+    std::vector<std::uint32_t> fill(fan_offsets.begin(), fan_offsets.end() - 1);
+    for (std::uint32_t f = 0; f < nfans; ++f)
+      fans_by_vertex[fill[rs.fan_vertex[f]]++] = f;
+  }
   std::vector<VertexId> vertices(nv);
   std::vector<CornerId> sphere(nfans);
   for (std::size_t v = 0; v < nv; ++v) {
     const VertexId join = options.join_vertices.empty() ? VertexId{} : options.join_vertices[v];
     vertices[v] = join.valid() ? join : dlfl.create_vertex(positions[v]);
-    for (std::size_t i = 0; i < fans_of[v].size(); ++i) {
-      const bool reuse_first = i == 0 && !join.valid();
-      sphere[fans_of[v][i]] = reuse_first ? dlfl.rotation_corner(dlfl.first_rotation(vertices[v]))
-                                          : dlfl.add_rotation(vertices[v]).corner;
+    for (std::uint32_t i = fan_offsets[v]; i < fan_offsets[v + 1]; ++i) {
+      const bool reuse_first = i == fan_offsets[v] && !join.valid();
+      sphere[fans_by_vertex[i]] = reuse_first
+                                      ? dlfl.rotation_corner(dlfl.first_rotation(vertices[v]))
+                                      : dlfl.add_rotation(vertices[v]).corner;
     }
   }
 
@@ -176,8 +185,12 @@ std::vector<VertexId> insert_rotation_system(Dlfl& dlfl, const RotationSystem& r
   for (std::uint32_t h = 0; h < nh; ++h) {
     if (!corner_of[h].valid()) insert(h);
   }
-  for (std::uint32_t k : rs.hole_loops)
+  for (std::uint32_t k : rs.hole_loops) {
     dlfl.set_bounding(dlfl.face(corner_of[k]), true);
+  }
+  // Point spheres merged early leave free face slots that later splits reuse: the list ends
+  // empty but keeps its peak capacity.
+  dlfl.release_empty_free_lists();
   if (options.progress) options.progress(total, total);
   if (corner_of_half_edge != nullptr) *corner_of_half_edge = std::move(corner_of);
   return vertices;

@@ -163,6 +163,8 @@ class Dlfl {
   void compact();
   /// Reserves array space for about n vertices, c corners, f faces and e edges.
   void reserve(std::size_t n, std::size_t c, std::size_t f, std::size_t e);
+  /// Returns the memory of free lists that are empty (a bulk build leaves them so).
+  void release_empty_free_lists();
   /// Bytes held by the structure's arrays (capacity, not size), attributes excluded.
   [[nodiscard]] std::size_t memory_bytes() const;
 
