@@ -259,6 +259,73 @@ TEST(PolygonImport, TorusKeepsGenusOne) {
   EXPECT_EQ(r.report.parts[0].genus, 1);
 }
 
+/// A numbering-free picture of a DLFL: face cycles as vertex sequences (from the smallest),
+/// labels, rotation counts, edge pair counts.
+struct Shape {
+  std::vector<std::pair<std::vector<std::uint32_t>, bool>> faces;
+  std::vector<std::size_t> rotations_per_vertex;
+  std::vector<std::size_t> pairs_per_edge;
+  bool operator==(const Shape&) const = default;
+};
+
+Shape shape_of(const Dlfl& d) {
+  Shape s;
+  for (std::uint32_t f = 0; f < d.face_capacity(); ++f) {
+    if (!d.alive(FaceId(f))) continue;
+    std::vector<std::uint32_t> cycle;
+    for (VertexId v : face_vertices(d, FaceId(f)))
+      cycle.push_back(v.idx);
+    std::rotate(cycle.begin(), std::min_element(cycle.begin(), cycle.end()), cycle.end());
+    s.faces.emplace_back(cycle, d.is_bounding(FaceId(f)));
+  }
+  std::sort(s.faces.begin(), s.faces.end());
+  for (std::uint32_t v = 0; v < d.vertex_capacity(); ++v) {
+    if (d.alive(VertexId(v))) s.rotations_per_vertex.push_back(rotation_count(d, VertexId(v)));
+  }
+  for (std::uint32_t e = 0; e < d.edge_capacity(); ++e) {
+    if (d.alive(EdgeId(e))) s.pairs_per_edge.push_back(d.edge_pair_count(EdgeId(e)));
+  }
+  std::sort(s.pairs_per_edge.begin(), s.pairs_per_edge.end());
+  return s;
+}
+
+TEST(PolygonImport, OneLinearPassBuildsWhatTheOperatorsBuild) {
+  std::vector<PolygonMesh> meshes = {cube_mesh({0, 0, 0}, 1.0), torus_mesh(3, 1, 12, 6, true),
+                                     grid_mesh(4, 3, 1.0, false), tube_mesh(1, 2, 8, 3)};
+  PolygonMesh book;  // an edge in three faces
+  book.positions = {{0, 0, 0}, {0, 0, 1}, {1, 0, 0}, {-1, 0, 0}, {0, 1, 0}};
+  book.add_face({0, 1, 2});
+  book.add_face({1, 0, 3});
+  book.add_face({0, 1, 4});
+  meshes.push_back(book);
+  const PolygonMesh tet = tetrahedron_mesh();
+  PolygonMesh tetras = tet;  // two tetrahedra sharing vertex 0
+  for (std::uint32_t f = 0; f < 4; ++f) {
+    std::vector<std::uint32_t> face;
+    for (std::uint32_t i : tet.face(f))
+      face.push_back(i == 0 ? 0 : i + 3);
+    tetras.add_face(face);
+  }
+  for (std::size_t i = 1; i < 4; ++i)
+    tetras.positions.push_back(-tet.positions[i]);
+  meshes.push_back(tetras);
+  PolygonMesh twice = tet;  // every face twice: edges in four faces
+  for (std::uint32_t f = 0; f < 4; ++f)
+    twice.add_face(tet.face(f));
+  meshes.push_back(twice);
+
+  for (std::size_t i = 0; i < meshes.size(); ++i) {
+    ImportOptions by_operators;
+    by_operators.use_operators = true;
+    const ImportResult fast = import_polygons(meshes[i], true);
+    const ImportResult slow = import_polygons(meshes[i], true, by_operators);
+    expect_faithful(meshes[i], fast);
+    expect_faithful(meshes[i], slow);
+    EXPECT_EQ(shape_of(fast.mesh), shape_of(slow.mesh)) << "mesh " << i;
+    EXPECT_EQ(fast.face_of_input.size(), slow.face_of_input.size());
+  }
+}
+
 TEST(PolygonImport, RefusesUninterpretableInput) {
   PolygonMesh m = tetrahedron_mesh();
   m.indices[3] = 17;

@@ -195,8 +195,11 @@ ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
     };
   }
   std::vector<CornerId> corner_of;
-  const std::vector<VertexId> vertices = construction::insert_rotation_system(
-      result.mesh, rs, welded.positions, insert_options, &corner_of);
+  const std::vector<VertexId> vertices =
+      options.use_operators ? construction::insert_rotation_system(
+                                  result.mesh, rs, welded.positions, insert_options, &corner_of)
+                            : construction::assemble_rotation_system(
+                                  result.mesh, rs, welded.positions, insert_options, &corner_of);
 
   result.vertex_of_input.resize(in.positions.size());
   for (std::size_t v = 0; v < in.positions.size(); ++v) {

@@ -49,4 +49,10 @@ std::vector<VertexId> insert_rotation_system(Dlfl& dlfl, const RotationSystem& r
                                              const InsertOptions& options,
                                              std::vector<CornerId>* corner_of_half_edge = nullptr);
 
+/// The same result as insert_rotation_system() written in one linear pass (no operator calls).
+/// Not for join_vertices (their existing edges are found only by the operators).
+std::vector<VertexId> assemble_rotation_system(
+    Dlfl& dlfl, const RotationSystem& rs, std::span<const Dlfl::Vec3> positions,
+    const InsertOptions& options, std::vector<CornerId>* corner_of_half_edge = nullptr);
+
 }  // namespace bisturi::construction

@@ -67,6 +67,10 @@ struct CornerPair {
   CornerId b;  ///< starts side v2 -> v1
 };
 
+namespace construction {
+class BulkAssembler;
+}
+
 class Dlfl {
  public:
   using Vec3 = glm::dvec3;
@@ -209,6 +213,10 @@ class Dlfl {
   const std::vector<std::uint32_t>& free_list(RotationTag) const { return free_rotations_; }
 
  private:
+  // Builds a whole rotation system in one pass (the fast path of mesh construction); it writes
+  // the arrays directly and is checked against the operator path in the tests.
+  friend class construction::BulkAssembler;
+
   // Element allocation (reuses free slots) and release.
   VertexId new_vertex();
   CornerId new_corner(VertexId v);

@@ -36,6 +36,9 @@ struct ImportOptions {
   bool weld = false;
   /// Greater than zero: weld vertices closer than this distance (model units); implies weld.
   double weld_tolerance = 0.0;
+  /// Insert with the DLFL operators one edge at a time (the seed's procedure 6, literally)
+  /// instead of writing the same final structure in one linear pass.
+  bool use_operators = false;
   /// Called with a stage name and (done, total) while the work is long.
   std::function<void(std::string_view stage, std::size_t done, std::size_t total)> progress;
 };
