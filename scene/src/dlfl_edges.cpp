@@ -48,17 +48,31 @@ Dlfl::Vec3 Dlfl::newell_normal(FaceId f) const {
 
 EdgeId Dlfl::find_edge_in_other_rotations(CornerId c1, CornerId c2) const {
   // Searched through the rotations of the two ends, never through the edge list (section 4.3).
-  auto search = [this](CornerId own, VertexId target) -> EdgeId {
-    const VertexId v = corners_[own.idx].vertex;
-    const RotationId first = vertices_[v.idx].first;
-    if (!rotations_[first.idx].next.valid()) return EdgeId{};
-    const RotationId own_rotation = rotation_of(own);
-    for (RotationId r = first; r.valid(); r = rotations_[r.idx].next) {
-      if (r == own_rotation) continue;
+  const VertexId v1 = corners_[c1.idx].vertex;
+  const VertexId v2 = corners_[c2.idx].vertex;
+  const bool several1 = rotations_[vertices_[v1.idx].first.idx].next.valid();
+  const bool several2 = rotations_[vertices_[v2.idx].first.idx].next.valid();
+  if (!several1 && !several2) return EdgeId{};
+  const RotationId own1 = rotation_of(c1);
+  const RotationId own2 = rotation_of(c2);
+  // An edge that already has a pair in these same two rotations stays a separate (parallel)
+  // edge: one edge node holds at most one pair per pair of rotations.
+  auto has_pair_here = [&](EdgeId e) {
+    for (const CornerPair& p : edge_pairs(e)) {
+      const CornerId at1 = corners_[p.a.idx].vertex == v1 ? p.a : p.b;
+      const CornerId at2 = at1 == p.a ? p.b : p.a;
+      if (rotation_of(at1) == own1 && rotation_of(at2) == own2) return true;
+    }
+    return false;
+  };
+  auto search = [&](VertexId v, RotationId own, VertexId target) -> EdgeId {
+    for (RotationId r = vertices_[v.idx].first; r.valid(); r = rotations_[r.idx].next) {
+      if (r == own) continue;
       const CornerId start = rotations_[r.idx].corner;
       CornerId c = start;
       do {
-        if (!is_point_sphere(c) && corners_[corners_[c.idx].next.idx].vertex == target) {
+        if (!is_point_sphere(c) && corners_[corners_[c.idx].next.idx].vertex == target &&
+            !has_pair_here(corners_[c.idx].edge)) {
           return corners_[c.idx].edge;
         }
         c = rot_next(c);
@@ -66,8 +80,8 @@ EdgeId Dlfl::find_edge_in_other_rotations(CornerId c1, CornerId c2) const {
     }
     return EdgeId{};
   };
-  const EdgeId found = search(c1, corners_[c2.idx].vertex);
-  return found.valid() ? found : search(c2, corners_[c1.idx].vertex);
+  const EdgeId found = several1 ? search(v1, own1, v2) : EdgeId{};
+  return found.valid() || !several2 ? found : search(v2, own2, v1);
 }
 
 InsertEdgeResult Dlfl::insert_edge(CornerId c1, CornerId c2, const InsertEdgeOptions& options) {
