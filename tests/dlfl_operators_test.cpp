@@ -94,9 +94,10 @@ RawState raw_state(const Dlfl& m) {
     s.words.insert(s.words.end(), {e.a.idx, e.b.idx});
   for (const auto& v : m.vertex_records())
     s.words.push_back(v.first.idx);
-  for (const auto& r : m.rotation_records()) {
-    s.words.insert(s.words.end(), {r.corner.idx, r.next.idx});
-  }
+  for (const auto& r : m.rotation_records())
+    s.words.push_back(r.corner.idx);
+  for (const auto& [from, to] : m.rotation_links())
+    s.words.insert(s.words.end(), {from, to});
   for (const auto& [edge, pairs] : m.extra_pair_lists()) {
     s.words.push_back(edge);
     for (const auto& p : pairs)

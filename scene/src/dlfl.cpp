@@ -79,7 +79,7 @@ EdgeId Dlfl::new_edge(CornerPair pair) {
 
 RotationId Dlfl::new_rotation(CornerId corner) {
   RotationId r(take_slot(rotations_, free_rotations_));
-  rotations_[r.idx] = RotationRecord{corner, RotationId{}};
+  rotations_[r.idx] = RotationRecord{corner};
   return r;
 }
 
@@ -100,13 +100,46 @@ void Dlfl::free_edge(EdgeId e) {
 }
 
 void Dlfl::free_rotation(VertexId v, RotationId r) {
-  // Unlink r from v's rotation list.
-  RotationId* link = &vertices_[v.idx].first;
-  while (link->valid() && *link != r)
-    link = &rotations_[link->idx].next;
-  if (link->valid()) *link = rotations_[r.idx].next;
+  const RotationId after = next_rotation(r);
+  if (vertices_[v.idx].first == r) {
+    vertices_[v.idx].first = after;
+  } else {
+    RotationId before = vertices_[v.idx].first;
+    while (next_rotation(before) != r)
+      before = next_rotation(before);
+    set_next_rotation(before, after);
+  }
+  set_next_rotation(r, RotationId{});
   rotations_[r.idx] = RotationRecord{};
   free_rotations_.push_back(r.idx);
+}
+
+RotationId Dlfl::next_rotation(RotationId r) const {
+  if (rotation_links_.empty()) return RotationId{};
+  auto it = std::lower_bound(rotation_links_.begin(), rotation_links_.end(), r.idx,
+                             [](const auto& link, std::uint32_t key) { return link.first < key; });
+  return (it != rotation_links_.end() && it->first == r.idx) ? RotationId(it->second)
+                                                             : RotationId{};
+}
+
+void Dlfl::set_next_rotation(RotationId r, RotationId next) {
+  auto it = std::lower_bound(rotation_links_.begin(), rotation_links_.end(), r.idx,
+                             [](const auto& link, std::uint32_t key) { return link.first < key; });
+  const bool present = it != rotation_links_.end() && it->first == r.idx;
+  if (!next.valid()) {
+    if (present) rotation_links_.erase(it);
+  } else if (present) {
+    it->second = next.idx;
+  } else {
+    rotation_links_.emplace(it, r.idx, next.idx);
+  }
+}
+
+RotationId Dlfl::last_rotation(VertexId v) const {
+  RotationId r = vertices_[v.idx].first;
+  for (RotationId n = next_rotation(r); n.valid(); n = next_rotation(r))
+    r = n;
+  return r;
 }
 
 void Dlfl::reserve(std::size_t n, std::size_t c, std::size_t f, std::size_t e) {
@@ -130,8 +163,9 @@ std::size_t Dlfl::memory_bytes() const {
   std::size_t bytes =
       corners_.capacity() * sizeof(CornerRecord) + faces_.capacity() * sizeof(FaceRecord) +
       edges_.capacity() * sizeof(CornerPair) + vertices_.capacity() * sizeof(VertexRecord) +
-      rotations_.capacity() * sizeof(RotationRecord) + positions_.capacity() * sizeof(Vec3) +
-      bounding_.capacity();
+      rotations_.capacity() * sizeof(RotationRecord) +
+      rotation_links_.capacity() * sizeof(rotation_links_[0]) +
+      positions_.capacity() * sizeof(Vec3) + bounding_.capacity();
   for (const auto& [edge, pairs] : extra_pairs_)
     bytes += pairs.capacity() * sizeof(CornerPair);
   bytes += extra_pairs_.capacity() * sizeof(extra_pairs_[0]);
@@ -234,10 +268,10 @@ CornerId Dlfl::rot_next(CornerId c) const {
 RotationId Dlfl::rotation_of(CornerId c) const {
   const VertexId v = corners_[c.idx].vertex;
   const RotationId first = vertices_[v.idx].first;
-  if (!rotations_[first.idx].next.valid()) return first;
+  if (!next_rotation(first).valid()) return first;
   CornerId x = c;
   do {
-    for (RotationId r = first; r.valid(); r = rotations_[r.idx].next) {
+    for (RotationId r = first; r.valid(); r = next_rotation(r)) {
       if (rotations_[r.idx].corner == x) return r;
     }
     x = rot_next(x);
@@ -261,7 +295,7 @@ VertexId Dlfl::create_vertex(const Vec3& position) {
 void Dlfl::delete_vertex(VertexId v) {
   require(v, "delete_vertex");
   const RotationId r = vertices_[v.idx].first;
-  if (rotations_[r.idx].next.valid()) {
+  if (next_rotation(r).valid()) {
     throw TopologyError("delete_vertex: " + to_string(v) +
                         " has several rotations (call clean_rotations first)");
   }
@@ -299,10 +333,7 @@ AddRotationResult Dlfl::add_rotation(VertexId v) {
   corners_[c.idx].face = f;
   const RotationId r = new_rotation(c);
   // Append so that the first rotation stays first (clean_rotations keeps it).
-  RotationId* link = &vertices_[v.idx].first;
-  while (link->valid())
-    link = &rotations_[link->idx].next;
-  *link = r;
+  set_next_rotation(last_rotation(v), r);
   ++topology_version_;
   return {r, c, f};
 }
@@ -311,7 +342,7 @@ void Dlfl::clean_rotations(VertexId v) {
   require(v, "clean_rotations");
   std::vector<RotationId> point_spheres;
   std::size_t total = 0;
-  for (RotationId r = vertices_[v.idx].first; r.valid(); r = rotations_[r.idx].next) {
+  for (RotationId r = vertices_[v.idx].first; r.valid(); r = next_rotation(r)) {
     ++total;
     if (is_point_sphere(rotations_[r.idx].corner)) point_spheres.push_back(r);
   }
@@ -329,7 +360,7 @@ void Dlfl::clean_rotations(VertexId v) {
 
 void Dlfl::move_rotation_anchor(CornerId gone, CornerId replacement) {
   const VertexId v = corners_[gone.idx].vertex;
-  for (RotationId r = vertices_[v.idx].first; r.valid(); r = rotations_[r.idx].next) {
+  for (RotationId r = vertices_[v.idx].first; r.valid(); r = next_rotation(r)) {
     if (rotations_[r.idx].corner == gone) {
       rotations_[r.idx].corner = replacement;
       return;

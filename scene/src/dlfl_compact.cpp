@@ -3,6 +3,8 @@
 
 #include "bisturi/scene/dlfl.h"
 
+#include <algorithm>
+
 namespace bisturi {
 
 namespace {
@@ -60,7 +62,12 @@ void Dlfl::compact() {
   for (auto& v : vertices_)
     v.first = remap(v.first, rmap);
   for (auto& r : rotations_)
-    r = RotationRecord{remap(r.corner, cmap), remap(r.next, rmap)};
+    r = RotationRecord{remap(r.corner, cmap)};
+  for (auto& [from, to] : rotation_links_) {
+    from = rmap[from];
+    to = rmap[to];
+  }
+  std::sort(rotation_links_.begin(), rotation_links_.end());
   for (auto& [edge, pairs] : extra_pairs_) {
     edge = emap[edge];
     for (auto& p : pairs)

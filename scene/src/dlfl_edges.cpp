@@ -50,8 +50,8 @@ EdgeId Dlfl::find_edge_in_other_rotations(CornerId c1, CornerId c2) const {
   // Searched through the rotations of the two ends, never through the edge list (section 4.3).
   const VertexId v1 = corners_[c1.idx].vertex;
   const VertexId v2 = corners_[c2.idx].vertex;
-  const bool several1 = rotations_[vertices_[v1.idx].first.idx].next.valid();
-  const bool several2 = rotations_[vertices_[v2.idx].first.idx].next.valid();
+  const bool several1 = next_rotation(vertices_[v1.idx].first).valid();
+  const bool several2 = next_rotation(vertices_[v2.idx].first).valid();
   if (!several1 && !several2) return EdgeId{};
   const RotationId own1 = rotation_of(c1);
   const RotationId own2 = rotation_of(c2);
@@ -66,7 +66,7 @@ EdgeId Dlfl::find_edge_in_other_rotations(CornerId c1, CornerId c2) const {
     return false;
   };
   auto search = [&](VertexId v, RotationId own, VertexId target) -> EdgeId {
-    for (RotationId r = vertices_[v.idx].first; r.valid(); r = rotations_[r.idx].next) {
+    for (RotationId r = vertices_[v.idx].first; r.valid(); r = next_rotation(r)) {
       if (r == own) continue;
       const CornerId start = rotations_[r.idx].corner;
       CornerId c = start;

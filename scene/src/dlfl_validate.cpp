@@ -40,7 +40,8 @@ class Validator {
     std::ostringstream out;
     (out << ... << parts);
     report_.problems.push_back(out.str());
-    if (report_.problems.size() == max_) report_.problems.emplace_back("(further problems omitted)");
+    if (report_.problems.size() == max_)
+      report_.problems.emplace_back("(further problems omitted)");
   }
 
   template <class Tag, class IsLive>
@@ -194,7 +195,7 @@ class Validator {
       const VertexId v(i);
       if (!m_.alive(v)) continue;
       std::size_t rotations = 0;
-      for (RotationId r = vs[i].first; r.valid(); r = rs[r.idx].next) {
+      for (RotationId r = vs[i].first; r.valid(); r = m_.next_rotation(r)) {
         if (!m_.alive(r)) {
           problem(to_string(v), " lists dead rotation ", to_string(r));
           break;
@@ -230,6 +231,14 @@ class Validator {
             break;
           }
         } while (c != start);
+      }
+    }
+    const auto& links = m_.rotation_links();
+    for (std::size_t k = 0; k < links.size(); ++k) {
+      if (k > 0 && links[k - 1].first >= links[k].first) problem("rotation links are not sorted");
+      if (!m_.alive(RotationId(links[k].first)) || !m_.alive(RotationId(links[k].second))) {
+        problem("rotation link ", to_string(RotationId(links[k].first)), " -> ",
+                to_string(RotationId(links[k].second)), " names a dead rotation");
       }
     }
     for (std::uint32_t i = 0; i < rs.size(); ++i) {

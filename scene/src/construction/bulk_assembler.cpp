@@ -78,12 +78,14 @@ class BulkAssembler {
     std::vector<RotationId> rotation_of_fan(nfans);
     for (std::uint32_t f = 0; f < nfans; ++f) {
       const RotationId r(static_cast<std::uint32_t>(d.rotations_.size()));
-      d.rotations_.push_back({corner(fan_anchor[f]), RotationId{}});
+      d.rotations_.push_back({corner(fan_anchor[f])});
       rotation_of_fan[f] = r;
-      RotationId* link = &d.vertices_[vertices[rs.fan_vertex[f]].idx].first;
-      while (link->valid())
-        link = &d.rotations_[link->idx].next;
-      *link = r;
+      const VertexId v = vertices[rs.fan_vertex[f]];
+      if (!d.vertices_[v.idx].first.valid()) {
+        d.vertices_[v.idx].first = r;
+      } else {
+        d.set_next_rotation(d.last_rotation(v), r);
+      }
     }
 
     // Edges: one per twin pair; pairs of the same two vertices in different rotations share an

@@ -117,7 +117,7 @@ class Dlfl {
 
   [[nodiscard]] CornerId first_corner(FaceId f) const { return faces_[f.idx].first; }
   [[nodiscard]] RotationId first_rotation(VertexId v) const { return vertices_[v.idx].first; }
-  [[nodiscard]] RotationId next_rotation(RotationId r) const { return rotations_[r.idx].next; }
+  [[nodiscard]] RotationId next_rotation(RotationId r) const;
   /// A corner of rotation r; the others follow by rot_next.
   [[nodiscard]] CornerId rotation_corner(RotationId r) const { return rotations_[r.idx].corner; }
   [[nodiscard]] VertexId rotation_vertex(RotationId r) const { return vertex(rotation_corner(r)); }
@@ -193,8 +193,7 @@ class Dlfl {
     RotationId first;
   };
   struct RotationRecord {
-    CornerId corner;
-    RotationId next;
+    CornerId corner;  ///< the rotation's other corners follow by rot_next
   };
   const std::vector<CornerRecord>& corner_records() const { return corners_; }
   const std::vector<FaceRecord>& face_records() const { return faces_; }
@@ -205,6 +204,11 @@ class Dlfl {
   /// Extra pairs of non-manifold edges, keyed by edge index (the primary pair is in the edge).
   const std::vector<std::pair<std::uint32_t, std::vector<CornerPair>>>& extra_pair_lists() const {
     return extra_pairs_;
+  }
+  /// Rotation list links (rotation -> next rotation of the same vertex), sorted by rotation; only
+  /// vertices with several rotations have any.
+  const std::vector<std::pair<std::uint32_t, std::uint32_t>>& rotation_links() const {
+    return rotation_links_;
   }
   const std::vector<std::uint32_t>& free_list(VertexTag) const { return free_vertices_; }
   const std::vector<std::uint32_t>& free_list(CornerTag) const { return free_corners_; }
@@ -242,6 +246,9 @@ class Dlfl {
   EdgeId find_edge_in_other_rotations(CornerId c1, CornerId c2) const;
   /// Makes sure rotation records of v never name `gone` (about to be freed) as their corner.
   void move_rotation_anchor(CornerId gone, CornerId replacement);
+  void set_next_rotation(RotationId r, RotationId next);
+  /// The last rotation of v's list.
+  RotationId last_rotation(VertexId v) const;
   std::vector<CornerPair>* extra_pairs_of(EdgeId e);
   const std::vector<CornerPair>* extra_pairs_of(EdgeId e) const;
   void remove_pair(EdgeId e, CornerId side);
@@ -257,6 +264,8 @@ class Dlfl {
   std::vector<std::uint8_t> bounding_;  // per face: 1 = labelled boundary face (a ring)
   // Non-manifold edges are rare: their extra pairs live in a small side list, sorted by edge.
   std::vector<std::pair<std::uint32_t, std::vector<CornerPair>>> extra_pairs_;
+  // Next-rotation links are rare too (non-manifold junctions), so rotations store only a corner.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> rotation_links_;
 
   std::vector<std::uint32_t> free_vertices_, free_corners_, free_faces_, free_edges_,
       free_rotations_;
