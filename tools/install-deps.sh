@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs every Debian 12 package bisturi needs to build, run and test. Run as root (or with
 # sudo). Idempotent: packages already present are left alone.
-#   --bench-peers   also install the peer libraries the comparison benchmarks use (OpenMesh)
+#   --bench-peers   also install the peer libraries the comparison benchmarks use (OpenMesh, CGAL)
 set -euo pipefail
 
 packages=(
@@ -9,10 +9,11 @@ packages=(
   libglm-dev                         # vector maths (scene positions)
   libcli11-dev nlohmann-json3-dev    # command line, JSON reports
   libgtest-dev libgmock-dev          # tests
+  clang libclang-rt-14-dev           # fuzz tests of the mesh readers (libFuzzer, sanitizers)
   libbenchmark-dev                   # benchmarks in tools/bench
 )
 if [[ "${1:-}" == "--bench-peers" ]]; then
-  packages+=(libopenmesh-dev)
+  packages+=(libopenmesh-dev libcgal-dev)
 fi
 
 missing=()

@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "bisturi/runtime/version.h"
+#include "mesh_command.h"
 #include "mesh_demo.h"
 
 namespace {
@@ -26,12 +27,17 @@ int run(int argc, char** argv) {
   demo_cmd->add_flag("--json", demo.json, "write the statistics as one JSON object on stdout");
   demo_cmd->add_flag("--quiet", demo.quiet, "no progress line");
 
+  bisturi::cli::MeshOptions mesh;
+  int (*run_mesh)(const bisturi::cli::MeshOptions&) = nullptr;
+  bisturi::cli::add_mesh_command(app, mesh, run_mesh);
+
   CLI11_PARSE(app, argc, argv);
   if (version) {
     std::cout << "bisturi " << bisturi::kVersion << " (" << bisturi::kBuildType << ")\n";
     return 0;
   }
   if (demo_cmd->parsed()) return bisturi::cli::run_mesh_demo(demo);
+  if (run_mesh != nullptr) return run_mesh(mesh);
   std::cout << app.help();
   return 0;
 }

@@ -1,0 +1,21 @@
+#pragma once
+// The faces of a Dlfl as a plain polygon list (for writers and renderers): every unlabelled face
+// with at least three corners, in face order; labelled faces (holes) and point spheres are not
+// polygons. Vertices are numbered densely in vertex-handle order.
+
+#include <vector>
+
+#include "bisturi/scene/dlfl.h"
+#include "bisturi/scene/oriented_builder.h"
+
+namespace bisturi {
+
+struct ExportedPolygons {
+  PolygonMesh polygons;
+  std::vector<FaceId> face_of_polygon;       ///< the DLFL face of each polygon
+  std::vector<VertexId> vertex_of_position;  ///< the DLFL vertex of each position
+};
+
+ExportedPolygons export_polygons(const Dlfl& mesh);
+
+}  // namespace bisturi
