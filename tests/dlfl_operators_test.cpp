@@ -109,7 +109,7 @@ RawState raw_state(const Dlfl& m) {
     s.words.push_back(static_cast<std::uint32_t>(list->size()));
     s.words.insert(s.words.end(), list->begin(), list->end());
   }
-  s.labels = m.bounding_labels();
+  s.labels.assign(m.bounding_labels().begin(), m.bounding_labels().end());
   for (const auto& p : m.positions())
     s.coordinates.insert(s.coordinates.end(), {p.x, p.y, p.z});
   s.version = m.topology_version();

@@ -268,7 +268,7 @@ RawState raw_state(const Dlfl& m) {
   add_free(m.free_list(FaceTag{}));
   add_free(m.free_list(EdgeTag{}));
   add_free(m.free_list(RotationTag{}));
-  s.labels = m.bounding_labels();
+  s.labels.assign(m.bounding_labels().begin(), m.bounding_labels().end());
   for (const auto& p : m.positions())
     s.coordinates.insert(s.coordinates.end(), {p.x, p.y, p.z});
   s.version = m.topology_version();

@@ -11,8 +11,8 @@ namespace bisturi {
 
 namespace {
 
-template <class Record>
-std::uint32_t take_slot(std::vector<Record>& records, std::vector<std::uint32_t>& free_list) {
+template <class Records>
+std::uint32_t take_slot(Records& records, std::vector<std::uint32_t>& free_list) {
   if (!free_list.empty()) {
     std::uint32_t i = free_list.back();
     free_list.pop_back();

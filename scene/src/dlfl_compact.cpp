@@ -20,10 +20,9 @@ std::size_t dense_numbering(std::size_t capacity, Alive alive, std::vector<std::
   return next;
 }
 
-template <class Record>
-void move_records(std::vector<Record>& records, const std::vector<std::uint32_t>& new_index,
-                  std::size_t live) {
-  std::vector<Record> out(live);
+template <class Records>
+void move_records(Records& records, const std::vector<std::uint32_t>& new_index, std::size_t live) {
+  Records out(live);
   for (std::size_t i = 0; i < records.size(); ++i) {
     if (new_index[i] != kInvalidIndex) out[new_index[i]] = records[i];
   }

@@ -110,26 +110,28 @@ ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
                  ? construction::weld_within(in.positions, options.weld_tolerance)
                  : construction::weld_exact(in.positions);
   } else {
-    welded.positions = in.positions;
     welded.welded_index.resize(in.positions.size());
     for (std::uint32_t v = 0; v < in.positions.size(); ++v)
       welded.welded_index[v] = v;
   }
-  report.welded_vertices = in.positions.size() - welded.positions.size();
+  // Without welding the input positions serve as they are (no copy).
+  const std::span<const Dlfl::Vec3> positions = weld ? std::span<const Dlfl::Vec3>(welded.positions)
+                                                     : std::span<const Dlfl::Vec3>(in.positions);
+  report.welded_vertices = in.positions.size() - positions.size();
 
   // Degenerate faces are dropped and listed; the rest keep their corners.
-  std::vector<std::uint32_t> offsets{0};
-  std::vector<std::uint32_t> from;
-  std::vector<std::uint32_t> kept_input_face;
+  BigVector<std::uint32_t> offsets{0};
+  BigVector<std::uint32_t> from;
+  BigVector<std::uint32_t> kept_input_face;
   from.reserve(in.indices.size());
   offsets.reserve(in.face_count() + 1);
   kept_input_face.reserve(in.face_count());
-  std::vector<std::uint32_t> face;
+  BigVector<std::uint32_t> face;
   for (std::uint32_t f = 0; f < in.face_count(); ++f) {
     face.clear();
     for (std::uint32_t i : in.face(f))
       face.push_back(welded.welded_index[i]);
-    if (const auto reason = degenerate(face, welded.positions)) {
+    if (const auto reason = degenerate(face, positions)) {
       report.dropped.push_back({f, *reason});
       continue;
     }
@@ -139,7 +141,7 @@ ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
   }
   const std::size_t nh = from.size();
   const std::size_t nf = offsets.size() - 1;
-  std::vector<std::uint32_t> to(nh), face_of(nh);
+  BigVector<std::uint32_t> to(nh), face_of(nh);
   for (std::uint32_t f = 0; f < nf; ++f) {
     for (std::uint32_t h = offsets[f]; h < offsets[f + 1]; ++h) {
       to[h] = from[h + 1 == offsets[f + 1] ? offsets[f] : h + 1];
@@ -149,12 +151,11 @@ ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
 
   // Procedure 4: orientation, parts, seams; procedure 5: fans and the report.
   progress("orient", 0, nf);
-  const construction::EdgeGroups groups =
-      construction::group_edges(from, to, welded.positions.size());
+  const construction::EdgeGroups groups = construction::group_edges(from, to, positions.size());
   const construction::Orientation orientation =
       construction::orient_faces(offsets, from, face_of, groups);
-  construction::fill_report({offsets, from, to, face_of, welded.positions.size()}, groups,
-                            orientation, report);
+  construction::fill_report({offsets, from, to, face_of, positions.size()}, groups, orientation,
+                            report);
   report.flipped_faces =
       static_cast<std::size_t>(std::count(orientation.flip.begin(), orientation.flip.end(), 1));
   report.seam_edges = orientation.seam_count;
@@ -162,7 +163,7 @@ ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
   // The oriented polygons: a flipped face lists its corners backwards. Side h (local i of a
   // face of n corners) runs backwards as the side starting at local (n - 2 - i) mod n.
   construction::RotationSystem rs;
-  std::vector<std::uint32_t> oriented(nh), position_of(nh);
+  BigVector<std::uint32_t> oriented(nh), position_of(nh);
   for (std::uint32_t f = 0; f < nf; ++f) {
     const std::uint32_t b = offsets[f];
     const std::uint32_t n = offsets[f + 1] - b;
@@ -194,12 +195,12 @@ ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
       options.progress("insert", done, total);
     };
   }
-  std::vector<CornerId> corner_of;
+  BigVector<CornerId> corner_of;
   const std::vector<VertexId> vertices =
-      options.use_operators ? construction::insert_rotation_system(
-                                  result.mesh, rs, welded.positions, insert_options, &corner_of)
-                            : construction::assemble_rotation_system(
-                                  result.mesh, rs, welded.positions, insert_options, &corner_of);
+      options.use_operators ? construction::insert_rotation_system(result.mesh, rs, positions,
+                                                                   insert_options, &corner_of)
+                            : construction::assemble_rotation_system(result.mesh, rs, positions,
+                                                                     insert_options, &corner_of);
 
   result.vertex_of_input.resize(in.positions.size());
   for (std::size_t v = 0; v < in.positions.size(); ++v) {

@@ -4,13 +4,14 @@
 #include <cstdint>
 #include <span>
 #include <vector>
+#include "bisturi/scene/big_vector.h"
 
 namespace bisturi::construction {
 
 struct EdgeGroups {
-  std::vector<std::uint32_t> group_of;  ///< per half-edge
-  std::vector<std::uint32_t> offsets;   ///< CSR over groups
-  std::vector<std::uint32_t> members;   ///< half-edges, group by group
+  BigVector<std::uint32_t> group_of;  ///< per half-edge
+  BigVector<std::uint32_t> offsets;   ///< CSR over groups
+  BigVector<std::uint32_t> members;   ///< half-edges, group by group
 
   [[nodiscard]] std::size_t count() const { return offsets.size() - 1; }
   [[nodiscard]] std::size_t size(std::uint32_t g) const { return offsets[g + 1] - offsets[g]; }

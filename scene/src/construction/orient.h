@@ -7,16 +7,17 @@
 #include <cstdint>
 #include <span>
 #include <vector>
+#include "bisturi/scene/big_vector.h"
 
 #include "edge_groups.h"
 
 namespace bisturi::construction {
 
 struct Orientation {
-  std::vector<char> flip;  ///< per face: reverse it
-  std::vector<std::uint32_t> part_of_face;
-  std::vector<char> seam;             ///< per edge group
-  std::vector<char> part_orientable;  ///< per part
+  BigVector<char> flip;  ///< per face: reverse it
+  BigVector<std::uint32_t> part_of_face;
+  BigVector<char> seam;             ///< per edge group
+  BigVector<char> part_orientable;  ///< per part
   std::size_t part_count = 0;
   std::size_t seam_count = 0;
 };

@@ -4,14 +4,15 @@
 #include <cstdint>
 #include <span>
 #include <vector>
+#include "bisturi/scene/big_vector.h"
 
 #include "bisturi/scene/dlfl.h"
 
 namespace bisturi::construction {
 
 struct WeldResult {
-  std::vector<std::uint32_t> welded_index;  ///< per input vertex: its index among the kept ones
-  std::vector<Dlfl::Vec3> positions;        ///< kept vertices, in order of first appearance
+  BigVector<std::uint32_t> welded_index;  ///< per input vertex: its index among the kept ones
+  BigVector<Dlfl::Vec3> positions;        ///< kept vertices, in order of first appearance
 };
 
 /// Merges vertices with bit-identical coordinates (-0 and +0 are equal).

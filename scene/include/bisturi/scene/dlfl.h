@@ -23,6 +23,7 @@
 
 #include <glm/vec3.hpp>
 
+#include "bisturi/scene/big_vector.h"
 #include "bisturi/scene/handles.h"
 #include "bisturi/scene/property.h"
 
@@ -132,8 +133,8 @@ class Dlfl {
 
   const Vec3& position(VertexId v) const { return positions_[v.idx]; }
   void set_position(VertexId v, const Vec3& p) { positions_[v.idx] = p; }
-  std::vector<Vec3>& positions() { return positions_; }
-  const std::vector<Vec3>& positions() const { return positions_; }
+  BigVector<Vec3>& positions() { return positions_; }
+  const BigVector<Vec3>& positions() const { return positions_; }
 
   // ---- Liveness and sizes ----
   [[nodiscard]] bool alive(VertexId v) const;
@@ -195,12 +196,12 @@ class Dlfl {
   struct RotationRecord {
     CornerId corner;  ///< the rotation's other corners follow by rot_next
   };
-  const std::vector<CornerRecord>& corner_records() const { return corners_; }
-  const std::vector<FaceRecord>& face_records() const { return faces_; }
-  const std::vector<CornerPair>& edge_records() const { return edges_; }
-  const std::vector<VertexRecord>& vertex_records() const { return vertices_; }
-  const std::vector<RotationRecord>& rotation_records() const { return rotations_; }
-  const std::vector<std::uint8_t>& bounding_labels() const { return bounding_; }
+  const BigVector<CornerRecord>& corner_records() const { return corners_; }
+  const BigVector<FaceRecord>& face_records() const { return faces_; }
+  const BigVector<CornerPair>& edge_records() const { return edges_; }
+  const BigVector<VertexRecord>& vertex_records() const { return vertices_; }
+  const BigVector<RotationRecord>& rotation_records() const { return rotations_; }
+  const BigVector<std::uint8_t>& bounding_labels() const { return bounding_; }
   /// Extra pairs of non-manifold edges, keyed by edge index (the primary pair is in the edge).
   const std::vector<std::pair<std::uint32_t, std::vector<CornerPair>>>& extra_pair_lists() const {
     return extra_pairs_;
@@ -255,13 +256,13 @@ class Dlfl {
   Vec3 newell_normal(FaceId f) const;
   DeleteEdgeResult delete_pair(EdgeId e, CornerPair pair);
 
-  std::vector<CornerRecord> corners_;
-  std::vector<FaceRecord> faces_;
-  std::vector<CornerPair> edges_;  // primary pair; a.valid() == false marks a deleted edge
-  std::vector<VertexRecord> vertices_;
-  std::vector<RotationRecord> rotations_;
-  std::vector<Vec3> positions_;
-  std::vector<std::uint8_t> bounding_;  // per face: 1 = labelled boundary face (a ring)
+  BigVector<CornerRecord> corners_;
+  BigVector<FaceRecord> faces_;
+  BigVector<CornerPair> edges_;  // primary pair; a.valid() == false marks a deleted edge
+  BigVector<VertexRecord> vertices_;
+  BigVector<RotationRecord> rotations_;
+  BigVector<Vec3> positions_;
+  BigVector<std::uint8_t> bounding_;  // per face: 1 = labelled boundary face (a ring)
   // Non-manifold edges are rare: their extra pairs live in a small side list, sorted by edge.
   std::vector<std::pair<std::uint32_t, std::vector<CornerPair>>> extra_pairs_;
   // Next-rotation links are rare too (non-manifold junctions), so rotations store only a corner.

@@ -1,0 +1,58 @@
+#pragma once
+// BigVector: std::vector for the large arrays of meshes and of their construction. Blocks of
+// 4 MiB and more are 2 MiB aligned and advised as transparent huge pages, so filling a fresh
+// array costs one page fault per 2 MiB instead of one per 4 KiB. On the virtual machines we
+// measured, a page fault costs about 11 us: a 2M-triangle import spent most of its time in them.
+// Smaller blocks come from operator new as usual.
+
+#include <sys/mman.h>
+
+#include <cstddef>
+#include <cstdlib>
+#include <new>
+#include <vector>
+
+namespace bisturi {
+
+template <class T>
+class HugePageAllocator {
+ public:
+  using value_type = T;
+
+  HugePageAllocator() noexcept = default;
+  template <class U>
+  HugePageAllocator(const HugePageAllocator<U>& /*other*/) noexcept {}
+
+  T* allocate(std::size_t n) {
+    const std::size_t bytes = n * sizeof(T);
+    if (bytes < kThreshold) return static_cast<T*>(::operator new(bytes));
+    const std::size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
+    void* p = std::aligned_alloc(kHugePage, rounded);
+    if (p == nullptr) throw std::bad_alloc();
+    // Advice only: where huge pages are off, this fails harmlessly and 4 KiB pages are used.
+    (void)madvise(p, rounded, MADV_HUGEPAGE);
+    return static_cast<T*>(p);
+  }
+
+  void deallocate(T* p, std::size_t n) noexcept {
+    if (n * sizeof(T) < kThreshold) {
+      ::operator delete(p);
+    } else {
+      std::free(p);
+    }
+  }
+
+  template <class U>
+  bool operator==(const HugePageAllocator<U>& /*other*/) const noexcept {
+    return true;
+  }
+
+ private:
+  static constexpr std::size_t kHugePage = std::size_t{2} << 20;
+  static constexpr std::size_t kThreshold = std::size_t{4} << 20;
+};
+
+template <class T>
+using BigVector = std::vector<T, HugePageAllocator<T>>;
+
+}  // namespace bisturi
