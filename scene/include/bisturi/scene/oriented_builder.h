@@ -24,9 +24,9 @@ namespace bisturi {
 
 /// Polygons as one index array with offsets (face i is indices[offsets[i] .. offsets[i+1])).
 struct PolygonMesh {
-  std::vector<Dlfl::Vec3> positions;
-  std::vector<std::uint32_t> indices;
-  std::vector<std::uint32_t> offsets{0};
+  BigVector<Dlfl::Vec3> positions;
+  BigVector<std::uint32_t> indices;
+  BigVector<std::uint32_t> offsets{0};
 
   void add_face(std::initializer_list<std::uint32_t> face);
   void add_face(std::span<const std::uint32_t> face);
