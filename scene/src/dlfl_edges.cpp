@@ -20,6 +20,22 @@ void Dlfl::assign_face(CornerId start, FaceId f) {
   } while (c != start);
 }
 
+std::pair<FaceId, FaceId> Dlfl::split_face(FaceId f, CornerId a, CornerId b) {
+  const bool a_shorter = first_cycle_is_shorter(a, b);
+  const CornerId short_start = a_shorter ? a : b;
+  const FaceId fresh = new_face(short_start);
+  assign_face(short_start, fresh);
+  faces_[f.idx].first = a_shorter ? b : a;
+  return a_shorter ? std::pair(fresh, f) : std::pair(f, fresh);
+}
+
+void Dlfl::absorb_face(FaceId kept, FaceId gone, CornerId from, CornerId until) {
+  for (CornerId c = from; c != until; c = corners_[c.idx].next)
+    corners_[c.idx].face = kept;
+  faces_[kept.idx].first = until;
+  free_face(gone);
+}
+
 bool Dlfl::first_cycle_is_shorter(CornerId a, CornerId b) const {
   CornerId x = a;
   CornerId y = b;
@@ -167,18 +183,10 @@ InsertEdgeResult Dlfl::insert_edge(CornerId c1, CornerId c2, const InsertEdgeOpt
   result.joined_existing = existing.valid();
 
   if (split) {
-    // Cycle through c2 is f1' (forward), cycle through c1 is f1'' (backward). The shorter one
-    // takes a new face; the longer keeps f1.
+    // Cycle through c2 is f1' (forward), cycle through c1 is f1'' (backward).
     corners_[x1.idx].face = f1;
     corners_[x2.idx].face = f1;
-    const bool forward_shorter = first_cycle_is_shorter(c2, c1);
-    const CornerId short_start = forward_shorter ? c2 : c1;
-    const CornerId long_start = forward_shorter ? c1 : c2;
-    const FaceId fresh = new_face(short_start);
-    assign_face(short_start, fresh);
-    faces_[f1.idx].first = long_start;
-    const FaceId forward = forward_shorter ? fresh : f1;
-    const FaceId backward = forward_shorter ? f1 : fresh;
+    const auto [forward, backward] = split_face(f1, c2, c1);
     const std::uint8_t label = bounding_[f1.idx];
     bounding_[forward.idx] = options.label_side == LabelSide::Forward ? label : 0;
     bounding_[backward.idx] = options.label_side == LabelSide::Backward ? label : 0;
@@ -187,15 +195,11 @@ InsertEdgeResult Dlfl::insert_edge(CornerId c1, CornerId c2, const InsertEdgeOpt
   } else {
     const FaceId kept = f1_shorter ? f2 : f1;
     const FaceId gone = f1_shorter ? f1 : f2;
+    bounding_[kept.idx] = (bounding_[f1.idx] || bounding_[f2.idx]) ? 1 : 0;
     // The renamed corners run from the absorbed face's corner up to the kept face's corner.
-    const CornerId from = f1_shorter ? c1 : c2;
-    const CornerId until = f1_shorter ? c2 : c1;
-    for (CornerId c = from; c != until; c = corners_[c.idx].next)
-      corners_[c.idx].face = kept;
+    absorb_face(kept, gone, f1_shorter ? c1 : c2, f1_shorter ? c2 : c1);
     corners_[x1.idx].face = kept;
     corners_[x2.idx].face = kept;
-    bounding_[kept.idx] = (bounding_[f1.idx] || bounding_[f2.idx]) ? 1 : 0;
-    free_face(gone);
     result.face_forward = kept;
     result.face_backward = kept;
   }
@@ -290,27 +294,17 @@ DeleteEdgeResult Dlfl::delete_pair(EdgeId e, CornerPair pair) {
   free_corner(b);
   if (same) {
     // f = delta v1 v2 gamma v2 v1 splits into (delta v1) through nb and (gamma v2) through na.
-    const bool nb_shorter = first_cycle_is_shorter(nb, na);
-    const CornerId short_start = nb_shorter ? nb : na;
-    const CornerId long_start = nb_shorter ? na : nb;
-    faces_[fa.idx].first = long_start;
-    const FaceId fresh = new_face(short_start);
-    assign_face(short_start, fresh);
-    bounding_[fa.idx] = label;
-    bounding_[fresh.idx] = label;
-    result.face_a = corners_[nb.idx].face;
-    result.face_b = corners_[na.idx].face;
+    const auto [through_nb, through_na] = split_face(fa, nb, na);
+    bounding_[through_nb.idx] = label;
+    bounding_[through_na.idx] = label;
+    result.face_a = through_nb;
+    result.face_b = through_na;
   } else {
     const FaceId kept = fa_shorter ? fb : fa;
     const FaceId gone = fa_shorter ? fa : fb;
-    // After the splice the absorbed face's corners run from its first survivor to the kept one.
-    const CornerId from = fa_shorter ? na : nb;
-    const CornerId until = fa_shorter ? nb : na;
-    for (CornerId c = from; c != until; c = corners_[c.idx].next)
-      corners_[c.idx].face = kept;
-    faces_[kept.idx].first = from;
     bounding_[kept.idx] = label;
-    free_face(gone);
+    // After the splice the absorbed face's corners run from its first survivor to the kept one.
+    absorb_face(kept, gone, fa_shorter ? na : nb, fa_shorter ? nb : na);
     result.face_a = kept;
     result.face_b = kept;
   }

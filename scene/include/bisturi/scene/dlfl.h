@@ -241,6 +241,11 @@ class Dlfl {
 
   /// Sets face f on every corner of the cycle starting at c.
   void assign_face(CornerId start, FaceId f);
+  /// After a splice left face f as two cycles (through a and through b): the shorter cycle gets a
+  /// new face. Returns the faces of (a's cycle, b's cycle). Costs the shorter cycle's length.
+  std::pair<FaceId, FaceId> split_face(FaceId f, CornerId a, CornerId b);
+  /// After a splice joined two faces: renames the run [from, until) to `kept`, frees `gone`.
+  void absorb_face(FaceId kept, FaceId gone, CornerId from, CornerId until);
   /// Walks the cycles of a and b in lockstep; returns true when a's cycle is the shorter one.
   bool first_cycle_is_shorter(CornerId a, CornerId b) const;
   /// An edge joining v1 and v2 in a rotation other than those of c1 (at v1) and c2 (at v2).

@@ -94,7 +94,7 @@ struct ImportResult {
 
 /// Builds the DLFL of any polygon mesh. Throws InputError (naming the face or vertex) only for
 /// input that cannot be interpreted: an index out of range or a non-finite coordinate.
-ImportResult import_polygons(const PolygonMesh& polygons, bool has_vertex_list,
+ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
                              const ImportOptions& options = {});
 
 }  // namespace bisturi
