@@ -49,7 +49,7 @@ class HugePageAllocator {
 
  private:
   static constexpr std::size_t kHugePage = std::size_t{2} << 20;
-  static constexpr std::size_t kThreshold = std::size_t{4} << 20;
+  static constexpr std::size_t kThreshold = std::size_t{1} << 20;
 };
 
 template <class T>
