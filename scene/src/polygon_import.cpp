@@ -120,13 +120,13 @@ ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
   report.welded_vertices = in.positions.size() - positions.size();
 
   // Degenerate faces are dropped and listed; the rest keep their corners.
-  BigVector<std::uint32_t> offsets{0};
-  BigVector<std::uint32_t> from;
-  BigVector<std::uint32_t> kept_input_face;
+  ScratchVector<std::uint32_t> offsets{0};
+  ScratchVector<std::uint32_t> from;
+  ScratchVector<std::uint32_t> kept_input_face;
   from.reserve(in.indices.size());
   offsets.reserve(in.face_count() + 1);
   kept_input_face.reserve(in.face_count());
-  BigVector<std::uint32_t> face;
+  ScratchVector<std::uint32_t> face;
   for (std::uint32_t f = 0; f < in.face_count(); ++f) {
     face.clear();
     for (std::uint32_t i : in.face(f))
@@ -141,7 +141,7 @@ ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
   }
   const std::size_t nh = from.size();
   const std::size_t nf = offsets.size() - 1;
-  BigVector<std::uint32_t> to(nh), face_of(nh);
+  ScratchVector<std::uint32_t> to(nh), face_of(nh);
   for (std::uint32_t f = 0; f < nf; ++f) {
     for (std::uint32_t h = offsets[f]; h < offsets[f + 1]; ++h) {
       to[h] = from[h + 1 == offsets[f + 1] ? offsets[f] : h + 1];
@@ -163,7 +163,7 @@ ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
   // The oriented polygons: a flipped face lists its corners backwards. Side h (local i of a
   // face of n corners) runs backwards as the side starting at local (n - 2 - i) mod n.
   construction::RotationSystem rs;
-  BigVector<std::uint32_t> oriented(nh), position_of(nh);
+  ScratchVector<std::uint32_t> oriented(nh), position_of(nh);
   for (std::uint32_t f = 0; f < nf; ++f) {
     const std::uint32_t b = offsets[f];
     const std::uint32_t n = offsets[f + 1] - b;
@@ -195,7 +195,7 @@ ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
       options.progress("insert", done, total);
     };
   }
-  BigVector<CornerId> corner_of;
+  ScratchVector<CornerId> corner_of;
   const std::vector<VertexId> vertices =
       options.use_operators ? construction::insert_rotation_system(result.mesh, rs, positions,
                                                                    insert_options, &corner_of)

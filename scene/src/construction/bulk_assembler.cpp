@@ -15,14 +15,14 @@ class BulkAssembler {
   static std::vector<VertexId> run(Dlfl& d, const RotationSystem& rs,
                                    std::span<const Dlfl::Vec3> positions,
                                    const InsertOptions& options,
-                                   BigVector<CornerId>* corner_of_half_edge) {
+                                   ScratchVector<CornerId>* corner_of_half_edge) {
     const std::size_t nv = positions.size();
     const auto nh = static_cast<std::uint32_t>(rs.from.size());
     const std::size_t nfans = rs.fan_vertex.size();
 
     // Vertices: new ones are appended; joined ones keep their handle.
     std::vector<VertexId> vertices(nv);
-    BigVector<std::uint32_t> fan_count(nv, 0);
+    ScratchVector<std::uint32_t> fan_count(nv, 0);
     for (std::uint32_t vertex : rs.fan_vertex)
       ++fan_count[vertex];
     for (std::size_t v = 0; v < nv; ++v) {
@@ -52,7 +52,7 @@ class BulkAssembler {
     d.corner_props_.resize(d.corners_.size());
 
     // Faces: one per next-cycle; hole loops are labelled.
-    BigVector<char> is_hole_start(nh, 0);
+    ScratchVector<char> is_hole_start(nh, 0);
     for (std::uint32_t k : rs.hole_loops)
       is_hole_start[k] = 1;
     for (std::uint32_t h = 0; h < nh; ++h) {
@@ -71,7 +71,7 @@ class BulkAssembler {
     d.face_props_.resize(d.faces_.size());
 
     // Rotations: one per fan, anchored at the fan's first half-edge, listed in fan order.
-    BigVector<std::uint32_t> fan_anchor(nfans, kNone);
+    ScratchVector<std::uint32_t> fan_anchor(nfans, kNone);
     for (std::uint32_t h = 0; h < nh; ++h) {
       if (fan_anchor[rs.fan[h]] == kNone) fan_anchor[rs.fan[h]] = h;
     }
@@ -162,7 +162,7 @@ class BulkAssembler {
 std::vector<VertexId> assemble_rotation_system(Dlfl& dlfl, const RotationSystem& rs,
                                                std::span<const Dlfl::Vec3> positions,
                                                const InsertOptions& options,
-                                               BigVector<CornerId>* corner_of_half_edge) {
+                                               ScratchVector<CornerId>* corner_of_half_edge) {
   return BulkAssembler::run(dlfl, rs, positions, options, corner_of_half_edge);
 }
 

@@ -7,14 +7,14 @@ namespace bisturi::construction {
 EdgeGroups group_edges(std::span<const std::uint32_t> from, std::span<const std::uint32_t> to,
                        std::size_t vertex_count) {
   const std::size_t nh = from.size();
-  BigVector<std::uint32_t> bucket_start(vertex_count + 1, 0);
+  ScratchVector<std::uint32_t> bucket_start(vertex_count + 1, 0);
   for (std::size_t h = 0; h < nh; ++h)
     ++bucket_start[std::min(from[h], to[h]) + 1];
   for (std::size_t v = 0; v < vertex_count; ++v)
     bucket_start[v + 1] += bucket_start[v];
-  BigVector<std::uint32_t> sorted(nh);
+  ScratchVector<std::uint32_t> sorted(nh);
   {
-    BigVector<std::uint32_t> fill(bucket_start.begin(), bucket_start.end() - 1);
+    ScratchVector<std::uint32_t> fill(bucket_start.begin(), bucket_start.end() - 1);
     for (std::uint32_t h = 0; h < nh; ++h)
       sorted[fill[std::min(from[h], to[h])]++] = h;
   }

@@ -9,9 +9,9 @@
 namespace bisturi::construction {
 
 struct EdgeGroups {
-  BigVector<std::uint32_t> group_of;  ///< per half-edge
-  BigVector<std::uint32_t> offsets;   ///< CSR over groups
-  BigVector<std::uint32_t> members;   ///< half-edges, group by group
+  ScratchVector<std::uint32_t> group_of;  ///< per half-edge
+  ScratchVector<std::uint32_t> offsets;   ///< CSR over groups
+  ScratchVector<std::uint32_t> members;   ///< half-edges, group by group
 
   [[nodiscard]] std::size_t count() const { return offsets.size() - 1; }
   [[nodiscard]] std::size_t size(std::uint32_t g) const { return offsets[g + 1] - offsets[g]; }

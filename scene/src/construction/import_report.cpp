@@ -24,12 +24,12 @@ class UnionFind {
   }
 
  private:
-  BigVector<std::uint32_t> parent_;
+  ScratchVector<std::uint32_t> parent_;
 };
 
 /// The face's corners from its smallest vertex, in the direction whose second vertex is
 /// smaller, so that a face and its reverse (from any start) read alike.
-void canonical_cycle(std::span<const std::uint32_t> face, BigVector<std::uint32_t>& out) {
+void canonical_cycle(std::span<const std::uint32_t> face, ScratchVector<std::uint32_t>& out) {
   const std::size_t n = face.size();
   const auto m =
       static_cast<std::size_t>(std::min_element(face.begin(), face.end()) - face.begin());
@@ -43,7 +43,7 @@ void canonical_cycle(std::span<const std::uint32_t> face, BigVector<std::uint32_
 /// candidates for a face are the earlier faces on the edge group of its first side: no hashing.
 std::size_t count_duplicate_faces(const KeptFaces& kept, const EdgeGroups& groups) {
   std::size_t duplicates = 0;
-  BigVector<std::uint32_t> mine, theirs;
+  ScratchVector<std::uint32_t> mine, theirs;
   const std::size_t nf = kept.offsets.size() - 1;
   for (std::uint32_t f = 0; f < nf; ++f) {
     const std::uint32_t b = kept.offsets[f];
@@ -97,11 +97,11 @@ void fill_report(const KeptFaces& kept, const EdgeGroups& groups, const Orientat
       fans.join(next(h), k);
     }
   }
-  BigVector<std::uint32_t> fan_count(nv, 0);
+  ScratchVector<std::uint32_t> fan_count(nv, 0);
   for (std::uint32_t h = 0; h < nh; ++h) {
     if (fans.find(h) == h) ++fan_count[kept.from[h]];
   }
-  BigVector<char> nonmanifold(nv, 0);
+  ScratchVector<char> nonmanifold(nv, 0);
   for (std::size_t v = 0; v < nv; ++v)
     nonmanifold[v] = fan_count[v] > 1 ? 1 : 0;
   report.nonmanifold_edges = 0;
@@ -122,20 +122,20 @@ void fill_report(const KeptFaces& kept, const EdgeGroups& groups, const Orientat
   report.duplicate_faces = count_duplicate_faces(kept, groups);
 
   // Parts, one at a time, with stamps instead of clearing per-part arrays.
-  BigVector<std::uint32_t> part_offsets(orientation.part_count + 1, 0);
+  ScratchVector<std::uint32_t> part_offsets(orientation.part_count + 1, 0);
   for (std::uint32_t f = 0; f < nf; ++f)
     ++part_offsets[orientation.part_of_face[f] + 1];
   for (std::size_t p = 0; p < orientation.part_count; ++p)
     part_offsets[p + 1] += part_offsets[p];
-  BigVector<std::uint32_t> faces_by_part(nf);
+  ScratchVector<std::uint32_t> faces_by_part(nf);
   {
-    BigVector<std::uint32_t> fill(part_offsets.begin(), part_offsets.end() - 1);
+    ScratchVector<std::uint32_t> fill(part_offsets.begin(), part_offsets.end() - 1);
     for (std::uint32_t f = 0; f < nf; ++f)
       faces_by_part[fill[orientation.part_of_face[f]]++] = f;
   }
-  BigVector<std::uint32_t> vertex_stamp(nv, 0), group_stamp(groups.count(), 0);
-  BigVector<std::uint32_t> sides_in_part(groups.count(), 0);
-  BigVector<std::uint32_t> fan_stamp(nh, 0), fan_first_boundary(nh, 0);
+  ScratchVector<std::uint32_t> vertex_stamp(nv, 0), group_stamp(groups.count(), 0);
+  ScratchVector<std::uint32_t> sides_in_part(groups.count(), 0);
+  ScratchVector<std::uint32_t> fan_stamp(nh, 0), fan_first_boundary(nh, 0);
   UnionFind loops(nh);
   report.parts.clear();
   for (std::uint32_t p = 0; p < orientation.part_count; ++p) {

@@ -11,7 +11,7 @@ Orientation orient_faces(std::span<const std::uint32_t> offsets,
   o.flip.assign(nf, kUnseen);
   o.part_of_face.assign(nf, 0);
   o.seam.assign(groups.count(), 0);
-  BigVector<std::uint32_t> stack;
+  ScratchVector<std::uint32_t> stack;
   for (std::uint32_t start = 0; start < nf; ++start) {
     if (o.flip[start] != kUnseen) continue;
     const auto part = static_cast<std::uint32_t>(o.part_count++);

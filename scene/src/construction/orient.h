@@ -14,10 +14,10 @@
 namespace bisturi::construction {
 
 struct Orientation {
-  BigVector<char> flip;  ///< per face: reverse it
-  BigVector<std::uint32_t> part_of_face;
-  BigVector<char> seam;             ///< per edge group
-  BigVector<char> part_orientable;  ///< per part
+  ScratchVector<char> flip;  ///< per face: reverse it
+  ScratchVector<std::uint32_t> part_of_face;
+  ScratchVector<char> seam;             ///< per edge group
+  ScratchVector<char> part_orientable;  ///< per part
   std::size_t part_count = 0;
   std::size_t seam_count = 0;
 };

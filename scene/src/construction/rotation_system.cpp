@@ -27,14 +27,14 @@ void read_polygon_half_edges(std::span<const std::uint32_t> indices,
 
 void close_boundaries(RotationSystem& rs) {
   const std::uint32_t nh = rs.face_half_edges;
-  BigVector<std::uint32_t> prev(nh);
+  ScratchVector<std::uint32_t> prev(nh);
   for (std::uint32_t h = 0; h < nh; ++h)
     prev[rs.next[h]] = h;
-  BigVector<char> boundary(nh);
+  ScratchVector<char> boundary(nh);
   for (std::uint32_t h = 0; h < nh; ++h)
     boundary[h] = rs.twin[h] == kNone ? 1 : 0;
 
-  BigVector<std::uint32_t> hole_of(nh, kNone);
+  ScratchVector<std::uint32_t> hole_of(nh, kNone);
   auto hole = [&](std::uint32_t b) {
     if (hole_of[b] == kNone) {
       hole_of[b] = static_cast<std::uint32_t>(rs.from.size());
@@ -79,7 +79,7 @@ void close_boundaries(RotationSystem& rs) {
   }
 
   rs.hole_loops.clear();
-  BigVector<char> traced(rs.from.size(), 0);
+  ScratchVector<char> traced(rs.from.size(), 0);
   for (auto k = static_cast<std::uint32_t>(nh); k < rs.from.size(); ++k) {
     if (traced[k]) continue;
     rs.hole_loops.push_back(k);
@@ -91,7 +91,7 @@ void close_boundaries(RotationSystem& rs) {
 std::vector<VertexId> insert_rotation_system(Dlfl& dlfl, const RotationSystem& rs,
                                              std::span<const Dlfl::Vec3> positions,
                                              const InsertOptions& options,
-                                             BigVector<CornerId>* corner_of_half_edge) {
+                                             ScratchVector<CornerId>* corner_of_half_edge) {
   const std::size_t nv = positions.size();
   const std::size_t nh = rs.from.size();
   const std::size_t nfans = rs.fan_vertex.size();
@@ -106,19 +106,19 @@ std::vector<VertexId> insert_rotation_system(Dlfl& dlfl, const RotationSystem& r
                dlfl.edge_capacity() + nh / 2);
 
   // One rotation per fan: the vertex's first fan takes the rotation create_vertex makes.
-  BigVector<std::uint32_t> fan_offsets(nv + 1, 0);  // fans of each vertex (CSR), in fan order
+  ScratchVector<std::uint32_t> fan_offsets(nv + 1, 0);  // fans of each vertex (CSR), in fan order
   for (std::uint32_t f = 0; f < nfans; ++f)
     ++fan_offsets[rs.fan_vertex[f] + 1];
   for (std::size_t v = 0; v < nv; ++v)
     fan_offsets[v + 1] += fan_offsets[v];
-  BigVector<std::uint32_t> fans_by_vertex(nfans);
+  ScratchVector<std::uint32_t> fans_by_vertex(nfans);
   {
-    BigVector<std::uint32_t> fill(fan_offsets.begin(), fan_offsets.end() - 1);
+    ScratchVector<std::uint32_t> fill(fan_offsets.begin(), fan_offsets.end() - 1);
     for (std::uint32_t f = 0; f < nfans; ++f)
       fans_by_vertex[fill[rs.fan_vertex[f]]++] = f;
   }
   std::vector<VertexId> vertices(nv);
-  BigVector<CornerId> sphere(nfans);
+  ScratchVector<CornerId> sphere(nfans);
   for (std::size_t v = 0; v < nv; ++v) {
     const VertexId join = options.join_vertices.empty() ? VertexId{} : options.join_vertices[v];
     vertices[v] = join.valid() ? join : dlfl.create_vertex(positions[v]);
@@ -130,7 +130,7 @@ std::vector<VertexId> insert_rotation_system(Dlfl& dlfl, const RotationSystem& r
     }
   }
 
-  BigVector<CornerId> corner_of(nh);
+  ScratchVector<CornerId> corner_of(nh);
   // The corner after which half-edge h belongs in its tail's rotation: the nearest inserted
   // predecessor in the target rotation, or the fan's point sphere if none yet.
   auto corner_for = [&](std::uint32_t h) {
@@ -153,14 +153,14 @@ std::vector<VertexId> insert_rotation_system(Dlfl& dlfl, const RotationSystem& r
   };
 
   // Spanning forest over fans first (every insertion merges a point sphere), then the rest.
-  BigVector<std::uint32_t> prev(nh);
+  ScratchVector<std::uint32_t> prev(nh);
   for (std::uint32_t h = 0; h < nh; ++h)
     prev[rs.next[h]] = h;
-  BigVector<std::uint32_t> fan_first(nfans, kNone);
+  ScratchVector<std::uint32_t> fan_first(nfans, kNone);
   for (std::uint32_t h = 0; h < nh; ++h) {
     if (fan_first[rs.fan[h]] == kNone) fan_first[rs.fan[h]] = h;
   }
-  BigVector<char> reached(nfans, 0);
+  ScratchVector<char> reached(nfans, 0);
   std::deque<std::uint32_t> queue;
   for (std::uint32_t s = 0; s < nfans; ++s) {
     if (reached[s]) continue;

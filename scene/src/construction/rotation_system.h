@@ -22,10 +22,10 @@ namespace bisturi::construction {
 inline constexpr std::uint32_t kNone = kInvalidIndex;
 
 struct RotationSystem {
-  BigVector<std::uint32_t> from, to, next, twin;  // per half-edge; twin kNone: boundary
-  BigVector<std::uint32_t> fan;                   // per half-edge: the fan it leaves from
-  BigVector<std::uint32_t> fan_vertex;            // per fan
-  BigVector<std::uint32_t> hole_loops;            // one hole half-edge per boundary loop
+  ScratchVector<std::uint32_t> from, to, next, twin;  // per half-edge; twin kNone: boundary
+  ScratchVector<std::uint32_t> fan;                   // per half-edge: the fan it leaves from
+  ScratchVector<std::uint32_t> fan_vertex;            // per fan
+  ScratchVector<std::uint32_t> hole_loops;            // one hole half-edge per boundary loop
   std::uint32_t face_half_edges = 0;
 };
 
@@ -45,16 +45,14 @@ struct InsertOptions {
 
 /// Builds the rotation system into `dlfl`; returns the vertex handle of every input vertex.
 /// Vertices without fans become lone point spheres. Hole faces are labelled as boundary.
-std::vector<VertexId> insert_rotation_system(Dlfl& dlfl, const RotationSystem& rs,
-                                             std::span<const Dlfl::Vec3> positions,
-                                             const InsertOptions& options,
-                                             BigVector<CornerId>* corner_of_half_edge = nullptr);
+std::vector<VertexId> insert_rotation_system(
+    Dlfl& dlfl, const RotationSystem& rs, std::span<const Dlfl::Vec3> positions,
+    const InsertOptions& options, ScratchVector<CornerId>* corner_of_half_edge = nullptr);
 
 /// The same result as insert_rotation_system() written in one linear pass (no operator calls).
 /// Not for join_vertices (their existing edges are found only by the operators).
-std::vector<VertexId> assemble_rotation_system(Dlfl& dlfl, const RotationSystem& rs,
-                                               std::span<const Dlfl::Vec3> positions,
-                                               const InsertOptions& options,
-                                               BigVector<CornerId>* corner_of_half_edge = nullptr);
+std::vector<VertexId> assemble_rotation_system(
+    Dlfl& dlfl, const RotationSystem& rs, std::span<const Dlfl::Vec3> positions,
+    const InsertOptions& options, ScratchVector<CornerId>* corner_of_half_edge = nullptr);
 
 }  // namespace bisturi::construction

@@ -45,7 +45,7 @@ WeldResult weld_exact(std::span<const Dlfl::Vec3> positions) {
   out.welded_index.resize(positions.size());
   const std::size_t size = table_size_for(positions.size());
   const std::size_t mask = size - 1;
-  BigVector<std::uint32_t> table(size, kEmpty);  // open addressing, linear probing
+  ScratchVector<std::uint32_t> table(size, kEmpty);  // open addressing, linear probing
   for (std::size_t i = 0; i < positions.size(); ++i) {
     const Dlfl::Vec3& p = positions[i];
     std::size_t slot = hash_bits(p.x, p.y, p.z) & mask;
@@ -91,9 +91,9 @@ WeldResult weld_within(std::span<const Dlfl::Vec3> positions, double tolerance) 
   // Cells hold chains of kept vertices: table slot -> first kept vertex, next_in_cell links.
   const std::size_t size = table_size_for(positions.size());
   const std::size_t mask = size - 1;
-  BigVector<std::uint32_t> table(size, kEmpty);
+  ScratchVector<std::uint32_t> table(size, kEmpty);
   std::vector<std::array<std::int64_t, 3>> cell_of_slot(size);
-  BigVector<std::uint32_t> next_in_cell;
+  ScratchVector<std::uint32_t> next_in_cell;
   const double tol2 = tolerance * tolerance;
   auto find_slot = [&](const std::array<std::int64_t, 3>& c) {
     std::size_t slot = cell_hash(c[0], c[1], c[2]) & mask;

@@ -11,8 +11,8 @@
 namespace bisturi::construction {
 
 struct WeldResult {
-  BigVector<std::uint32_t> welded_index;  ///< per input vertex: its index among the kept ones
-  BigVector<Dlfl::Vec3> positions;        ///< kept vertices, in order of first appearance
+  ScratchVector<std::uint32_t> welded_index;  ///< per input vertex: its index among the kept ones
+  ScratchVector<Dlfl::Vec3> positions;        ///< kept vertices, in order of first appearance
 };
 
 /// Merges vertices with bit-identical coordinates (-0 and +0 are equal).

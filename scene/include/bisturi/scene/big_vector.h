@@ -14,20 +14,26 @@
 
 namespace bisturi {
 
-template <class T>
+/// kWholePages: round blocks up to whole huge pages (faster to fill, up to 2 MiB more memory;
+/// for short-lived scratch arrays). Otherwise only the whole huge pages inside a block are huge
+/// and the tail keeps small pages, so no memory is wasted (for arrays that stay).
+template <class T, bool kWholePages = false>
 class HugePageAllocator {
  public:
   using value_type = T;
+  template <class U>
+  struct rebind {
+    using other = HugePageAllocator<U, kWholePages>;
+  };
 
   HugePageAllocator() noexcept = default;
   template <class U>
-  HugePageAllocator(const HugePageAllocator<U>& /*other*/) noexcept {}
+  HugePageAllocator(const HugePageAllocator<U, kWholePages>& /*other*/) noexcept {}
 
   T* allocate(std::size_t n) {
-    const std::size_t bytes = n * sizeof(T);
+    std::size_t bytes = n * sizeof(T);
     if (bytes < kThreshold) return static_cast<T*>(::operator new(bytes));
-    // No rounding up: only the whole 2 MiB pages inside the block become huge pages, the tail
-    // keeps small ones, and no memory is wasted.
+    if (kWholePages) bytes = (bytes + kHugePage - 1) / kHugePage * kHugePage;
     void* p = nullptr;
     if (posix_memalign(&p, kHugePage, bytes) != 0) throw std::bad_alloc();
     // Advice only: where huge pages are off, this fails harmlessly and 4 KiB pages are used.
@@ -44,7 +50,7 @@ class HugePageAllocator {
   }
 
   template <class U>
-  bool operator==(const HugePageAllocator<U>& /*other*/) const noexcept {
+  bool operator==(const HugePageAllocator<U, kWholePages>& /*other*/) const noexcept {
     return true;
   }
 
@@ -55,5 +61,9 @@ class HugePageAllocator {
 
 template <class T>
 using BigVector = std::vector<T, HugePageAllocator<T>>;
+
+/// For temporary arrays of a computation (mesh construction): whole huge pages.
+template <class T>
+using ScratchVector = std::vector<T, HugePageAllocator<T, true>>;
 
 }  // namespace bisturi
