@@ -28,6 +28,7 @@
 #include "bisturi/scene/errors.h"
 #include "bisturi/scene/oriented_builder.h"
 #include "bisturi/scene/shapes.h"
+#include "dlfl_raw_state.h"
 
 namespace bisturi {
 namespace {
@@ -230,50 +231,8 @@ std::ostream& operator<<(std::ostream& out, const Counts& n) {
              << n.rotations;
 }
 
-/// Every raw record of the structure: "bit-identical" comparisons after a refused call.
-struct RawState {
-  std::vector<std::uint32_t> words;
-  std::vector<std::uint8_t> labels;
-  std::vector<double> coordinates;
-  std::uint64_t version = 0;
-  bool operator==(const RawState&) const = default;
-};
-
-RawState raw_state(const Dlfl& m) {
-  RawState s;
-  for (const auto& c : m.corner_records()) {
-    s.words.insert(s.words.end(), {c.vertex.idx, c.face.idx, c.next.idx, c.prev.idx, c.edge.idx});
-  }
-  for (const auto& f : m.face_records())
-    s.words.push_back(f.first.idx);
-  for (const auto& e : m.edge_records())
-    s.words.insert(s.words.end(), {e.a.idx, e.b.idx});
-  for (const auto& v : m.vertex_records())
-    s.words.push_back(v.first.idx);
-  for (const auto& r : m.rotation_records())
-    s.words.push_back(r.corner.idx);
-  for (const auto& [from, to] : m.rotation_links())
-    s.words.insert(s.words.end(), {from, to});
-  for (const auto& [edge, pairs] : m.extra_pair_lists()) {
-    s.words.push_back(edge);
-    for (const auto& p : pairs)
-      s.words.insert(s.words.end(), {p.a.idx, p.b.idx});
-  }
-  auto add_free = [&](const std::vector<std::uint32_t>& list) {
-    s.words.push_back(static_cast<std::uint32_t>(list.size()));
-    s.words.insert(s.words.end(), list.begin(), list.end());
-  };
-  add_free(m.free_list(VertexTag{}));
-  add_free(m.free_list(CornerTag{}));
-  add_free(m.free_list(FaceTag{}));
-  add_free(m.free_list(EdgeTag{}));
-  add_free(m.free_list(RotationTag{}));
-  s.labels.assign(m.bounding_labels().begin(), m.bounding_labels().end());
-  for (const auto& p : m.positions())
-    s.coordinates.insert(s.coordinates.end(), {p.x, p.y, p.z});
-  s.version = m.topology_version();
-  return s;
-}
+using testing_support::raw_state;
+using testing_support::RawState;
 
 // ---------------------------------------------------------------- statistics
 
