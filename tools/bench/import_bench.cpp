@@ -48,6 +48,8 @@
 
 #include <benchmark/benchmark.h>
 
+#include "collecting_reporter.h"
+
 #include "bisturi/scene/dlfl.h"
 #include "bisturi/scene/dlfl_validate.h"
 #include "bisturi/scene/io/mesh_file.h"
@@ -958,7 +960,8 @@ void print_peak_memory(std::ostream& out) {
   const Inputs& in = inputs(kLarge);
   out << format("\nPeak memory, bisturi read_mesh_from_memory + import_polygons, %zu triangles\n",
                 in.triangles)
-      << "  (forked child; file bytes already in memory and not counted)\n";
+      << "  (forked child; file bytes already in memory and not counted; arrays of 1 MiB and\n"
+      << "   more come from posix_memalign (BigVector), so only RSS and mallinfo2 see them)\n";
   const double mb = 1024.0 * 1024.0;
   const auto tri = double(in.triangles);
   for (const Source s : {Source::kPly, Source::kStl}) {
@@ -970,13 +973,13 @@ void print_peak_memory(std::ostream& out) {
     }
     const double rss = double(m.rss_peak_kb - m.rss_start_kb) * 1024.0;
     out << format("  %-11s (%.1f MB file)\n", label, double(bytes_of(in, s).size()) / mb)
-        << format("    peak C++ heap during read + import   %8.1f MB  %6.1f bytes/triangle\n",
+        << format("    peak operator-new heap (small blocks) %7.1f MB  %6.1f bytes/triangle\n",
                   double(m.heap_peak) / mb, double(m.heap_peak) / tri)
         << format("    peak RSS growth (VmHWM - VmRSS)      %8.1f MB  %6.1f bytes/triangle\n",
                   rss / mb, rss / tri)
-        << format("    parsed polygon list (MeshFile)       %8.1f MB  %6.1f bytes/triangle\n",
+        << format("    operator-new heap after parse         %7.1f MB  %6.1f bytes/triangle\n",
                   double(m.heap_after_parse) / mb, double(m.heap_after_parse) / tri)
-        << format("    live at the end (MeshFile + result)  %8.1f MB  (mallinfo2: %.1f MB)\n",
+        << format("    operator-new heap at the end         %8.1f MB  (mallinfo2: %.1f MB)\n",
                   double(m.heap_end) / mb, double(m.mallinfo_end) / mb)
         << format("    final DLFL memory_bytes()            %8.1f MB  %6.1f bytes/triangle\n",
                   double(m.dlfl_bytes) / mb, double(m.dlfl_bytes) / tri)
@@ -987,49 +990,17 @@ void print_peak_memory(std::ostream& out) {
 
 // ---- summary ----
 
-/// Passes every run to the reporter chosen by --benchmark_format and keeps them for the summary.
-class CollectingReporter : public benchmark::BenchmarkReporter {
- public:
-  CollectingReporter() : inner_(benchmark::CreateDefaultDisplayReporter()) {}
+using bisturi::bench::CollectingReporter;
 
-  bool ReportContext(const Context& context) override {
-    inner_->SetOutputStream(&GetOutputStream());
-    inner_->SetErrorStream(&GetErrorStream());
-    return inner_->ReportContext(context);
-  }
-  void ReportRuns(const std::vector<Run>& runs) override {
-    for (const Run& run : runs) {
-      if (run.run_type == Run::RT_Iteration && !run.error_occurred) {
-        runs_[run.benchmark_name()] = run;
-      }
-    }
-    inner_->ReportRuns(runs);
-  }
-  void Finalize() override { inner_->Finalize(); }
-
-  std::ostream& summary_stream() {
-    return dynamic_cast<benchmark::ConsoleReporter*>(inner_.get()) != nullptr ? GetOutputStream()
-                                                                              : GetErrorStream();
-  }
-  /// Faces per CPU second (or wall second) of the run `name/<size>` (Google Benchmark may
-  /// append /iterations:N).
-  std::optional<double> rate(const std::string& name, std::int64_t size) const {
-    const std::string key = name + "/" + std::to_string(size);
-    auto it = runs_.lower_bound(key);
-    if (it == runs_.end()) return std::nullopt;
-    if (it->first != key && it->first.rfind(key + "/", 0) != 0) return std::nullopt;
-    const Run& run = it->second;
-    const double t = wall_ ? run.GetAdjustedRealTime() : run.GetAdjustedCPUTime();
-    const double s = t / benchmark::GetTimeUnitMultiplier(run.time_unit);
-    return s > 0.0 ? std::optional<double>(double(size) / s) : std::nullopt;
-  }
-  void use_wall_time(bool wall) { wall_ = wall; }
-
- private:
-  std::unique_ptr<benchmark::BenchmarkReporter> inner_;
-  std::map<std::string, Run> runs_;
-  bool wall_ = false;
-};
+/// Faces per CPU second (or wall second) of the run `name/<size>`.
+std::optional<double> rate(const CollectingReporter& runs, const std::string& name,
+                           std::int64_t size, bool wall) {
+  const auto* run = runs.find(name + "/" + std::to_string(size));
+  if (run == nullptr) return std::nullopt;
+  const double t = wall ? run->GetAdjustedRealTime() : run->GetAdjustedCPUTime();
+  const double s = t / benchmark::GetTimeUnitMultiplier(run->time_unit);
+  return s > 0.0 ? std::optional<double>(double(size) / s) : std::nullopt;
+}
 
 std::string mps(std::optional<double> v) {
   return v ? format("%6.2f", *v / 1e6) : "     -";
@@ -1056,8 +1027,10 @@ constexpr Peer kPeers[] = {
 };
 
 /// Throughput and ratio tables, per CPU second or per wall second.
-void print_rates(CollectingReporter& r, std::ostream& out, bool wall) {
-  r.use_wall_time(wall);
+void print_rates(const CollectingReporter& runs, std::ostream& out, bool wall) {
+  auto r_rate = [&](const std::string& name, std::int64_t size) {
+    return rate(runs, name, size, wall);
+  };
   out << format("  %-47s %21s   %21s\n", wall ? "per WALL second" : "per CPU second",
                 "100k triangles", "2M triangles")
       << format("  %-47s %6s %7s %6s   %6s %7s %6s\n", "", "parse", "constr", "total", "parse",
@@ -1070,23 +1043,23 @@ void print_rates(CollectingReporter& r, std::ostream& out, bool wall) {
   for (const auto& o : ours) {
     const std::string k = o.key;
     out << format(
-        "  %-47s %s  %s  %s   %s  %s  %s\n", o.label, mps(r.rate(k + "/parse", kSmall)).c_str(),
-        mps(r.rate(k + "/construct", kSmall)).c_str(), mps(r.rate(k + "/total", kSmall)).c_str(),
-        mps(r.rate(k + "/parse", kLarge)).c_str(), mps(r.rate(k + "/construct", kLarge)).c_str(),
-        mps(r.rate(k + "/total", kLarge)).c_str());
+        "  %-47s %s  %s  %s   %s  %s  %s\n", o.label, mps(r_rate(k + "/parse", kSmall)).c_str(),
+        mps(r_rate(k + "/construct", kSmall)).c_str(), mps(r_rate(k + "/total", kSmall)).c_str(),
+        mps(r_rate(k + "/parse", kLarge)).c_str(), mps(r_rate(k + "/construct", kLarge)).c_str(),
+        mps(r_rate(k + "/total", kLarge)).c_str());
   }
   std::string rows;
   for (const Peer& p : kPeers) {
-    const auto s = r.rate(p.key, kSmall), l = r.rate(p.key, kLarge);
+    const auto s = r_rate(p.key, kSmall), l = r_rate(p.key, kLarge);
     if (!s && !l) continue;
     out << format("  %-47s %6s  %s  %6s   %6s  %s  %6s\n", p.label, "", mps(s).c_str(), "", "",
                   mps(l).c_str(), "");
     const std::string o = p.ours;
     rows += format("  %-47s %7s %7s     %7s %7s\n", p.label,
-                   ratio(r.rate(o + "/construct", kSmall), s).c_str(),
-                   ratio(r.rate(o + "/total", kSmall), s).c_str(),
-                   ratio(r.rate(o + "/construct", kLarge), l).c_str(),
-                   ratio(r.rate(o + "/total", kLarge), l).c_str());
+                   ratio(r_rate(o + "/construct", kSmall), s).c_str(),
+                   ratio(r_rate(o + "/total", kSmall), s).c_str(),
+                   ratio(r_rate(o + "/construct", kLarge), l).c_str(),
+                   ratio(r_rate(o + "/total", kLarge), l).c_str());
   }
   if (rows.empty()) {
     if (!wall) {
