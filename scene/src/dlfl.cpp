@@ -253,18 +253,6 @@ CornerPair Dlfl::pair_of(CornerId c) const {
   throw TopologyError(to_string(c) + " is not a side of its edge " + to_string(e));
 }
 
-CornerId Dlfl::partner(CornerId c) const {
-  if (!corners_[c.idx].edge.valid()) return CornerId{};
-  const CornerPair p = pair_of(c);
-  return p.a == c ? p.b : p.a;
-}
-
-CornerId Dlfl::rot_next(CornerId c) const {
-  const CornerId entering = corners_[c.idx].prev;
-  if (entering == c) return c;  // point sphere
-  return partner(entering);
-}
-
 RotationId Dlfl::rotation_of(CornerId c) const {
   const VertexId v = corners_[c.idx].vertex;
   const RotationId first = vertices_[v.idx].first;

@@ -111,9 +111,20 @@ class Dlfl {
   /// The edge of the side that starts at c (invalid for a point-sphere corner).
   [[nodiscard]] EdgeId edge(CornerId c) const { return corners_[c.idx].edge; }
   /// The corner that starts the opposite side of c's side (invalid for a point sphere).
-  [[nodiscard]] CornerId partner(CornerId c) const;
+  [[nodiscard]] CornerId partner(CornerId c) const {
+    const EdgeId e = corners_[c.idx].edge;
+    if (!e.valid()) return CornerId{};
+    const CornerPair& p = edges_[e.idx];  // the primary pair: every manifold edge's only one
+    if (p.a == c) return p.b;
+    if (p.b == c) return p.a;
+    const CornerPair q = pair_of(c);
+    return q.a == c ? q.b : q.a;
+  }
   /// The next corner of c's rotation: the partner of the side that enters c.
-  [[nodiscard]] CornerId rot_next(CornerId c) const;
+  [[nodiscard]] CornerId rot_next(CornerId c) const {
+    const CornerId entering = corners_[c.idx].prev;
+    return entering == c ? c : partner(entering);  // a point sphere is its own rotation
+  }
   [[nodiscard]] bool is_point_sphere(CornerId c) const { return corners_[c.idx].next == c; }
 
   [[nodiscard]] CornerId first_corner(FaceId f) const { return faces_[f.idx].first; }
