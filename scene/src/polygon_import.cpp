@@ -68,7 +68,7 @@ std::optional<DropReason> degenerate(std::span<const std::uint32_t> face,
   }
   if (distinct < 3) return DropReason::TooFewDistinctVertices;
   for (std::size_t i = 0; i < n; ++i) {
-    if (face[i] == face[(i + 1) % n]) return DropReason::RepeatedConsecutiveVertex;
+    if (face[i] == face[i + 1 == n ? 0 : i + 1]) return DropReason::RepeatedConsecutiveVertex;
   }
   // Twice the vector area (Newell), against the squared perimeter: exact zero for collinear
   // corners up to rounding.
@@ -76,7 +76,7 @@ std::optional<DropReason> degenerate(std::span<const std::uint32_t> face,
   double perimeter = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     const Dlfl::Vec3& p = positions[face[i]];
-    const Dlfl::Vec3& q = positions[face[(i + 1) % n]];
+    const Dlfl::Vec3& q = positions[face[i + 1 == n ? 0 : i + 1]];
     normal.x += (p.y - q.y) * (p.z + q.z);
     normal.y += (p.z - q.z) * (p.x + q.x);
     normal.z += (p.x - q.x) * (p.y + q.y);
