@@ -13,6 +13,7 @@
 #include "numbers.h"
 #include "parse_errors.h"
 #include "progress.h"
+#include "read_coordinates.h"
 #include "readers.h"
 #include "text_scanner.h"
 
@@ -86,16 +87,7 @@ class ObjReader {
   void read_vertex(PolygonMesh& mesh) {
     const std::size_t v = mesh.positions.size();
     if (v == kMaxIndex) fail("more vertices than 32-bit indices can address");
-    Dlfl::Vec3 p;
-    for (int k = 0; k < 3; ++k) {
-      const std::string_view t = text_.token();
-      if (t.empty()) fail(cat("vertex ", v, ": expected 3 coordinates, found ", k));
-      const auto value = parse_double(t);
-      if (!value) fail(cat("vertex ", v, ": bad coordinate ", quoted(t)));
-      if (!std::isfinite(*value))
-        fail(cat("vertex ", v, ": coordinate ", quoted(t), " is not finite"));
-      p[k] = *value;
-    }
+    const Dlfl::Vec3 p = read_coordinates(text_, err_, v);
     // A w coordinate or vertex colours may follow; neither is a position.
     mesh.positions.push_back(p);
   }

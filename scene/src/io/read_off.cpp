@@ -9,6 +9,7 @@
 #include "numbers.h"
 #include "parse_errors.h"
 #include "progress.h"
+#include "read_coordinates.h"
 #include "readers.h"
 #include "text_scanner.h"
 
@@ -83,19 +84,7 @@ class OffReader {
     return static_cast<std::uint64_t>(*n);
   }
 
-  Dlfl::Vec3 vertex(std::uint64_t v) {
-    Dlfl::Vec3 p;
-    for (int k = 0; k < 3; ++k) {
-      const std::string_view t = text_.token();
-      if (t.empty()) fail(cat("vertex ", v, ": expected 3 coordinates, found ", k));
-      const auto value = parse_double(t);
-      if (!value) fail(cat("vertex ", v, ": bad coordinate ", quoted(t)));
-      if (!std::isfinite(*value))
-        fail(cat("vertex ", v, ": coordinate ", quoted(t), " is not finite"));
-      p[k] = *value;
-    }
-    return p;
-  }
+  Dlfl::Vec3 vertex(std::uint64_t v) { return read_coordinates(text_, err_, v); }
 
   void face(PolygonMesh& mesh, std::uint64_t f) {
     const std::string_view count = text_.token();
