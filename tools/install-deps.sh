@@ -11,6 +11,9 @@ packages=(
   libgtest-dev libgmock-dev          # tests
   clang libclang-rt-14-dev           # fuzz tests of the mesh readers (libFuzzer, sanitizers)
   libbenchmark-dev                   # benchmarks in tools/bench
+  zlib1g-dev                         # gzip-encoded NRRD and .nii.gz volumes
+  libgdcm-dev                        # DICOM series
+  libosd-dev                         # subdivision surfaces (OpenSubdiv)
 )
 if [[ "${1:-}" == "--bench-peers" ]]; then
   packages+=(libopenmesh-dev libcgal-dev)
