@@ -1,0 +1,85 @@
+#pragma once
+// Isosurfaces of sampled volumes, straight into the DLFL: marching cubes with the face
+// ambiguities resolved by the asymptotic decider.
+//
+// Inside and outside. A sample is inside when its value is strictly greater than the iso value;
+// a sample equal to the iso value (and NaN) is outside. A grid edge is crossed when its two samples
+// differ; its one vertex is placed by linear interpolation and kept strictly inside the edge
+// (parameter clamped to [1e-3, 1 - 1e-3]), so no two vertices coincide and no edge has zero
+// length even where samples equal the iso value.
+//
+// Topology. Each cell joins its edge crossings into segments on its six faces and chains them
+// into closed polygons (no published case table is copied: the 256 configurations are derived at
+// start-up, see scene/src/surface/cube_cases.cpp). A face with two diagonal inside corners is
+// ambiguous; the asymptotic decider (the value of the bilinear interpolant at its saddle, compared
+// with the iso value) decides whether the inside corners are joined across the face. It only
+// reads the face's four samples, so both cells of a face decide alike: the surface is watertight.
+// The interior ambiguity of a cell (a tunnel between two opposite corners) is not reconstructed;
+// the cell takes the configuration its faces imply. Guarantees: every vertex lies on one crossed
+// grid edge (or is the centroid of a cell polygon that has no admissible diagonal triangulation);
+// the triangles form a consistently oriented 2-manifold whose parts are closed except where they
+// reach the volume's outermost samples; two objects whose inside samples are not face-connected
+// through the decider stay separate parts.
+//
+// Orientation. Triangles are counter-clockwise seen from outside (value <= iso), in the world
+// frame: when the index-to-world map reverses orientation (det(direction) < 0) the winding is
+// flipped, so normals point from inside to outside in world millimetres and the enclosed volume
+// of a closed part is positive. A hollow object's inner shell encloses negative volume.
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+
+#include "bisturi/scene/dlfl.h"
+#include "bisturi/scene/oriented_builder.h"
+#include "bisturi/scene/volume/volume.h"
+
+namespace bisturi {
+
+class BonoOctree;
+
+struct IsoSurfaceOptions {
+  /// Inside: value > iso.
+  float iso = 0.0f;
+  /// Called with (done, total) slabs of cells during extraction, about every 1% of the slabs.
+  std::function<void(std::size_t, std::size_t)> progress;
+  /// Called with (done, total) edge insertions during the DLFL build (extract_isosurface only).
+  std::function<void(std::size_t, std::size_t)> build_progress;
+  /// Empty-space skipping: only cells of leaves whose value range contains iso are visited.
+  /// Must be built from the same grid. When null, one is built if build_octree is set.
+  const BonoOctree* octree = nullptr;
+  /// Build an octree (leaf_size 8) when none is given. Building one reads every sample once, as
+  /// the classification does, so for a single extraction it rarely pays; reuse one across iso
+  /// values instead.
+  bool build_octree = false;
+};
+
+struct ExtractionStats {
+  std::size_t cells = 0;          ///< cells of the volume (product of dims - 1)
+  std::size_t cells_visited = 0;  ///< mixed cells, each of which produced polygons
+  std::size_t leaves_visited = 0;
+  std::size_t leaves_skipped = 0;
+  std::size_t ambiguous_faces = 0;  ///< decider evaluations (each shared face counted per cell)
+  std::size_t vertices = 0;
+  std::size_t centroid_vertices = 0;  ///< extra vertices (polygons without admissible diagonals)
+  std::size_t triangles = 0;
+  double octree_seconds = 0.0;
+  double extract_seconds = 0.0;
+  double build_seconds = 0.0;  ///< DLFL construction (extract_isosurface only)
+};
+
+/// The isosurface as indexed triangles (world millimetres), vertices shared through the grid
+/// edges they lie on. Throws InputError when values and dims disagree, the iso value is not
+/// finite, a spacing is not positive, the direction is singular, or the surface needs more than
+/// 2^32 - 1 vertices or indices. A volume with fewer than two samples along an axis gives an
+/// empty mesh.
+PolygonMesh extract_isosurface_mesh(const Grid<float>& volume,
+                                    const IsoSurfaceOptions& options = {},
+                                    ExtractionStats* stats = nullptr);
+
+/// The isosurface as a Dlfl, built by build_oriented_manifold: every part that reaches the
+/// volume's border is open, and each of its boundary loops is a labelled (bounding) face.
+Dlfl extract_isosurface(const Grid<float>& volume, const IsoSurfaceOptions& options = {},
+                        ExtractionStats* stats = nullptr);
+
+}  // namespace bisturi

@@ -1,0 +1,488 @@
+#include "bisturi/scene/volume/marching_cubes.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "bisturi/scene/errors.h"
+#include "bisturi/scene/volume/bono_octree.h"
+#include "surface/cube_cases.h"
+
+// The extraction runs slab by slab (cells between sample planes k and k+1), in the manner of
+// flying edges:
+//  - each sample plane is classified once into bit rows (bit i of row j: sample (i, j) inside);
+//  - a vertex is made for every crossed x- and y-edge of a plane and every crossed z-edge of a
+//    slab, and its index stored in per-plane arrays indexed by the edge's lower sample (two
+//    planes of x/y ids and one slab of z ids live at a time);
+//  - mixed cells are found 64 at a time with bit operations on the four rows of a cell row, and
+//    each emits the triangles of its case, looking vertices up by cube edge.
+// With an octree, only the cell rows (and x-ranges) covered by leaves whose range contains the
+// iso value are visited, and only the sample words those cells touch are classified.
+
+namespace bisturi {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr double kEdgeEps = 1e-3;
+constexpr std::uint32_t kNoVertex = std::numeric_limits<std::uint32_t>::max();
+
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+/// Bits [lo, hi) of word w (sample indices), hi > lo allowed to fall outside the word.
+std::uint64_t range_mask(std::int64_t w, std::int64_t lo, std::int64_t hi) {
+  const std::int64_t base = 64 * w;
+  const std::int64_t a = std::clamp<std::int64_t>(lo - base, 0, 64);
+  const std::int64_t b = std::clamp<std::int64_t>(hi - base, 0, 64);
+  if (b <= a) return 0;
+  const std::uint64_t upper = b == 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << b) - 1;
+  const std::uint64_t lower = (std::uint64_t{1} << a) - 1;
+  return upper & ~lower;
+}
+
+/// An interval of indices [lo, hi); empty when lo >= hi.
+struct Span {
+  std::int32_t lo = 0;
+  std::int32_t hi = 0;
+  [[nodiscard]] bool empty() const { return lo >= hi; }
+  void unite(Span o) {
+    if (o.empty()) return;
+    if (empty()) {
+      *this = o;
+    } else {
+      lo = std::min(lo, o.lo);
+      hi = std::max(hi, o.hi);
+    }
+  }
+  [[nodiscard]] Span intersect(Span o) const { return {std::max(lo, o.lo), std::min(hi, o.hi)}; }
+};
+
+void check_input(const Grid<float>& volume, const IsoSurfaceOptions& options) {
+  const VolumeGeometry& g = volume.geometry;
+  for (int a = 0; a < 3; ++a) {
+    if (g.dims[static_cast<std::size_t>(a)] < 1) {
+      throw InputError("extract_isosurface: dimension " + std::to_string(a) + " is " +
+                       std::to_string(g.dims[static_cast<std::size_t>(a)]) + " (must be >= 1)");
+    }
+    if (!(g.spacing[a] > 0.0) || !std::isfinite(g.spacing[a])) {
+      throw InputError("extract_isosurface: spacing " + std::to_string(a) + " is " +
+                       std::to_string(g.spacing[a]) + " (must be positive)");
+    }
+  }
+  if (volume.values.size() != g.voxel_count()) {
+    throw InputError("extract_isosurface: " + std::to_string(volume.values.size()) +
+                     " values for dims " + std::to_string(g.dims[0]) + "x" +
+                     std::to_string(g.dims[1]) + "x" + std::to_string(g.dims[2]));
+  }
+  if (g.dims[0] > std::numeric_limits<std::int32_t>::max() / 2 ||
+      g.dims[1] > std::numeric_limits<std::int32_t>::max() / 2 ||
+      g.dims[2] > std::numeric_limits<std::int32_t>::max() / 2) {
+    throw InputError("extract_isosurface: dimensions too large");
+  }
+  if (!std::isfinite(options.iso)) {
+    throw InputError("extract_isosurface: the iso value is not finite");
+  }
+  const double det = glm::determinant(g.direction);
+  if (!(std::abs(det) > 1e-12) || !std::isfinite(det)) {
+    throw InputError("extract_isosurface: the direction matrix is singular");
+  }
+}
+
+class Extractor {
+ public:
+  Extractor(const Grid<float>& volume, const IsoSurfaceOptions& options, PolygonMesh& mesh,
+            ExtractionStats& stats)
+      : values_(volume.values.data()),
+        geometry_(volume.geometry),
+        iso_(options.iso),
+        options_(options),
+        mesh_(mesh),
+        stats_(stats),
+        cases_(surface::cube_cases()) {
+    nx_ = geometry_.dims[0];
+    ny_ = geometry_.dims[1];
+    nz_ = geometry_.dims[2];
+    words_ = (nx_ + 63) / 64;
+    row_stride_ = words_ + 1;  // one zero word of padding: reading word w + 1 is always valid
+    plane_ = nx_ * ny_;
+    for (int a = 0; a < 3; ++a) {
+      axes_[static_cast<std::size_t>(a)] = geometry_.direction[a] * geometry_.spacing[a];
+    }
+    flip_ = glm::determinant(geometry_.direction) < 0.0;
+    for (int c = 0; c < 8; ++c) {
+      corner_offset_[static_cast<std::size_t>(c)] =
+          (c & 1) + nx_ * ((c >> 1) & 1) + plane_ * ((c >> 2) & 1);
+    }
+  }
+
+  void run(const BonoOctree* octree) {
+    const auto ncells_x = static_cast<std::int32_t>(nx_ - 1);
+    if (octree != nullptr) {
+      cell_rows_.assign(static_cast<std::size_t>((ny_ - 1) * (nz_ - 1)), Span{});
+      std::size_t visited = 0;
+      octree->for_each_leaf_in_range(iso_, iso_, [&](const BonoOctree::Node& n) {
+        ++visited;
+        const auto& o = n.box.origin;
+        const auto& s = n.box.size;
+        const Span xs{static_cast<std::int32_t>(o[0]),
+                      static_cast<std::int32_t>(std::min(o[0] + s[0], nx_ - 1))};
+        if (xs.empty()) return;
+        const std::int64_t j1 = std::min(o[1] + s[1], ny_ - 1);
+        const std::int64_t k1 = std::min(o[2] + s[2], nz_ - 1);
+        for (std::int64_t k = o[2]; k < k1; ++k) {
+          for (std::int64_t j = o[1]; j < j1; ++j) {
+            cell_rows_[static_cast<std::size_t>(k * (ny_ - 1) + j)].unite(xs);
+          }
+        }
+      });
+      stats_.leaves_visited = visited;
+      stats_.leaves_skipped = octree->leaf_count() - visited;
+    }
+    auto cell_row = [&](std::int64_t j, std::int64_t k) -> Span {
+      if (j < 0 || k < 0 || j >= ny_ - 1 || k >= nz_ - 1) return {};
+      if (cell_rows_.empty()) return {0, ncells_x};
+      return cell_rows_[static_cast<std::size_t>(k * (ny_ - 1) + j)];
+    };
+
+    for (auto& b : bits_)
+      b.assign(static_cast<std::size_t>(ny_ * row_stride_), 0);
+    for (auto& f : fresh_)
+      f.assign(static_cast<std::size_t>(ny_), Span{});
+    for (auto& v : xid_)
+      v.assign(static_cast<std::size_t>(plane_), kNoVertex);
+    for (auto& v : yid_)
+      v.assign(static_cast<std::size_t>(plane_), kNoVertex);
+    zid_.assign(static_cast<std::size_t>(plane_), kNoVertex);
+
+    // Samples a sample row must have classified: those of the cell rows around it (+1 in x).
+    auto sample_row = [&](std::int64_t j, std::int64_t z) {
+      Span s;
+      for (std::int64_t dj = -1; dj <= 0; ++dj) {
+        for (std::int64_t dz = -1; dz <= 0; ++dz)
+          s.unite(cell_row(j + dj, z + dz));
+      }
+      if (!s.empty()) s.hi += 1;
+      return s;
+    };
+
+    const std::size_t slabs = static_cast<std::size_t>(nz_ - 1);
+    const std::size_t step = std::max<std::size_t>(1, slabs / 100);
+    classify_plane(0, 0, sample_row);
+    plane_vertices(0, 0);
+    for (std::int64_t k = 0; k + 1 < nz_; ++k) {
+      const int p0 = static_cast<int>(k & 1), p1 = 1 - p0;
+      classify_plane(k + 1, p1, sample_row);
+      plane_vertices(k + 1, p1);
+      slab_vertices(k, p0, p1);
+      for (std::int64_t j = 0; j + 1 < ny_; ++j) {
+        const Span cells = cell_row(j, k);
+        if (!cells.empty()) cell_row_triangles(j, k, p0, p1, cells);
+      }
+      const auto done = static_cast<std::size_t>(k + 1);
+      if (options_.progress && (done % step == 0 || done == slabs)) {
+        options_.progress(done, slabs);
+      }
+    }
+  }
+
+ private:
+  template <class SampleRow>
+  void classify_plane(std::int64_t z, int p, SampleRow& sample_row) {
+    std::uint64_t* bits = bits_[static_cast<std::size_t>(p)].data();
+    Span* fresh = fresh_[static_cast<std::size_t>(p)].data();
+    for (std::int64_t j = 0; j < ny_; ++j) {
+      const Span s = sample_row(j, z);
+      std::uint64_t* row = bits + j * row_stride_;
+      if (s.empty()) {
+        fresh[j] = {};
+        continue;
+      }
+      const std::int64_t w0 = s.lo / 64, w1 = (std::min<std::int64_t>(s.hi, nx_) + 63) / 64;
+      fresh[j] = {static_cast<std::int32_t>(64 * w0),
+                  static_cast<std::int32_t>(std::min<std::int64_t>(64 * w1, nx_))};
+      const float* v = values_ + z * plane_ + j * nx_;
+      for (std::int64_t w = w0; w < w1; ++w) {
+        const std::int64_t i0 = 64 * w;
+        const std::int64_t n = std::min<std::int64_t>(64, nx_ - i0);
+        row[w] = n == 64 ? classify64(v + i0) : classify_tail(v + i0, n);
+      }
+    }
+  }
+
+  [[nodiscard]] std::uint64_t classify64(const float* v) const {
+    std::array<std::uint8_t, 64> flags;
+    const float iso = iso_;
+    for (std::size_t b = 0; b < 64; ++b)
+      flags[b] = static_cast<std::uint8_t>(v[b] > iso);
+    std::uint64_t word = 0;
+    for (std::size_t g = 0; g < 8; ++g) {
+      std::uint64_t eight;
+      std::memcpy(&eight, flags.data() + 8 * g, 8);
+      // Gathers the low bit of each byte into the top byte (little-endian byte order).
+      word |= ((eight * 0x0102040810204080ULL) >> 56) << (8 * g);
+    }
+    return word;
+  }
+
+  [[nodiscard]] std::uint64_t classify_tail(const float* v, std::int64_t n) const {
+    std::uint64_t word = 0;
+    for (std::int64_t b = 0; b < n; ++b) {
+      word |= static_cast<std::uint64_t>(v[b] > iso_ ? 1 : 0) << b;
+    }
+    return word;
+  }
+
+  std::uint32_t add_vertex(const glm::dvec3& ijk) {
+    const std::size_t n = mesh_.positions.size();
+    if (n >= kNoVertex) throw InputError("extract_isosurface: more than 2^32 - 1 vertices");
+    mesh_.positions.push_back(geometry_.origin + axes_[0] * ijk.x + axes_[1] * ijk.y +
+                              axes_[2] * ijk.z);
+    return static_cast<std::uint32_t>(n);
+  }
+
+  [[nodiscard]] double edge_parameter(float a, float b) const {
+    const double t = (double(iso_) - double(a)) / (double(b) - double(a));
+    if (!(t >= kEdgeEps)) return std::isfinite(t) && t < kEdgeEps ? kEdgeEps : 0.5;
+    return std::min(t, 1.0 - kEdgeEps);
+  }
+
+  /// Vertices of the crossed x- and y-edges of sample plane z.
+  void plane_vertices(std::int64_t z, int p) {
+    const std::uint64_t* bits = bits_[static_cast<std::size_t>(p)].data();
+    const Span* fresh = fresh_[static_cast<std::size_t>(p)].data();
+    std::uint32_t* xid = xid_[static_cast<std::size_t>(p)].data();
+    std::uint32_t* yid = yid_[static_cast<std::size_t>(p)].data();
+    const float* vz = values_ + z * plane_;
+    for (std::int64_t j = 0; j < ny_; ++j) {
+      const std::uint64_t* row = bits + j * row_stride_;
+      const float* v = vz + j * nx_;
+      // x-edges (i, i+1): both samples classified.
+      const Span xs{fresh[j].lo, fresh[j].hi - 1};
+      if (!xs.empty()) {
+        for (std::int64_t w = xs.lo / 64; w * 64 < xs.hi; ++w) {
+          std::uint64_t cross =
+              (row[w] ^ ((row[w] >> 1) | (row[w + 1] << 63))) & range_mask(w, xs.lo, xs.hi);
+          while (cross != 0) {
+            const std::int64_t i = 64 * w + __builtin_ctzll(cross);
+            cross &= cross - 1;
+            const double t = edge_parameter(v[i], v[i + 1]);
+            xid[j * nx_ + i] = add_vertex({double(i) + t, double(j), double(z)});
+          }
+        }
+      }
+      if (j + 1 >= ny_) continue;
+      const Span ys = fresh[j].intersect(fresh[j + 1]);
+      if (ys.empty()) continue;
+      const std::uint64_t* up = row + row_stride_;
+      for (std::int64_t w = ys.lo / 64; w * 64 < ys.hi; ++w) {
+        std::uint64_t cross = (row[w] ^ up[w]) & range_mask(w, ys.lo, ys.hi);
+        while (cross != 0) {
+          const std::int64_t i = 64 * w + __builtin_ctzll(cross);
+          cross &= cross - 1;
+          const double t = edge_parameter(v[i], v[i + nx_]);
+          yid[j * nx_ + i] = add_vertex({double(i), double(j) + t, double(z)});
+        }
+      }
+    }
+  }
+
+  /// Vertices of the crossed z-edges between planes k (p0) and k + 1 (p1).
+  void slab_vertices(std::int64_t k, int p0, int p1) {
+    const std::uint64_t* b0 = bits_[static_cast<std::size_t>(p0)].data();
+    const std::uint64_t* b1 = bits_[static_cast<std::size_t>(p1)].data();
+    const Span* f0 = fresh_[static_cast<std::size_t>(p0)].data();
+    const Span* f1 = fresh_[static_cast<std::size_t>(p1)].data();
+    const float* vk = values_ + k * plane_;
+    for (std::int64_t j = 0; j < ny_; ++j) {
+      const Span zs = f0[j].intersect(f1[j]);
+      if (zs.empty()) continue;
+      const std::uint64_t* r0 = b0 + j * row_stride_;
+      const std::uint64_t* r1 = b1 + j * row_stride_;
+      const float* v = vk + j * nx_;
+      for (std::int64_t w = zs.lo / 64; w * 64 < zs.hi; ++w) {
+        std::uint64_t cross = (r0[w] ^ r1[w]) & range_mask(w, zs.lo, zs.hi);
+        while (cross != 0) {
+          const std::int64_t i = 64 * w + __builtin_ctzll(cross);
+          cross &= cross - 1;
+          const double t = edge_parameter(v[i], v[i + plane_]);
+          zid_[static_cast<std::size_t>(j * nx_ + i)] =
+              add_vertex({double(i), double(j), double(k) + t});
+        }
+      }
+    }
+  }
+
+  /// Triangles of the mixed cells [cells.lo, cells.hi) of cell row (j, k).
+  void cell_row_triangles(std::int64_t j, std::int64_t k, int p0, int p1, Span cells) {
+    const std::uint64_t* r00 = bits_[static_cast<std::size_t>(p0)].data() + j * row_stride_;
+    const std::uint64_t* r10 = r00 + row_stride_;
+    const std::uint64_t* r01 = bits_[static_cast<std::size_t>(p1)].data() + j * row_stride_;
+    const std::uint64_t* r11 = r01 + row_stride_;
+    const std::uint32_t* x0 = xid_[static_cast<std::size_t>(p0)].data() + j * nx_;
+    const std::uint32_t* x1 = xid_[static_cast<std::size_t>(p1)].data() + j * nx_;
+    const std::uint32_t* y0 = yid_[static_cast<std::size_t>(p0)].data() + j * nx_;
+    const std::uint32_t* y1 = yid_[static_cast<std::size_t>(p1)].data() + j * nx_;
+    const std::uint32_t* zz = zid_.data() + j * nx_;
+    for (std::int64_t w = cells.lo / 64; w * 64 < cells.hi; ++w) {
+      const std::uint64_t a00 = r00[w], a10 = r10[w], a01 = r01[w], a11 = r11[w];
+      const std::uint64_t s00 = (a00 >> 1) | (r00[w + 1] << 63);
+      const std::uint64_t s10 = (a10 >> 1) | (r10[w + 1] << 63);
+      const std::uint64_t s01 = (a01 >> 1) | (r01[w + 1] << 63);
+      const std::uint64_t s11 = (a11 >> 1) | (r11[w + 1] << 63);
+      const std::uint64_t any = a00 | a10 | a01 | a11 | s00 | s10 | s01 | s11;
+      const std::uint64_t all = a00 & a10 & a01 & a11 & s00 & s10 & s01 & s11;
+      std::uint64_t mixed = any & ~all & range_mask(w, cells.lo, cells.hi);
+      while (mixed != 0) {
+        const int b = __builtin_ctzll(mixed);
+        mixed &= mixed - 1;
+        const auto config = static_cast<unsigned>(
+            ((a00 >> b) & 1) | (((s00 >> b) & 1) << 1) | (((a10 >> b) & 1) << 2) |
+            (((s10 >> b) & 1) << 3) | (((a01 >> b) & 1) << 4) | (((s01 >> b) & 1) << 5) |
+            (((a11 >> b) & 1) << 6) | (((s11 >> b) & 1) << 7));
+        const std::int64_t i = 64 * w + b;
+        std::array<std::uint32_t, 12 + 6> ids;
+        ids[0] = x0[i];
+        ids[1] = x0[i + nx_];
+        ids[2] = x1[i];
+        ids[3] = x1[i + nx_];
+        ids[4] = y0[i];
+        ids[5] = y0[i + 1];
+        ids[6] = y1[i];
+        ids[7] = y1[i + 1];
+        ids[8] = zz[i];
+        ids[9] = zz[i + 1];
+        ids[10] = zz[i + nx_];
+        ids[11] = zz[i + nx_ + 1];
+        emit_cell(config, i, j, k, ids);
+      }
+    }
+  }
+
+  void emit_cell(unsigned config, std::int64_t i, std::int64_t j, std::int64_t k,
+                 std::array<std::uint32_t, 18>& ids) {
+    ++stats_.cells_visited;
+    const surface::CubeCase& cc = cases_.cases[config];
+    unsigned outcome = 0;
+    if (cc.ambiguous_count != 0) {
+      const float* base = values_ + k * plane_ + j * nx_ + i;
+      unsigned bit = 0;
+      for (std::size_t f = 0; f < 6; ++f) {
+        if (!((cc.ambiguous_faces >> f) & 1)) continue;
+        const auto& q = cases_.faces[f].corners;
+        const double d0 = double(base[corner_offset_[q[0]]]) - double(iso_);
+        const double d1 = double(base[corner_offset_[q[1]]]) - double(iso_);
+        const double d2 = double(base[corner_offset_[q[2]]]) - double(iso_);
+        const double d3 = double(base[corner_offset_[q[3]]]) - double(iso_);
+        // The inside corners are joined across the face when the bilinear saddle is inside:
+        // (product of the inside pair) > (product of the outside pair), both pairs shifted by iso.
+        const bool q0_inside = ((config >> q[0]) & 1) != 0;
+        const double inside_product = q0_inside ? d0 * d2 : d1 * d3;
+        const double outside_product = q0_inside ? d1 * d3 : d0 * d2;
+        if (inside_product > outside_product) outcome |= 1u << bit;
+        ++bit;
+      }
+      stats_.ambiguous_faces += bit;
+    }
+    const surface::CaseEntry& entry = cases_.entries[cc.first_entry + outcome];
+    for (std::uint32_t e = 0; e < entry.extra_count; ++e) {
+      const surface::ExtraVertex& ev = cases_.extras[entry.first_extra + e];
+      glm::dvec3 sum(0.0);
+      for (std::uint32_t c = 0; c < ev.code_count; ++c) {
+        sum += mesh_.positions[ids[cases_.extra_codes[ev.first_code + c]]];
+      }
+      // The centroid, in world coordinates already: append directly.
+      const std::size_t n = mesh_.positions.size();
+      if (n >= kNoVertex) throw InputError("extract_isosurface: more than 2^32 - 1 vertices");
+      mesh_.positions.push_back(sum / double(ev.code_count));
+      ids[12 + e] = static_cast<std::uint32_t>(n);
+      ++stats_.centroid_vertices;
+    }
+    const std::uint8_t* codes =
+        cases_.triangle_codes.data() + 3 * std::size_t{entry.first_triangle};
+    auto& indices = mesh_.indices;
+    auto& offsets = mesh_.offsets;
+    if (indices.size() + 3 * std::size_t{entry.triangle_count} > kNoVertex) {
+      throw InputError("extract_isosurface: more than 2^32 - 1 indices");
+    }
+    for (std::uint32_t t = 0; t < entry.triangle_count; ++t, codes += 3) {
+      const std::uint32_t a = ids[codes[0]], b = ids[codes[1]], c = ids[codes[2]];
+      if (flip_) {
+        indices.insert(indices.end(), {a, c, b});
+      } else {
+        indices.insert(indices.end(), {a, b, c});
+      }
+      offsets.push_back(static_cast<std::uint32_t>(indices.size()));
+    }
+  }
+
+  const float* values_;
+  const VolumeGeometry& geometry_;
+  float iso_;
+  const IsoSurfaceOptions& options_;
+  PolygonMesh& mesh_;
+  ExtractionStats& stats_;
+  const surface::CubeCases& cases_;
+  std::int64_t nx_ = 0, ny_ = 0, nz_ = 0, words_ = 0, row_stride_ = 0, plane_ = 0;
+  std::array<glm::dvec3, 3> axes_{};
+  bool flip_ = false;
+  std::array<std::int64_t, 8> corner_offset_{};
+  std::vector<Span> cell_rows_;  // empty: every cell row is visited whole
+  std::array<std::vector<std::uint64_t>, 2> bits_;
+  std::array<std::vector<Span>, 2> fresh_;  // per sample row: the classified samples
+  std::array<std::vector<std::uint32_t>, 2> xid_, yid_;
+  std::vector<std::uint32_t> zid_;
+};
+
+}  // namespace
+
+PolygonMesh extract_isosurface_mesh(const Grid<float>& volume, const IsoSurfaceOptions& options,
+                                    ExtractionStats* stats) {
+  check_input(volume, options);
+  ExtractionStats local;
+  ExtractionStats& st = stats != nullptr ? *stats : local;
+  st = ExtractionStats{};
+  PolygonMesh mesh;
+  const auto& d = volume.geometry.dims;
+  if (d[0] < 2 || d[1] < 2 || d[2] < 2) return mesh;
+  st.cells = static_cast<std::size_t>((d[0] - 1) * (d[1] - 1) * (d[2] - 1));
+
+  const BonoOctree* octree = options.octree;
+  std::optional<BonoOctree> own;
+  if (octree == nullptr && options.build_octree) {
+    const auto start = Clock::now();
+    own = BonoOctree::build(volume, BonoOptions{8});
+    octree = &*own;
+    st.octree_seconds = seconds_since(start);
+  }
+  if (octree != nullptr && octree->dims() != d) {
+    throw InputError("extract_isosurface: the octree was built for other dimensions");
+  }
+  const auto start = Clock::now();
+  Extractor(volume, options, mesh, st).run(octree);
+  st.extract_seconds = seconds_since(start);
+  st.vertices = mesh.positions.size();
+  st.triangles = mesh.face_count();
+  return mesh;
+}
+
+Dlfl extract_isosurface(const Grid<float>& volume, const IsoSurfaceOptions& options,
+                        ExtractionStats* stats) {
+  ExtractionStats local;
+  ExtractionStats& st = stats != nullptr ? *stats : local;
+  const PolygonMesh mesh = extract_isosurface_mesh(volume, options, &st);
+  const auto start = Clock::now();
+  BuildOptions build;
+  build.progress = options.build_progress;
+  Dlfl dlfl = build_oriented_manifold(mesh, build);
+  st.build_seconds = seconds_since(start);
+  return dlfl;
+}
+
+}  // namespace bisturi
