@@ -105,3 +105,64 @@ write("off", "tetra.off", "OFF\n# tetrahedron\n4 4 6\n" + "".join("%g %g %g\n" %
 write("off", "colours.off", "COFF 4 3 0\n0 0 0 255 0 0 255\n1 0 0 0 255 0 255\n0 1 0 0 0 255 255\n"
       "0 0 1 1 1 1 1\n3 0 2 1 1.0 0.0 0.0\n4 0 1 3 2\n2 1 3 # short face\n")
 write("off", "noff.off", "NOFF\n3 1 3\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n\n3 0 1 2\n")
+
+# NRRD (volumes)
+import gzip as _gzip  # noqa: E402
+
+
+def nrrd(fields, body):
+    return ("NRRD0004\n" + "".join("%s: %s\n" % kv for kv in fields) + "\n").encode() + body
+
+
+def gz(data):
+    return _gzip.compress(data, mtime=0)
+
+
+CUBE = [("type", "short"), ("dimension", "3"), ("space", "left-posterior-superior"),
+        ("sizes", "2 2 2"), ("space directions", "(1,0,0) (0,1.5,0) (0,0,2.5)"),
+        ("kinds", "domain domain domain"), ("endian", "little")]
+SHORTS = struct.pack("<8h", -1024, 0, 1, 2, 3, 400, -5, 3071)
+write("nrrd", "raw.nrrd", nrrd(CUBE + [("encoding", "raw"), ("space origin", "(-10,20.5,3)")], SHORTS))
+write("nrrd", "gzip.nrrd", nrrd(CUBE + [("encoding", "gzip")], gz(SHORTS)))
+write("nrrd", "ascii_spacings.nrrd", nrrd(
+    [("type", "float"), ("dimension", "3"), ("sizes", "3 1 2"), ("spacings", "0.5 0.5 2"),
+     ("encoding", "ascii")], b"1 2.5 -3\n4e2 nan 6\n"))
+write("nrrd", "ras_be_4d.nrrd", nrrd(
+    [("type", "unsigned short"), ("dimension", "4"), ("space", "RAS"), ("sizes", "1 2 1 2"),
+     ("space directions", "none (0.7,0,0) (0,0.7,0) (0,0,1)"), ("endian", "big"),
+     ("encoding", "raw"), ("byte skip", "-1")], b"junk" + struct.pack(">4H", 1, 2, 3, 65535)))
+write("nrrd", "skip_gzip.nrrd", nrrd(
+    [("type", "double"), ("dimension", "3"), ("sizes", "1 1 2"), ("endian", "little"),
+     ("encoding", "gz"), ("byte skip", "3"), ("line skip", "0")], gz(b"abc" + struct.pack("<2d", 1.5, -2))))
+
+# NIfTI-1 (volumes)
+
+
+def nifti(datatype, bitpix, dims, data, big=False, qform=None, sform=None, slope=0.0, inter=0.0,
+          units=2, pixdim=(1.0, 1.0, 1.0, 1.0)):
+    o = ">" if big else "<"
+    h = bytearray(352)
+    struct.pack_into(o + "i", h, 0, 348)
+    struct.pack_into(o + "8h", h, 40, len(dims), *(list(dims) + [1] * (7 - len(dims))))
+    struct.pack_into(o + "hh", h, 70, datatype, bitpix)
+    struct.pack_into(o + "8f", h, 76, *(list(pixdim) + [1.0] * (8 - len(pixdim))))
+    struct.pack_into(o + "fff", h, 108, 352.0, slope, inter)
+    h[123] = units
+    if qform:
+        struct.pack_into(o + "h", h, 252, 1)
+        struct.pack_into(o + "6f", h, 256, *qform)
+    if sform:
+        struct.pack_into(o + "h", h, 254, 2)
+        struct.pack_into(o + "12f", h, 280, *sform)
+    h[344:348] = b"n+1\0"
+    return bytes(h) + data
+
+
+write("nifti", "float_sform.nii", nifti(16, 32, (2, 2, 1), struct.pack("<4f", 0, 1.5, -2, 1e9),
+                                        sform=(-1, 0, 0, 10, 0, -1, 0, 20, 0, 0, 2, -5)))
+write("nifti", "int16_qform_be.nii", nifti(4, 16, (2, 1, 2), struct.pack(">4h", -1, 2, 300, 4),
+                                           big=True, qform=(0, 0, 0.7071068, 1, 2, 3),
+                                           slope=2.0, inter=-1024.0, pixdim=(-1, 0.5, 0.5, 2)))
+write("nifti", "uint8_pixdim.nii.gz", gz(nifti(2, 8, (3, 1, 1), b"\x00\x7f\xff", units=1,
+                                               pixdim=(1, 0.001, 0.001, 0.002))))
+write("nifti", "double_4d.nii", nifti(64, 64, (1, 1, 1, 1), struct.pack("<d", 3.25)))

@@ -6,8 +6,11 @@
 #include <iostream>
 
 #include "bisturi/runtime/version.h"
+#include "extract_command.h"
 #include "mesh_command.h"
 #include "mesh_demo.h"
+#include "segment_command.h"
+#include "volume_command.h"
 
 namespace {
 
@@ -31,6 +34,18 @@ int run(int argc, char** argv) {
   int (*run_mesh)(const bisturi::cli::MeshOptions&) = nullptr;
   bisturi::cli::add_mesh_command(app, mesh, run_mesh);
 
+  bisturi::cli::VolumeOptions volume;
+  int (*run_volume)(const bisturi::cli::VolumeOptions&) = nullptr;
+  bisturi::cli::add_volume_command(app, volume, run_volume);
+
+  bisturi::cli::SegmentOptions segment;
+  int (*run_segment)(const bisturi::cli::SegmentOptions&) = nullptr;
+  bisturi::cli::add_segment_command(app, segment, run_segment);
+
+  bisturi::cli::ExtractOptions extract;
+  int (*run_extract)(const bisturi::cli::ExtractOptions&) = nullptr;
+  bisturi::cli::add_extract_command(app, extract, run_extract);
+
   CLI11_PARSE(app, argc, argv);
   if (version) {
     std::cout << "bisturi " << bisturi::kVersion << " (" << bisturi::kBuildType << ")\n";
@@ -38,6 +53,9 @@ int run(int argc, char** argv) {
   }
   if (demo_cmd->parsed()) return bisturi::cli::run_mesh_demo(demo);
   if (run_mesh != nullptr) return run_mesh(mesh);
+  if (run_volume != nullptr) return run_volume(volume);
+  if (run_segment != nullptr) return run_segment(segment);
+  if (run_extract != nullptr) return run_extract(extract);
   std::cout << app.help();
   return 0;
 }

@@ -1,7 +1,5 @@
 #include "mesh_command.h"
 
-#include <unistd.h>
-
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
@@ -14,40 +12,11 @@
 #include "bisturi/scene/io/mesh_file.h"
 #include "bisturi/scene/polygon_export.h"
 #include "bisturi/scene/polygon_import.h"
+#include "progress_line.h"
 
 namespace bisturi::cli {
 
 namespace {
-
-/// A one-line progress display on a terminal (stderr), silent otherwise.
-class ProgressLine {
- public:
-  ProgressLine() : enabled_(isatty(STDERR_FILENO) != 0) {}
-  ~ProgressLine() { clear(); }
-  ProgressLine(const ProgressLine&) = delete;
-  ProgressLine& operator=(const ProgressLine&) = delete;
-
-  void show(std::string_view stage, std::size_t done, std::size_t total) {
-    if (!enabled_ || total == 0) return;
-    const int percent = static_cast<int>(done * 100 / total);
-    if (stage == stage_ && percent == percent_) return;
-    stage_ = stage;
-    percent_ = percent;
-    std::fprintf(stderr, "\r%s: %3d%%\033[K", stage_.c_str(), percent);
-    std::fflush(stderr);
-    shown_ = true;
-  }
-  void clear() {
-    if (shown_) std::fprintf(stderr, "\r\033[K");
-    shown_ = false;
-  }
-
- private:
-  bool enabled_;
-  bool shown_ = false;
-  std::string stage_;
-  int percent_ = -1;
-};
 
 struct Loaded {
   MeshFile file;

@@ -10,9 +10,9 @@ namespace bisturi {
 
 namespace {
 
-constexpr PhantomShape kShapes[] = {PhantomShape::Sphere,     PhantomShape::Shell,
-                                    PhantomShape::Torus,      PhantomShape::TwoSpheres,
-                                    PhantomShape::Tube,       PhantomShape::Gyroid};
+constexpr PhantomShape kShapes[] = {PhantomShape::Sphere, PhantomShape::Shell,
+                                    PhantomShape::Torus,  PhantomShape::TwoSpheres,
+                                    PhantomShape::Tube,   PhantomShape::Gyroid};
 
 /// Default sizes: fractions of the half-extent of the smallest side, so every closed shape
 /// stays clear of the border by at least two samples.
@@ -140,13 +140,15 @@ PhantomShape phantom_shape_from_string(std::string_view name) {
     if (to_string(s) == name) return s;
   }
   std::string valid;
-  for (const std::string& n : phantom_shape_names()) valid += (valid.empty() ? "" : ", ") + n;
+  for (const std::string& n : phantom_shape_names())
+    valid += (valid.empty() ? "" : ", ") + n;
   throw InputError("unknown phantom shape '" + std::string(name) + "' (valid: " + valid + ")");
 }
 
 std::vector<std::string> phantom_shape_names() {
   std::vector<std::string> names;
-  for (PhantomShape s : kShapes) names.emplace_back(to_string(s));
+  for (PhantomShape s : kShapes)
+    names.emplace_back(to_string(s));
   return names;
 }
 
