@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs every Debian 12 package bisturi needs to build, run and test. Run as root (or with
 # sudo). Idempotent: packages already present are left alone.
-#   --bench-peers   also install the peer libraries the comparison benchmarks use (OpenMesh, CGAL)
+#   --bench-peers   also install the peer libraries the comparison benchmarks use (OpenMesh,
+#                   CGAL, VTK)
 set -euo pipefail
 
 packages=(
@@ -14,9 +15,10 @@ packages=(
   zlib1g-dev                         # gzip-encoded NRRD and .nii.gz volumes
   libgdcm-dev                        # DICOM series
   libosd-dev                         # subdivision surfaces (OpenSubdiv)
+  libembree-dev                      # collision BVH for soft tissue (sim/)
 )
 if [[ "${1:-}" == "--bench-peers" ]]; then
-  packages+=(libopenmesh-dev libcgal-dev)
+  packages+=(libopenmesh-dev libcgal-dev libvtk9-dev)
 fi
 
 missing=()
