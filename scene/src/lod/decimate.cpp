@@ -433,10 +433,12 @@ DecimateStats Decimator::run() {
       break;
     }
     std::uint32_t keep = cand.a, remove = cand.b;
-    if (flags_[remove] & kFixed) {
+    // A fixed end must be the one kept; otherwise keep the busier end, so fewer edges are
+    // deleted and inserted.
+    const bool remove_fixed = (flags_[remove] & kFixed) != 0;
+    const bool keep_fixed = (flags_[keep] & kFixed) != 0;
+    if (remove_fixed || (!keep_fixed && valence(keep) < valence(remove))) {
       std::swap(keep, remove);
-    } else if (!(flags_[keep] & kFixed) && valence(keep) < valence(remove)) {
-      std::swap(keep, remove);  // fewer edges to delete and insert
     }
     const int verdict = check(keep, remove, cand.p);
     if (verdict != 0) {

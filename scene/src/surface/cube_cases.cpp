@@ -64,7 +64,7 @@ Geometry make_geometry() {
       // (u, v) -> counter-clockwise around e_u x e_v = e_axis: right for the face at side 1.
       std::array<int, 4> cyc{base, base | (1 << u), base | (1 << u) | (1 << v), base | (1 << v)};
       if (side == 0) std::reverse(cyc.begin(), cyc.end());
-      CubeFace& face = g.faces[static_cast<std::size_t>(2 * axis + side)];
+      CubeFace& face = g.faces[2 * static_cast<std::size_t>(axis) + static_cast<std::size_t>(side)];
       for (std::size_t m = 0; m < 4; ++m) {
         face.corners[m] = static_cast<std::uint8_t>(cyc[m]);
         face.edges[m] = static_cast<std::uint8_t>(edge_index(cyc[m], cyc[(m + 1) % 4]));
@@ -151,8 +151,8 @@ void triangulate(const std::vector<std::uint8_t>& poly, std::uint8_t ambiguous, 
       const std::size_t k = split[i * n + j];
       cases.triangle_codes.insert(cases.triangle_codes.end(), {poly[i], poly[k], poly[j]});
       ++entry.triangle_count;
-      stack.push_back({i, k});
-      stack.push_back({k, j});
+      stack.emplace_back(i, k);
+      stack.emplace_back(k, j);
     }
     return;
   }
