@@ -7,6 +7,7 @@
 
 #include "bisturi/runtime/version.h"
 #include "extract_command.h"
+#include "measure_command.h"
 #include "mesh_command.h"
 #include "mesh_demo.h"
 #include "segment_command.h"
@@ -46,6 +47,10 @@ int run(int argc, char** argv) {
   int (*run_extract)(const bisturi::cli::ExtractOptions&) = nullptr;
   bisturi::cli::add_extract_command(app, extract, run_extract);
 
+  bisturi::cli::MeasureCommandOptions measure;
+  int (*run_measure)(const bisturi::cli::MeasureCommandOptions&) = nullptr;
+  bisturi::cli::add_measure_command(app, measure, run_measure);
+
   CLI11_PARSE(app, argc, argv);
   if (version) {
     std::cout << "bisturi " << bisturi::kVersion << " (" << bisturi::kBuildType << ")\n";
@@ -56,6 +61,7 @@ int run(int argc, char** argv) {
   if (run_volume != nullptr) return run_volume(volume);
   if (run_segment != nullptr) return run_segment(segment);
   if (run_extract != nullptr) return run_extract(extract);
+  if (run_measure != nullptr) return run_measure(measure);
   std::cout << app.help();
   return 0;
 }

@@ -253,6 +253,60 @@ class Extractor {
     return std::min(t, 1.0 - kEdgeEps);
   }
 
+  /// The parameter of the crossed edge from sample p[0] to p[stride]; `index` is p's index along
+  /// the edge's axis, `n` the samples along it (for the outer samples of the cubic).
+  [[nodiscard]] double edge_parameter(const float* p, std::int64_t stride, std::int64_t index,
+                                      std::int64_t n) const {
+    const double linear = edge_parameter(p[0], p[stride]);
+    if (options_.placement == VertexPlacement::Linear) return linear;
+    const double iso = double(iso_);
+    const double g1 = double(p[0]) - iso, g2 = double(p[stride]) - iso;
+    const bool has0 = index > 0, has3 = index + 2 < n;
+    double g0 = has0 ? double(p[-stride]) - iso : 0.0;
+    double g3 = has3 ? double(p[2 * stride]) - iso : 0.0;
+    if (!std::isfinite(g1) || !std::isfinite(g2) || !std::isfinite(g0) || !std::isfinite(g3)) {
+      return linear;
+    }
+    // p(t) = a + b t + c t^2 + d t^3 through the available samples.
+    double b = 0.0, c = 0.0, d = 0.0;
+    if (has0 && has3) {
+      b = -g0 / 3.0 - g1 / 2.0 + g2 - g3 / 6.0;
+      c = (g0 + g2) / 2.0 - g1;
+      d = (g3 - g0) / 6.0 + (g1 - g2) / 2.0;
+    } else if (has3) {
+      b = (-3.0 * g1 + 4.0 * g2 - g3) / 2.0;
+      c = (g1 - 2.0 * g2 + g3) / 2.0;
+    } else if (has0) {
+      b = (g2 - g0) / 2.0;
+      c = (g0 + g2) / 2.0 - g1;
+    } else {
+      return linear;
+    }
+    const auto value = [&](double t) { return g1 + t * (b + t * (c + t * d)); };
+    // Bracket [lo, hi] with value(lo) on g1's side (<= 0 is outside, as the classification).
+    double lo = 0.0, hi = 1.0;
+    const bool rising = g1 <= 0.0;
+    double t = std::clamp(linear, 0.0, 1.0);
+    for (int it = 0; it < 40; ++it) {
+      const double v = value(t);
+      if (v == 0.0) break;
+      if ((v < 0.0) == rising) {
+        lo = t;
+      } else {
+        hi = t;
+      }
+      const double slope = b + t * (2.0 * c + t * 3.0 * d);
+      double next = slope != 0.0 ? t - v / slope : 0.5 * (lo + hi);
+      if (!(next > std::min(lo, hi) && next < std::max(lo, hi))) next = 0.5 * (lo + hi);
+      if (std::abs(next - t) < 1e-13) {
+        t = next;
+        break;
+      }
+      t = next;
+    }
+    return std::clamp(t, kEdgeEps, 1.0 - kEdgeEps);
+  }
+
   /// Vertices of the crossed x- and y-edges of sample plane z.
   void plane_vertices(std::int64_t z, int p) {
     const std::uint64_t* bits = bits_[static_cast<std::size_t>(p)].data();
@@ -272,7 +326,7 @@ class Extractor {
           while (cross != 0) {
             const std::int64_t i = 64 * w + __builtin_ctzll(cross);
             cross &= cross - 1;
-            const double t = edge_parameter(v[i], v[i + 1]);
+            const double t = edge_parameter(v + i, 1, i, nx_);
             xid[j * nx_ + i] = add_vertex({double(i) + t, double(j), double(z)});
           }
         }
@@ -286,7 +340,7 @@ class Extractor {
         while (cross != 0) {
           const std::int64_t i = 64 * w + __builtin_ctzll(cross);
           cross &= cross - 1;
-          const double t = edge_parameter(v[i], v[i + nx_]);
+          const double t = edge_parameter(v + i, nx_, j, ny_);
           yid[j * nx_ + i] = add_vertex({double(i), double(j) + t, double(z)});
         }
       }
@@ -311,7 +365,7 @@ class Extractor {
         while (cross != 0) {
           const std::int64_t i = 64 * w + __builtin_ctzll(cross);
           cross &= cross - 1;
-          const double t = edge_parameter(v[i], v[i + plane_]);
+          const double t = edge_parameter(v + i, plane_, k, nz_);
           zid_[static_cast<std::size_t>(j * nx_ + i)] =
               add_vertex({double(i), double(j), double(k) + t});
         }

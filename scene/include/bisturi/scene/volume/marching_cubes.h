@@ -4,9 +4,10 @@
 //
 // Inside and outside. A sample is inside when its value is strictly greater than the iso value;
 // a sample equal to the iso value (and NaN) is outside. A grid edge is crossed when its two samples
-// differ; its one vertex is placed by linear interpolation and kept strictly inside the edge
-// (parameter clamped to [1e-3, 1 - 1e-3]), so no two vertices coincide and no edge has zero
-// length even where samples equal the iso value.
+// differ; its one vertex is placed by linear interpolation (or, on request, where the cubic through
+// the four samples on the edge's grid line crosses the iso value: VertexPlacement::Cubic) and kept
+// strictly inside the edge (parameter clamped to [1e-3, 1 - 1e-3]), so no two vertices coincide
+// and no edge has zero length even where samples equal the iso value.
 //
 // Topology. Each cell joins its edge crossings into segments on its six faces and chains them
 // into closed polygons (no published case table is copied: the 256 configurations are derived at
@@ -38,6 +39,22 @@ namespace bisturi {
 
 class BonoOctree;
 
+/// Where a vertex goes on its crossed grid edge (samples f1 at parameter 0 and f2 at 1).
+enum class VertexPlacement : std::uint8_t {
+  /// The root of the straight line through f1 and f2 (classic marching cubes). Exact for a field
+  /// that is linear along the edge; on a smooth field the vertex sits off the true isosurface by
+  /// about h^2 |f''| / (8 |f'|) (h: the spacing).
+  Linear,
+  /// The root in [0, 1] of the cubic through the four samples f0, f1, f2, f3 of the edge's grid
+  /// line at parameters -1, 0, 1, 2 (a quadratic through three where the edge touches the
+  /// volume's border), found by Newton steps kept inside the bracket (bisection when a step
+  /// leaves it). Exact for fields cubic along the grid lines; on a smooth field the error falls
+  /// to O(h^4), so vertices lie on the true isosurface to a small fraction of a voxel (the test
+  /// phantoms: below 1e-4 mm at 0.5 mm spacing, against about 3e-3 mm for Linear). Costs two
+  /// more sample reads and a few polynomial evaluations per vertex.
+  Cubic,
+};
+
 struct IsoSurfaceOptions {
   /// Inside: value > iso.
   float iso = 0.0f;
@@ -52,6 +69,8 @@ struct IsoSurfaceOptions {
   /// the classification does, so for a single extraction it rarely pays; reuse one across iso
   /// values instead.
   bool build_octree = false;
+  /// Vertex placement on crossed edges; the topology (cases, decider) is the same for both.
+  VertexPlacement placement = VertexPlacement::Linear;
 };
 
 struct ExtractionStats {
