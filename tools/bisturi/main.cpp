@@ -10,6 +10,7 @@
 #include "measure_command.h"
 #include "mesh_command.h"
 #include "mesh_demo.h"
+#include "render_command.h"
 #include "segment_command.h"
 #include "volume_command.h"
 
@@ -51,6 +52,10 @@ int run(int argc, char** argv) {
   int (*run_measure)(const bisturi::cli::MeasureCommandOptions&) = nullptr;
   bisturi::cli::add_measure_command(app, measure, run_measure);
 
+  bisturi::cli::RenderOptions render;
+  int (*run_render)(const bisturi::cli::RenderOptions&) = nullptr;
+  bisturi::cli::add_render_command(app, render, run_render);
+
   CLI11_PARSE(app, argc, argv);
   if (version) {
     std::cout << "bisturi " << bisturi::kVersion << " (" << bisturi::kBuildType << ")\n";
@@ -62,6 +67,7 @@ int run(int argc, char** argv) {
   if (run_segment != nullptr) return run_segment(segment);
   if (run_extract != nullptr) return run_extract(extract);
   if (run_measure != nullptr) return run_measure(measure);
+  if (run_render != nullptr) return run_render(render);
   std::cout << app.help();
   return 0;
 }

@@ -1,0 +1,114 @@
+#pragma once
+// The stereo renderer: Vulkan 1.2, both eyes in one multiview render pass into a two-layer colour
+// and depth image, offscreen (a headless device such as Mesa's lavapipe works; a GPU is preferred
+// when there is one), frames handed to a FrameSink.
+//
+// Per frame, for every solid: frustum culling of the solid's box against both eyes, a level of
+// detail picked by projected screen-space error, then culling of that level's chunk tree (a
+// culled chunk costs no draw call; neighbouring visible chunks are drawn as one range); back faces
+// are culled by the rasterizer (solids are consistently oriented, counter-clockwise outside).
+//
+// Streaming: vertex data of the drawn levels go every frame into a buffer owned by the frame in
+// flight (no stall on the previous frame); index buffers are rebuilt only when a level's indices
+// change (a topology change of the solid) and retired once no frame in flight uses them.
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <glm/mat4x4.hpp>
+#include <glm/vec3.hpp>
+
+#include "bisturi/runtime/render/frame_sink.h"
+#include "bisturi/runtime/render/headset.h"
+#include "bisturi/runtime/render/solid_levels.h"
+#include "bisturi/scene/dlfl.h"
+
+namespace bisturi::render {
+
+struct Material {
+  glm::vec3 colour{0.8f, 0.45f, 0.4f};  ///< linear RGB
+  float ambient = 0.35f;
+  float diffuse = 0.65f;
+  float specular = 0.25f;
+  float shininess = 32.0f;
+};
+
+enum class DevicePreference : std::uint8_t { Any, Gpu, Cpu };
+
+struct RendererOptions {
+  HeadsetDescription headset;
+  DevicePreference device = DevicePreference::Any;  ///< Any: a GPU when there is one
+  /// Enable VK_LAYER_KHRONOS_validation and count its messages (validation_messages()).
+  bool validation = false;
+  bool frustum_culling = true;
+  bool level_of_detail = true;
+  /// The coarsest level whose error projects to at most this many pixels is drawn.
+  double max_error_px = 1.0;
+  std::uint32_t frames_in_flight = 2;
+  glm::vec3 clear_colour{0.0f, 0.0f, 0.0f};
+  LevelOptions levels;
+};
+
+struct SolidId {
+  std::uint32_t index = 0;
+};
+
+struct FrameStats {
+  std::uint64_t frame = 0;
+  std::size_t draw_calls = 0;
+  std::size_t triangles_drawn = 0;  ///< submitted (before back-face culling)
+  std::size_t solids_culled = 0;
+  std::size_t chunks_drawn = 0;
+  std::size_t chunks_culled = 0;
+  std::size_t vertex_bytes_uploaded = 0;
+  std::size_t index_buffers_rebuilt = 0;
+  double cpu_ms = 0.0;  ///< culling, LOD, streaming and recording on the CPU
+};
+
+class StereoRenderer {
+ public:
+  /// Throws NoVulkanDevice when no suitable Vulkan device exists, RenderError otherwise.
+  explicit StereoRenderer(const RendererOptions& options);
+  ~StereoRenderer();
+  StereoRenderer(const StereoRenderer&) = delete;
+  StereoRenderer& operator=(const StereoRenderer&) = delete;
+
+  /// A solid in world millimetres (its positions are used as they are).
+  SolidId add_solid(const Dlfl& mesh, const Material& material = {});
+  /// An instrument: a mesh in its own frame, drawn at `pose` (model to world, rigid).
+  SolidId add_instrument(const Dlfl& mesh, const Material& material, const glm::dmat4& pose);
+  /// New positions of a solid (and new topology when its version moved).
+  void update_solid(SolidId id, const Dlfl& mesh);
+  void rebuild_levels(SolidId id, const Dlfl& mesh);
+  void set_pose(SolidId id, const glm::dmat4& pose);
+  void set_material(SolidId id, const Material& material);
+  void set_visible(SolidId id, bool visible);
+  [[nodiscard]] const SolidLevels& levels(SolidId id) const;
+  /// The level drawn for the solid in the last frame (-1: culled or hidden).
+  [[nodiscard]] int drawn_level(SolidId id) const;
+
+  /// Frames go here once finished; null: frames are not read back.
+  void set_sink(FrameSink* sink);
+
+  /// Records and submits one frame for `head`; the frame reaches the sink once the device is done
+  /// with it (during a later call, or flush()).
+  FrameStats render(const HeadPose& head);
+  /// Waits for every frame in flight and hands them to the sink.
+  void flush();
+
+  [[nodiscard]] const RendererOptions& options() const;
+  [[nodiscard]] std::string device_name() const;
+  [[nodiscard]] bool device_is_cpu() const;
+  /// Validation-layer messages (warnings and errors) so far; 0 without validation.
+  [[nodiscard]] std::size_t validation_messages() const;
+  [[nodiscard]] std::vector<std::string> validation_log() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace bisturi::render

@@ -1,0 +1,528 @@
+#include "bisturi/runtime/render/stereo_renderer.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <deque>
+#include <limits>
+#include <optional>
+
+#include "bisturi/runtime/render/errors.h"
+#include "bisturi/runtime/render/frustum.h"
+#include "gpu_buffer.h"
+#include "mesh_pipeline.h"
+#include "stereo_target.h"
+#include "vulkan_context.h"
+
+namespace bisturi::render {
+
+namespace {
+
+using Clock = PoseClock;
+
+struct IndexBuffer {
+  vk::Buffer buffer;
+  std::uint64_t generation = 0;
+};
+
+struct Solid {
+  std::unique_ptr<SolidLevels> levels;
+  Material material;
+  bool instrument = false;
+  glm::dmat4 pose{1.0};
+  bool visible = true;
+  std::vector<IndexBuffer> index_buffers;  ///< one per level
+  int drawn_level = -1;
+};
+
+struct FrameSlot {
+  VkCommandBuffer commands = VK_NULL_HANDLE;
+  VkFence fence = VK_NULL_HANDLE;
+  VkDescriptorSet descriptors = VK_NULL_HANDLE;
+  vk::Buffer uniforms;
+  vk::Buffer stream;    ///< vertex data of this frame
+  vk::Buffer readback;  ///< both eyes' pixels, when there is a sink
+  bool pending = false;
+  bool read_back = false;
+  std::uint64_t frame = 0;
+  HeadPose pose;
+  Clock::time_point submit_time{};
+};
+
+/// One draw of a solid's level: a run of contiguous visible chunks.
+struct Range {
+  std::uint32_t first_index;
+  std::uint32_t index_count;
+};
+
+struct PlannedDraw {
+  std::size_t solid;
+  std::size_t level;
+  std::size_t first_range;
+  std::size_t range_count;
+  VkDeviceSize vertex_offset;
+};
+
+Visibility combine(Visibility a, Visibility b) {
+  if (a == Visibility::Inside || b == Visibility::Inside) return Visibility::Inside;
+  if (a == Visibility::Intersects || b == Visibility::Intersects) return Visibility::Intersects;
+  return Visibility::Outside;
+}
+
+glm::mat4 to_float(const glm::dmat4& m) {
+  return glm::mat4(m);
+}
+
+}  // namespace
+
+struct StereoRenderer::Impl {
+  RendererOptions options;
+  std::unique_ptr<vk::Context> context;
+  std::unique_ptr<vk::StereoTarget> target;
+  std::unique_ptr<vk::MeshPipeline> pipeline;
+  VkCommandPool pool = VK_NULL_HANDLE;
+  VkDescriptorPool descriptor_pool = VK_NULL_HANDLE;
+  std::vector<FrameSlot> slots;
+  std::vector<Solid> solids;
+  /// Index buffers replaced while frames in flight may still read them: freed once the frame
+  /// counter passes the number stored with them.
+  std::deque<std::pair<std::uint64_t, vk::Buffer>> retired;
+  FrameSink* sink = nullptr;
+  std::uint64_t frame = 0;
+
+  // Per-frame scratch.
+  std::vector<Range> ranges;
+  std::vector<PlannedDraw> draws;
+
+  explicit Impl(const RendererOptions& o) : options(o) {
+    if (options.headset.eye_width == 0 || options.headset.eye_height == 0) {
+      throw RenderError("the eye resolution must be at least 1 x 1");
+    }
+    if (options.frames_in_flight == 0) options.frames_in_flight = 1;
+    context = std::make_unique<vk::Context>(options.validation, options.device);
+    try {
+      create();
+    } catch (...) {
+      release();
+      throw;
+    }
+  }
+
+  ~Impl() { release(); }
+
+  void create() {
+    const VkDevice device = context->device();
+    target = std::make_unique<vk::StereoTarget>(*context, options.headset.eye_width,
+                                                options.headset.eye_height);
+    pipeline = std::make_unique<vk::MeshPipeline>(
+        *context, target->render_pass(), options.headset.eye_width, options.headset.eye_height);
+    VkCommandPoolCreateInfo pool_info{};
+    pool_info.sType = VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO;
+    pool_info.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
+    pool_info.queueFamilyIndex = context->queue_family();
+    vk::check(vkCreateCommandPool(device, &pool_info, nullptr, &pool), "vkCreateCommandPool");
+
+    const std::uint32_t n = options.frames_in_flight;
+    VkDescriptorPoolSize size{VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER, n};
+    VkDescriptorPoolCreateInfo dp{};
+    dp.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_POOL_CREATE_INFO;
+    dp.maxSets = n;
+    dp.poolSizeCount = 1;
+    dp.pPoolSizes = &size;
+    vk::check(vkCreateDescriptorPool(device, &dp, nullptr, &descriptor_pool),
+              "vkCreateDescriptorPool");
+
+    slots.resize(n);
+    for (FrameSlot& slot : slots) {
+      VkCommandBufferAllocateInfo alloc{};
+      alloc.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_ALLOCATE_INFO;
+      alloc.commandPool = pool;
+      alloc.level = VK_COMMAND_BUFFER_LEVEL_PRIMARY;
+      alloc.commandBufferCount = 1;
+      vk::check(vkAllocateCommandBuffers(device, &alloc, &slot.commands),
+                "vkAllocateCommandBuffers");
+      VkFenceCreateInfo fence{};
+      fence.sType = VK_STRUCTURE_TYPE_FENCE_CREATE_INFO;
+      vk::check(vkCreateFence(device, &fence, nullptr, &slot.fence), "vkCreateFence");
+      slot.uniforms =
+          vk::Buffer(*context, sizeof(vk::EyeUniforms), VK_BUFFER_USAGE_UNIFORM_BUFFER_BIT);
+      const VkDescriptorSetLayout layout = pipeline->set_layout();
+      VkDescriptorSetAllocateInfo ds{};
+      ds.sType = VK_STRUCTURE_TYPE_DESCRIPTOR_SET_ALLOCATE_INFO;
+      ds.descriptorPool = descriptor_pool;
+      ds.descriptorSetCount = 1;
+      ds.pSetLayouts = &layout;
+      vk::check(vkAllocateDescriptorSets(device, &ds, &slot.descriptors),
+                "vkAllocateDescriptorSets");
+      VkDescriptorBufferInfo buffer_info{slot.uniforms.handle(), 0, sizeof(vk::EyeUniforms)};
+      VkWriteDescriptorSet write{};
+      write.sType = VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET;
+      write.dstSet = slot.descriptors;
+      write.dstBinding = 0;
+      write.descriptorCount = 1;
+      write.descriptorType = VK_DESCRIPTOR_TYPE_UNIFORM_BUFFER;
+      write.pBufferInfo = &buffer_info;
+      vkUpdateDescriptorSets(device, 1, &write, 0, nullptr);
+    }
+  }
+
+  void release() {
+    if (!context) return;
+    const VkDevice device = context->device();
+    if (device != VK_NULL_HANDLE) vkDeviceWaitIdle(device);
+    for (FrameSlot& slot : slots) {
+      if (slot.fence != VK_NULL_HANDLE) vkDestroyFence(device, slot.fence, nullptr);
+      slot.uniforms.reset();
+      slot.stream.reset();
+      slot.readback.reset();
+    }
+    slots.clear();
+    solids.clear();
+    retired.clear();
+    if (descriptor_pool != VK_NULL_HANDLE)
+      vkDestroyDescriptorPool(device, descriptor_pool, nullptr);
+    if (pool != VK_NULL_HANDLE) vkDestroyCommandPool(device, pool, nullptr);
+    descriptor_pool = VK_NULL_HANDLE;
+    pool = VK_NULL_HANDLE;
+    pipeline.reset();
+    target.reset();
+    context.reset();
+  }
+
+  Solid& solid(SolidId id) {
+    if (id.index >= solids.size()) throw RenderError("unknown solid " + std::to_string(id.index));
+    return solids[id.index];
+  }
+
+  SolidId add(const Dlfl& mesh, const Material& material, bool instrument, const glm::dmat4& pose) {
+    Solid s;
+    s.levels = std::make_unique<SolidLevels>(mesh, options.levels);
+    s.material = material;
+    s.instrument = instrument;
+    s.pose = pose;
+    s.index_buffers.resize(s.levels->level_count());
+    solids.push_back(std::move(s));
+    return SolidId{static_cast<std::uint32_t>(solids.size() - 1)};
+  }
+
+  /// Waits for a slot's frame and hands it to the sink.
+  void complete(FrameSlot& slot) {
+    if (!slot.pending) return;
+    vk::check(vkWaitForFences(context->device(), 1, &slot.fence, VK_TRUE,
+                              std::numeric_limits<std::uint64_t>::max()),
+              "vkWaitForFences");
+    vk::check(vkResetFences(context->device(), 1, &slot.fence), "vkResetFences");
+    slot.pending = false;
+    if (slot.read_back && sink != nullptr) {
+      slot.readback.invalidate();
+      StereoFrame out;
+      out.index = slot.frame;
+      out.eye_width = options.headset.eye_width;
+      out.eye_height = options.headset.eye_height;
+      out.pixels = {reinterpret_cast<const std::uint8_t*>(slot.readback.data()),
+                    std::size_t{out.eye_width} * out.eye_height * 4 * 2};
+      out.pose = slot.pose;
+      out.submit_time = slot.submit_time;
+      out.ready_time = Clock::now();
+      sink->consume(out);
+    }
+  }
+
+  void flush() {
+    // Oldest first: frames go to the sink in order.
+    std::vector<FrameSlot*> pending;
+    for (FrameSlot& s : slots) {
+      if (s.pending) pending.push_back(&s);
+    }
+    std::sort(pending.begin(), pending.end(),
+              [](const FrameSlot* a, const FrameSlot* b) { return a->frame < b->frame; });
+    for (FrameSlot* s : pending)
+      complete(*s);
+  }
+
+  /// Chunks of `level` visible in either eye, as merged index ranges.
+  void cull_chunks(const ChunkTree& tree, const std::array<Frustum, 2>& frusta,
+                   const glm::dmat4* pose, FrameStats& stats) {
+    if (tree.nodes.empty()) return;
+    const auto emit = [&](std::uint32_t first_chunk, std::uint32_t count) {
+      for (std::uint32_t c = first_chunk; c < first_chunk + count; ++c) {
+        const Chunk& chunk = tree.chunks[c];
+        if (!ranges.empty() &&
+            ranges.back().first_index + ranges.back().index_count == chunk.first_index) {
+          ranges.back().index_count += chunk.index_count;
+        } else {
+          ranges.push_back({chunk.first_index, chunk.index_count});
+        }
+      }
+      stats.chunks_drawn += count;
+    };
+    if (!options.frustum_culling) {
+      emit(0, static_cast<std::uint32_t>(tree.chunks.size()));
+      return;
+    }
+    std::array<std::int32_t, 64> stack{};
+    std::size_t top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const ChunkNode& node = tree.nodes[static_cast<std::size_t>(stack[--top])];
+      const Aabb box = pose != nullptr ? node.bounds.transformed(*pose) : node.bounds;
+      const Visibility v = combine(frusta[0].classify(box), frusta[1].classify(box));
+      if (v == Visibility::Outside) {
+        stats.chunks_culled += node.chunk_count;
+      } else if (v == Visibility::Inside || node.left < 0 || top + 2 > stack.size()) {
+        emit(node.first_chunk, node.chunk_count);
+      } else {
+        stack[top++] = node.right;  // left first: ranges come out in index order
+        stack[top++] = node.left;
+      }
+    }
+  }
+
+  /// The coarsest level whose error projects to at most max_error_px in either eye.
+  std::size_t pick_level(const SolidLevels& levels, const Aabb& world_bounds,
+                         const std::array<EyeView, 2>& eyes) const {
+    if (!options.level_of_detail) return levels.source_level();
+    double distance = std::numeric_limits<double>::infinity();
+    double pixels_per_tangent = 0.0;
+    for (const EyeView& eye : eyes) {
+      distance = std::min(distance, distance_to(world_bounds, eye.position_mm));
+      const double span = std::tan(static_cast<double>(eye.fov.angle_up)) -
+                          std::tan(static_cast<double>(eye.fov.angle_down));
+      pixels_per_tangent =
+          std::max(pixels_per_tangent, static_cast<double>(options.headset.eye_height) / span);
+    }
+    std::size_t chosen = 0;
+    for (std::size_t i = 0; i < levels.level_count(); ++i) {
+      if (projected_error_px(levels.level(i).error_mm, distance, pixels_per_tangent) <=
+          options.max_error_px) {
+        chosen = i;
+      } else {
+        break;
+      }
+    }
+    return chosen;
+  }
+
+  FrameStats render(const HeadPose& head) {
+    const auto cpu_start = Clock::now();
+    FrameStats stats;
+    stats.frame = frame;
+    FrameSlot& slot = slots[frame % slots.size()];
+    complete(slot);
+    while (!retired.empty() && retired.front().first <= frame)
+      retired.pop_front();
+
+    const std::array<EyeView, 2> eyes = eye_views(options.headset, head);
+    const std::array<Frustum, 2> frusta{Frustum::from_view_projection(eyes[0].view_projection),
+                                        Frustum::from_view_projection(eyes[1].view_projection)};
+    vk::EyeUniforms uniforms{};
+    for (int e = 0; e < 2; ++e) {
+      uniforms.view_projection[e] = to_float(eyes[static_cast<std::size_t>(e)].view_projection);
+      uniforms.eye_position[e] =
+          glm::vec4(glm::vec3(eyes[static_cast<std::size_t>(e)].position_mm), 1.0f);
+    }
+    // A key light above and behind the viewer's head.
+    const glm::dmat3 head_rotation = glm::mat3_cast(glm::normalize(head.orientation));
+    uniforms.light_direction =
+        glm::vec4(glm::vec3(glm::normalize(head_rotation * glm::dvec3(0.3, 0.8, 0.6))), 0.0f);
+    std::memcpy(slot.uniforms.data(), &uniforms, sizeof(uniforms));
+
+    // Plan: cull solids, pick levels, cull chunks; count the vertex bytes to stream.
+    ranges.clear();
+    draws.clear();
+    VkDeviceSize stream_bytes = 0;
+    for (std::size_t i = 0; i < solids.size(); ++i) {
+      Solid& s = solids[i];
+      s.drawn_level = -1;
+      if (!s.visible) continue;
+      const Aabb bounds =
+          s.instrument ? s.levels->bounds().transformed(s.pose) : s.levels->bounds();
+      if (options.frustum_culling &&
+          combine(frusta[0].classify(bounds), frusta[1].classify(bounds)) == Visibility::Outside) {
+        ++stats.solids_culled;
+        continue;
+      }
+      const std::size_t level_index = pick_level(*s.levels, bounds, eyes);
+      const SolidLevel& level = s.levels->refresh(level_index);
+      const std::size_t first_range = ranges.size();
+      cull_chunks(level.tree, frusta, s.instrument ? &s.pose : nullptr, stats);
+      if (ranges.size() == first_range) continue;
+      s.drawn_level = static_cast<int>(level_index);
+      draws.push_back({i, level_index, first_range, ranges.size() - first_range, stream_bytes});
+      stream_bytes += (level.vertices.size() * sizeof(float) + 255) & ~VkDeviceSize{255};
+    }
+
+    // Stream the vertices into this frame's buffer (its previous frame is done: no stall).
+    if (stream_bytes > slot.stream.size()) {
+      slot.stream =
+          vk::Buffer(*context, std::max<VkDeviceSize>(stream_bytes + stream_bytes / 2, 1 << 16),
+                     VK_BUFFER_USAGE_VERTEX_BUFFER_BIT);
+    }
+    for (const PlannedDraw& d : draws) {
+      Solid& s = solids[d.solid];
+      const SolidLevel& level = s.levels->level(d.level);
+      std::memcpy(slot.stream.data() + d.vertex_offset, level.vertices.data(),
+                  level.vertices.size() * sizeof(float));
+      stats.vertex_bytes_uploaded += level.vertices.size() * sizeof(float);
+      IndexBuffer& ib = s.index_buffers[d.level];
+      if (ib.generation != level.index_generation || ib.buffer.handle() == VK_NULL_HANDLE) {
+        if (ib.buffer.handle() != VK_NULL_HANDLE) {
+          retired.emplace_back(frame + slots.size(), std::move(ib.buffer));
+        }
+        ib.buffer = vk::Buffer(*context, std::max<std::size_t>(level.indices.size(), 1) * 4,
+                               VK_BUFFER_USAGE_INDEX_BUFFER_BIT);
+        std::memcpy(ib.buffer.data(), level.indices.data(), level.indices.size() * 4);
+        ib.generation = level.index_generation;
+        ++stats.index_buffers_rebuilt;
+      }
+    }
+
+    // Record.
+    const VkCommandBuffer cmd = slot.commands;
+    vk::check(vkResetCommandBuffer(cmd, 0), "vkResetCommandBuffer");
+    VkCommandBufferBeginInfo begin{};
+    begin.sType = VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO;
+    begin.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+    vk::check(vkBeginCommandBuffer(cmd, &begin), "vkBeginCommandBuffer");
+    std::array<VkClearValue, 2> clear{};
+    clear[0].color = {
+        {options.clear_colour.r, options.clear_colour.g, options.clear_colour.b, 1.0f}};
+    clear[1].depthStencil = {1.0f, 0};
+    VkRenderPassBeginInfo pass{};
+    pass.sType = VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO;
+    pass.renderPass = target->render_pass();
+    pass.framebuffer = target->framebuffer();
+    pass.renderArea = {{0, 0}, {options.headset.eye_width, options.headset.eye_height}};
+    pass.clearValueCount = static_cast<std::uint32_t>(clear.size());
+    pass.pClearValues = clear.data();
+    vkCmdBeginRenderPass(cmd, &pass, VK_SUBPASS_CONTENTS_INLINE);
+    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline->pipeline());
+    vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline->layout(), 0, 1,
+                            &slot.descriptors, 0, nullptr);
+    for (const PlannedDraw& d : draws) {
+      const Solid& s = solids[d.solid];
+      vk::DrawConstants constants;
+      constants.model = to_float(s.instrument ? s.pose : glm::dmat4(1.0));
+      constants.colour = glm::vec4(s.material.colour, 1.0f);
+      constants.material = {s.material.ambient, s.material.diffuse, s.material.specular,
+                            s.material.shininess};
+      vkCmdPushConstants(cmd, pipeline->layout(),
+                         VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
+                         sizeof(constants), &constants);
+      const VkBuffer vertex_buffer = slot.stream.handle();
+      vkCmdBindVertexBuffers(cmd, 0, 1, &vertex_buffer, &d.vertex_offset);
+      vkCmdBindIndexBuffer(cmd, s.index_buffers[d.level].buffer.handle(), 0, VK_INDEX_TYPE_UINT32);
+      for (std::size_t r = d.first_range; r < d.first_range + d.range_count; ++r) {
+        vkCmdDrawIndexed(cmd, ranges[r].index_count, 1, ranges[r].first_index, 0, 0);
+        ++stats.draw_calls;
+        stats.triangles_drawn += ranges[r].index_count / 3;
+      }
+    }
+    vkCmdEndRenderPass(cmd);
+
+    slot.read_back = sink != nullptr;
+    if (slot.read_back) {
+      const VkDeviceSize bytes =
+          VkDeviceSize{options.headset.eye_width} * options.headset.eye_height * 4 * 2;
+      if (slot.readback.size() < bytes) {
+        slot.readback =
+            vk::Buffer(*context, bytes, VK_BUFFER_USAGE_TRANSFER_DST_BIT, vk::HostAccess::Read);
+      }
+      VkBufferImageCopy copy{};
+      copy.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 2};
+      copy.imageExtent = {options.headset.eye_width, options.headset.eye_height, 1};
+      vkCmdCopyImageToBuffer(cmd, target->colour_image(), VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                             slot.readback.handle(), 1, &copy);
+      VkMemoryBarrier to_host{};
+      to_host.sType = VK_STRUCTURE_TYPE_MEMORY_BARRIER;
+      to_host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
+      to_host.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
+      vkCmdPipelineBarrier(cmd, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0, 1,
+                           &to_host, 0, nullptr, 0, nullptr);
+    }
+    vk::check(vkEndCommandBuffer(cmd), "vkEndCommandBuffer");
+
+    VkSubmitInfo submit{};
+    submit.sType = VK_STRUCTURE_TYPE_SUBMIT_INFO;
+    submit.commandBufferCount = 1;
+    submit.pCommandBuffers = &cmd;
+    vk::check(vkQueueSubmit(context->queue(), 1, &submit, slot.fence), "vkQueueSubmit");
+    slot.pending = true;
+    slot.frame = frame;
+    slot.pose = head;
+    slot.submit_time = Clock::now();
+    stats.cpu_ms = std::chrono::duration<double, std::milli>(slot.submit_time - cpu_start).count();
+    ++frame;
+    return stats;
+  }
+};
+
+StereoRenderer::StereoRenderer(const RendererOptions& options)
+    : impl_(std::make_unique<Impl>(options)) {}
+
+StereoRenderer::~StereoRenderer() = default;
+
+SolidId StereoRenderer::add_solid(const Dlfl& mesh, const Material& material) {
+  return impl_->add(mesh, material, false, glm::dmat4(1.0));
+}
+
+SolidId StereoRenderer::add_instrument(const Dlfl& mesh, const Material& material,
+                                       const glm::dmat4& pose) {
+  return impl_->add(mesh, material, true, pose);
+}
+
+void StereoRenderer::update_solid(SolidId id, const Dlfl& mesh) {
+  Solid& s = impl_->solid(id);
+  s.levels->update(mesh);
+  s.index_buffers.resize(s.levels->level_count());
+}
+
+void StereoRenderer::rebuild_levels(SolidId id, const Dlfl& mesh) {
+  Solid& s = impl_->solid(id);
+  s.levels->rebuild_derived_levels(mesh);
+  s.index_buffers.resize(s.levels->level_count());
+}
+
+void StereoRenderer::set_pose(SolidId id, const glm::dmat4& pose) {
+  impl_->solid(id).pose = pose;
+}
+void StereoRenderer::set_material(SolidId id, const Material& material) {
+  impl_->solid(id).material = material;
+}
+void StereoRenderer::set_visible(SolidId id, bool visible) {
+  impl_->solid(id).visible = visible;
+}
+const SolidLevels& StereoRenderer::levels(SolidId id) const {
+  return *impl_->solid(id).levels;
+}
+int StereoRenderer::drawn_level(SolidId id) const {
+  return impl_->solid(id).drawn_level;
+}
+void StereoRenderer::set_sink(FrameSink* sink) {
+  impl_->flush();
+  impl_->sink = sink;
+}
+FrameStats StereoRenderer::render(const HeadPose& head) {
+  return impl_->render(head);
+}
+void StereoRenderer::flush() {
+  impl_->flush();
+}
+const RendererOptions& StereoRenderer::options() const {
+  return impl_->options;
+}
+std::string StereoRenderer::device_name() const {
+  return impl_->context->properties().deviceName;
+}
+bool StereoRenderer::device_is_cpu() const {
+  return impl_->context->is_cpu();
+}
+std::size_t StereoRenderer::validation_messages() const {
+  return impl_->context->validation_messages();
+}
+std::vector<std::string> StereoRenderer::validation_log() const {
+  return impl_->context->validation_log();
+}
+
+}  // namespace bisturi::render

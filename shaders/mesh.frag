@@ -1,0 +1,34 @@
+#version 450
+// Blinn-Phong with a key light and a hemisphere ambient term: enough shading to read the shape
+// of tissue, cheap enough for a CPU rasterizer.
+#extension GL_EXT_multiview : require
+
+layout(location = 0) in vec3 v_normal;
+layout(location = 1) in vec3 v_world;
+
+layout(set = 0, binding = 0) uniform Eyes {
+  mat4 view_projection[2];
+  vec4 eye_position[2];
+  vec4 light_direction;
+} eyes;
+
+layout(push_constant) uniform Draw {
+  mat4 model;
+  vec4 colour;
+  vec4 material;  // ambient, diffuse, specular, shininess
+} draw;
+
+layout(location = 0) out vec4 out_colour;
+
+void main() {
+  const vec3 n = normalize(v_normal);
+  const vec3 l = normalize(eyes.light_direction.xyz);
+  const vec3 v = normalize(eyes.eye_position[gl_ViewIndex].xyz - v_world);
+  const vec3 h = normalize(l + v);
+  const float hemisphere = 0.5 + 0.5 * dot(n, l);
+  const float diffuse = max(dot(n, l), 0.0);
+  const float specular = diffuse > 0.0 ? pow(max(dot(n, h), 0.0), draw.material.w) : 0.0;
+  const vec3 c = draw.colour.rgb * (draw.material.x * hemisphere + draw.material.y * diffuse) +
+                 vec3(draw.material.z * specular);
+  out_colour = vec4(pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
+}

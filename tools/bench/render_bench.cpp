@@ -1,0 +1,151 @@
+// Stereo rendering throughput: frames per second and frame-time p99 of the multiview renderer on
+// the Vulkan device at hand (lavapipe without a GPU), for scenes of about 100k and 1M triangles at
+// 2 x 1024 x 1024 and 2 x 1440 x 1600, naive (every triangle of every solid, no culling, no level
+// of detail) against culled + LOD, all in one run; reported as ratios. Frames are read back into
+// host memory as the headless sink needs them (no PNG encoding). Not a test; run by hand:
+//   build/bin/render_bench [--frames N] [--quick]
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "bisturi/runtime/render/errors.h"
+#include "bisturi/runtime/render/stereo_renderer.h"
+#include "bisturi/scene/oriented_builder.h"
+#include "bisturi/scene/shapes.h"
+
+namespace {
+
+using namespace bisturi;
+using Clock = std::chrono::steady_clock;
+
+struct CountingSink : render::FrameSink {
+  std::size_t frames = 0;
+  void consume(const render::StereoFrame& frame) override {
+    frames += frame.pixels.empty() ? 0 : 1;
+  }
+};
+
+/// A 4 x 4 field of tori (organs on a table, 160 mm apart), `triangles` in all.
+std::vector<Dlfl> make_scene(std::size_t triangles) {
+  const std::size_t per_solid = triangles / 16;
+  // 2 nu nv triangles with nu = 5 nv.
+  const auto nv = static_cast<std::size_t>(std::sqrt(static_cast<double>(per_solid) / 10.0));
+  std::vector<Dlfl> solids;
+  for (int i = 0; i < 16; ++i) {
+    PolygonMesh torus = torus_mesh(50.0, 18.0, 5 * nv, nv, true);
+    const glm::dvec3 at(160.0 * (i % 4 - 1.5), 0.0, 160.0 * (i / 4 - 1.5));
+    // The torus lies in the z = 0 plane: turn it to lie flat (y up) and place it.
+    for (auto& p : torus.positions)
+      p = at + glm::dvec3(p.x, p.z, -p.y);
+    solids.push_back(build_oriented_manifold(torus));
+  }
+  return solids;
+}
+
+struct Result {
+  double fps = 0, p50 = 0, p99 = 0, draw_calls = 0, triangles = 0, culled_chunks = 0;
+};
+
+double percentile(std::vector<double> v, double p) {
+  std::sort(v.begin(), v.end());
+  const auto i = static_cast<std::size_t>(std::ceil(p * static_cast<double>(v.size()))) - 1;
+  return v[std::min(i, v.size() - 1)];
+}
+
+Result run(const std::vector<Dlfl>& scene, std::uint32_t w, std::uint32_t h, bool optimised,
+           int frames) {
+  render::RendererOptions o;
+  o.headset.eye_width = w;
+  o.headset.eye_height = h;
+  o.frustum_culling = optimised;
+  o.level_of_detail = optimised;
+  o.levels.derived_levels = optimised;
+  render::StereoRenderer renderer(o);
+  for (const Dlfl& s : scene)
+    renderer.add_solid(s);
+  CountingSink sink;
+  renderer.set_sink(&sink);
+  // A surgeon's view: eyes 300 mm above the table, looking at its middle, moving slowly
+  // around it (a quarter turn over the run).
+  const auto pose = [&](int i) {
+    const double a = 0.5 * std::numbers::pi * i / std::max(frames, 1);
+    return render::look_at({300.0 * std::sin(a), 300.0, 300.0 * std::cos(a)}, {0.0, 0.0, 0.0});
+  };
+  for (int i = 0; i < 3; ++i)
+    renderer.render(pose(i));  // warm-up
+  renderer.flush();
+  Result r;
+  std::vector<double> ms;
+  const auto start = Clock::now();
+  auto previous = start;
+  for (int i = 0; i < frames; ++i) {
+    const render::FrameStats s = renderer.render(pose(i));
+    r.draw_calls += static_cast<double>(s.draw_calls);
+    r.triangles += static_cast<double>(s.triangles_drawn);
+    r.culled_chunks += static_cast<double>(s.chunks_culled);
+    const auto now = Clock::now();
+    ms.push_back(std::chrono::duration<double, std::milli>(now - previous).count());
+    previous = now;
+  }
+  renderer.flush();
+  const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  r.fps = frames / seconds;
+  r.p50 = percentile(ms, 0.5);
+  r.p99 = percentile(ms, 0.99);
+  r.draw_calls /= frames;
+  r.triangles /= frames;
+  r.culled_chunks /= frames;
+  return r;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int frames = 40;
+  bool quick = false;
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--frames") == 0 && i + 1 < argc) frames = std::atoi(argv[++i]);
+    if (std::strcmp(argv[i], "--quick") == 0) quick = true;
+  }
+  try {
+    {
+      render::RendererOptions probe;
+      probe.headset.eye_width = probe.headset.eye_height = 16;
+      render::StereoRenderer r(probe);
+      std::printf("device: %s\n", r.device_name().c_str());
+    }
+    const std::vector<std::size_t> sizes =
+        quick ? std::vector<std::size_t>{100000} : std::vector<std::size_t>{100000, 1000000};
+    const std::uint32_t resolutions[2][2] = {{1024, 1024}, {1440, 1600}};
+    std::printf("%-9s %-11s %-8s %8s %9s %9s %8s %11s %9s\n", "triangles", "per eye", "mode", "fps",
+                "p50 ms", "p99 ms", "draws", "tris drawn", "culled");
+    for (const std::size_t n : sizes) {
+      const std::vector<Dlfl> scene = make_scene(n);
+      for (const auto& res : resolutions) {
+        const Result naive = run(scene, res[0], res[1], false, frames);
+        const Result fast = run(scene, res[0], res[1], true, frames);
+        for (const auto* r : {&naive, &fast}) {
+          std::printf("%-9zu %4ux%-6u %-8s %8.1f %9.1f %9.1f %8.1f %11.0f %9.1f\n", n, res[0],
+                      res[1], r == &naive ? "naive" : "cull+lod", r->fps, r->p50, r->p99,
+                      r->draw_calls, r->triangles, r->culled_chunks);
+        }
+        std::printf("  ratio cull+lod / naive: fps x%.2f, p99 frame time x%.2f\n",
+                    fast.fps / naive.fps, fast.p99 / naive.p99);
+        std::fflush(stdout);
+      }
+    }
+  } catch (const render::NoVulkanDevice& e) {
+    std::fprintf(stderr, "render_bench: no Vulkan device: %s\n", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "render_bench: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,185 @@
+#include "render_command.h"
+
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <numbers>
+#include <vector>
+
+#include "bisturi/runtime/render/png_sink.h"
+#include "bisturi/runtime/render/stereo_renderer.h"
+#include "bisturi/scene/errors.h"
+#include "bisturi/scene/io/mesh_file.h"
+#include "bisturi/scene/polygon_import.h"
+#include "bisturi/scene/volume/marching_cubes.h"
+#include "bisturi/scene/volume/phantoms.h"
+#include "progress_line.h"
+
+namespace bisturi::cli {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double percentile(std::vector<double> values, double p) {
+  if (values.empty()) return 0.0;
+  std::sort(values.begin(), values.end());
+  const auto i = static_cast<std::size_t>(std::ceil(p * static_cast<double>(values.size()))) - 1;
+  return values[std::min(i, values.size() - 1)];
+}
+
+Dlfl load_solid(const RenderOptions& options, ProgressLine& line) {
+  if (!options.phantom.empty()) {
+    PhantomOptions p;
+    p.shape = phantom_shape_from_string(options.phantom);
+    p.dims = {96, 96, 96};
+    IsoSurfaceOptions iso;
+    iso.progress = [&](std::size_t done, std::size_t total) { line.show("phantom", done, total); };
+    return extract_isosurface(make_phantom(p), iso);
+  }
+  ReadOptions read;
+  read.progress = [&](std::size_t done, std::size_t total) { line.show("read", done, total); };
+  const MeshFile file = read_mesh(options.input, read);
+  ImportOptions import;
+  import.progress = [&](std::string_view stage, std::size_t done, std::size_t total) {
+    line.show(stage, done, total);
+};
+return import_polygons(file.polygons, file.has_vertex_list, import).mesh;
+}  // namespace
+
+}  // namespace bisturi::cli
+
+void add_render_command(CLI::App& app, RenderOptions& options, int (*&run)(const RenderOptions&)) {
+  CLI::App* cmd = app.add_subcommand(
+      "render",
+      "render a stereo orbit around a solid (Vulkan, both eyes in one pass) and write PNG frames; "
+      "SCENE files come with the session (issue 10): for now MESH is a mesh file (.obj .ply .stl "
+      ".off) or --phantom NAME");
+  auto* input = cmd->add_option("MESH", options.input, "mesh file (OBJ, PLY, STL, OFF)")
+                    ->check(CLI::ExistingFile);
+  auto* phantom = cmd->add_option("--phantom", options.phantom,
+                                  "an analytic phantom's surface instead of a file (sphere, shell, "
+                                  "torus, two-spheres, tube, gyroid)");
+  input->excludes(phantom);
+  phantom->excludes(input);
+  cmd->add_option("--out", options.output, "folder for the frames (PNG) and frames.csv")
+      ->required();
+  cmd->add_option("--frames", options.frames, "frames in the orbit")
+      ->check(CLI::Range(1u, 100000u));
+  cmd->add_option("--eye-width", options.eye_width, "pixels per eye, across")
+      ->check(CLI::Range(16u, 8192u));
+  cmd->add_option("--eye-height", options.eye_height, "pixels per eye, down")
+      ->check(CLI::Range(16u, 8192u));
+  cmd->add_flag("--per-eye", options.per_eye, "one PNG per eye instead of side by side");
+  cmd->add_flag("--no-culling", options.no_culling, "draw every chunk (no frustum culling)");
+  cmd->add_flag("--no-lod", options.no_lod, "always draw the full-detail level");
+  cmd->add_flag("--cpu", options.cpu, "render on a CPU Vulkan device (lavapipe) even with a GPU");
+  cmd->add_flag("--validation", options.validation,
+                "enable the Vulkan validation layer and report its message count");
+  cmd->add_flag("--json", options.json, "write the summary as one JSON object on stdout");
+  cmd->callback([&run, &options] {
+    if (options.input.empty() && options.phantom.empty())
+      throw CLI::ValidationError("a MESH file or --phantom NAME is required");
+    run = run_render;
+  });
+}
+
+int run_render(const RenderOptions& options) {
+  ProgressLine line;
+  auto t = Clock::now();
+  const Dlfl solid = load_solid(options, line);
+  line.done(options.phantom.empty() ? "read " + options.input : "phantom " + options.phantom,
+            std::chrono::duration<double, std::milli>(Clock::now() - t).count());
+
+  render::RendererOptions ro;
+  ro.headset.eye_width = options.eye_width;
+  ro.headset.eye_height = options.eye_height;
+  ro.frustum_culling = !options.no_culling;
+  ro.level_of_detail = !options.no_lod;
+  ro.validation = options.validation;
+  if (options.cpu) ro.device = render::DevicePreference::Cpu;
+  render::StereoRenderer renderer(ro);
+  t = Clock::now();
+  line.show("levels of detail", 0, 1);
+  const render::SolidId id = renderer.add_solid(solid);
+  const double levels_ms = std::chrono::duration<double, std::milli>(Clock::now() - t).count();
+  line.done("levels of detail", levels_ms);
+
+  render::PngSink sink(
+      options.output,
+      {options.per_eye ? render::PngLayout::PerEye : render::PngLayout::SideBySide, 1});
+  renderer.set_sink(&sink);
+
+  // The orbit: around the solid's vertical (y) axis, far enough that the solid fills about two
+  // thirds of the field of view, slightly from above.
+  const render::Aabb& bounds = renderer.levels(id).bounds();
+  const glm::dvec3 centre = (bounds.lo + bounds.hi) * 0.5;
+  const double radius = std::max(glm::length(bounds.hi - bounds.lo) * 0.5, 1.0);
+  const double tan_half = std::tan(static_cast<double>(ro.headset.fov[0].angle_up));
+  const double distance = radius / (tan_half * 0.66);
+  renderer.set_sink(&sink);
+  std::vector<double> frame_ms;
+  std::size_t draw_calls = 0, chunks_culled = 0, chunks_drawn = 0, triangles = 0;
+  const auto start = Clock::now();
+  auto previous = start;
+  for (std::uint32_t i = 0; i < options.frames; ++i) {
+    const double angle = 2.0 * std::numbers::pi * i / options.frames;
+    const glm::dvec3 eye = centre + glm::dvec3(std::sin(angle) * distance, 0.25 * distance,
+                                               std::cos(angle) * distance);
+    const render::HeadPose pose = render::look_at(eye, centre);
+    const render::FrameStats stats = renderer.render(pose);
+    draw_calls += stats.draw_calls;
+    chunks_culled += stats.chunks_culled;
+    chunks_drawn += stats.chunks_drawn;
+    triangles += stats.triangles_drawn;
+    const auto now = Clock::now();
+    frame_ms.push_back(std::chrono::duration<double, std::milli>(now - previous).count());
+    previous = now;
+    line.show("render", i + 1, options.frames);
+  }
+  renderer.flush();
+  const double total_s = std::chrono::duration<double>(Clock::now() - start).count();
+  line.clear();
+
+  const double n = options.frames;
+  const nlohmann::json summary = {
+      {"input", options.phantom.empty() ? options.input : "phantom:" + options.phantom},
+      {"out", options.output},
+      {"device", renderer.device_name()},
+      {"device_is_cpu", renderer.device_is_cpu()},
+      {"eye_width", options.eye_width},
+      {"eye_height", options.eye_height},
+      {"frames", options.frames},
+      {"images", sink.images_written()},
+      {"fps", n / total_s},
+      {"frame_ms_p50", percentile(frame_ms, 0.5)},
+      {"frame_ms_p99", percentile(frame_ms, 0.99)},
+      {"motion_to_photon_ms_p50", percentile(sink.latencies_ms(), 0.5)},
+      {"motion_to_photon_ms_p99", percentile(sink.latencies_ms(), 0.99)},
+      {"draw_calls_per_frame", static_cast<double>(draw_calls) / n},
+      {"chunks_drawn_per_frame", static_cast<double>(chunks_drawn) / n},
+      {"chunks_culled_per_frame", static_cast<double>(chunks_culled) / n},
+      {"culled_chunks", chunks_culled},
+      {"triangles_per_frame", static_cast<double>(triangles) / n},
+      {"levels", renderer.levels(id).level_count()},
+      {"levels_ms", levels_ms},
+      {"validation_messages", renderer.validation_messages()}};
+  if (options.json) {
+    std::cout << summary.dump(2) << "\n";
+  } else {
+    std::cout << options.frames << " frames of 2 x " << options.eye_width << " x "
+              << options.eye_height << " on " << renderer.device_name() << " -> " << options.output
+              << "\n  " << summary["fps"].get<double>() << " frames/s, frame time p50 "
+              << summary["frame_ms_p50"].get<double>() << " ms, p99 "
+              << summary["frame_ms_p99"].get<double>() << " ms (PNG writing included)\n  "
+              << summary["draw_calls_per_frame"].get<double>() << " draw calls, "
+              << summary["triangles_per_frame"].get<double>() << " triangles and "
+              << summary["chunks_culled_per_frame"].get<double>() << " culled chunks per frame\n";
+  }
+  return renderer.validation_messages() == 0 ? 0 : 3;
+}
+
+}  // namespace bisturi::cli
