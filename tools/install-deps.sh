@@ -15,11 +15,12 @@ packages=(
   zlib1g-dev                         # gzip-encoded NRRD and .nii.gz volumes
   libgdcm-dev                        # DICOM series
   libosd-dev                         # subdivision surfaces (OpenSubdiv)
+  libhidapi-dev libusb-1.0-0-dev     # device transports (hidapi, libusb)
+  libembree-dev                      # collision BVH for soft tissue (sim/)
   libvulkan-dev mesa-vulkan-drivers  # stereo renderer (runtime/); lavapipe without a GPU
   glslang-tools glslc                # shaders/ to SPIR-V at build time
   vulkan-validationlayers            # the renderer's tests run with validation
   libopenxr-dev libpng-dev           # frame sinks: headset (OpenXR), headless (PNG)
-  libembree-dev                      # collision BVH for soft tissue (sim/)
 )
 if [[ "${1:-}" == "--bench-peers" ]]; then
   packages+=(libopenmesh-dev libcgal-dev libvtk9-dev)

@@ -2,7 +2,7 @@
 # Builds the mesh and volume reader fuzz targets (clang, libFuzzer, ASan + UBSan) and runs each
 # for a bounded time. Fails on any crash, leak, timeout, out-of-memory or sanitizer report.
 #
-#   run_fuzzers.sh [--build-only | --no-build] [obj|ply|stl|off|nrrd|nifti ...]   (default: all)
+#   run_fuzzers.sh [--build-only | --no-build] [obj|ply|stl|off|nrrd|nifti|hid_descriptor|hid_report|trace ...]   (default: all)
 #
 #   BISTURI_FUZZ_BUILD    build folder (default: <repo>/build/fuzz)
 #   BISTURI_FUZZ_SECONDS  seconds per target (default: 60)
@@ -21,11 +21,11 @@ for arg in "$@"; do
   case "$arg" in
     --build-only) run_step=0 ;;
     --no-build) build_step=0 ;;
-    obj | ply | stl | off | nrrd | nifti) formats+=("$arg") ;;
-    *) echo "usage: $0 [--build-only | --no-build] [obj|ply|stl|off|nrrd|nifti ...]" >&2; exit 2 ;;
+    obj | ply | stl | off | nrrd | nifti | hid_descriptor | hid_report | trace) formats+=("$arg") ;;
+    *) echo "usage: $0 [--build-only | --no-build] [obj|ply|stl|off|nrrd|nifti|hid_descriptor|hid_report|trace ...]" >&2; exit 2 ;;
   esac
 done
-((${#formats[@]} > 0)) || formats=(obj ply stl off nrrd nifti)
+((${#formats[@]} > 0)) || formats=(obj ply stl off nrrd nifti hid_descriptor hid_report trace)
 mkdir -p "$build"
 
 if ((build_step)); then

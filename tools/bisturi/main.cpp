@@ -12,6 +12,7 @@
 #include "mesh_demo.h"
 #include "render_command.h"
 #include "segment_command.h"
+#include "trace_command.h"
 #include "volume_command.h"
 
 namespace {
@@ -52,6 +53,10 @@ int run(int argc, char** argv) {
   int (*run_measure)(const bisturi::cli::MeasureCommandOptions&) = nullptr;
   bisturi::cli::add_measure_command(app, measure, run_measure);
 
+  bisturi::cli::TraceOptions trace;
+  int (*run_trace)(const bisturi::cli::TraceOptions&) = nullptr;
+  bisturi::cli::add_trace_command(app, trace, run_trace);
+
   bisturi::cli::RenderOptions render;
   int (*run_render)(const bisturi::cli::RenderOptions&) = nullptr;
   bisturi::cli::add_render_command(app, render, run_render);
@@ -67,6 +72,7 @@ int run(int argc, char** argv) {
   if (run_segment != nullptr) return run_segment(segment);
   if (run_extract != nullptr) return run_extract(extract);
   if (run_measure != nullptr) return run_measure(measure);
+  if (run_trace != nullptr) return run_trace(trace);
   if (run_render != nullptr) return run_render(render);
   std::cout << app.help();
   return 0;

@@ -1,0 +1,154 @@
+// Device interfaces in SI units (metres, radians, newtons, seconds; units in the names). Drivers
+// implement them on top of a Transport; the session reads inputs and sends guarded forces.
+#pragma once
+
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "bisturi/devices/clock.h"
+#include "bisturi/devices/transport.h"
+
+namespace bisturi::devices {
+
+struct Vec3 {
+  double x = 0, y = 0, z = 0;
+  bool operator==(const Vec3&) const = default;
+};
+
+// Unit quaternion, w first.
+struct Quaternion {
+  double w = 1, x = 0, y = 0, z = 0;
+  bool operator==(const Quaternion&) const = default;
+};
+
+// Position in metres and orientation in the device's frame.
+struct Pose {
+  Vec3 position_m;
+  Quaternion orientation;
+  bool operator==(const Pose&) const = default;
+};
+
+enum class DeviceClass : std::uint8_t { HapticGlove, HapticArm, HeadTracker };
+const char* to_string(DeviceClass device_class);
+
+// One force output. components == 3: a force vector at an end effector (x, y, z in newtons, device
+// frame); components == 1: an actuator pulling along its own axis (a finger's), in newtons.
+struct ForceChannel {
+  std::string name;  // "end_effector", "thumb", "actuator_2", ...
+  std::uint8_t components = 1;
+  double max_force_N = 0;             // magnitude limit (vector norm for 3 components)
+  double max_force_rate_N_per_s = 0;  // limit on how fast the magnitude of the change may grow
+  bool unitless = false;              // the device gave no force unit (Haptics intensity): the
+                                      // value is a fraction of max_force_N == 1
+};
+
+// What a device can do, discovered from its descriptor or its info report.
+struct Capabilities {
+  DeviceClass device_class = DeviceClass::HapticGlove;
+  std::size_t end_effectors = 0;             // poses in HapticState::end_effector_poses
+  std::size_t buttons = 0;                   // bits in HapticState::buttons
+  std::vector<std::string> finger_joints;    // names, in HapticState::finger_joint_angles_rad order
+  std::vector<ForceChannel> force_channels;  // in force vector order
+  bool head_pose = false;                    // a tracker
+
+  // Sum of the channels' components: the length of a force vector for send_forces.
+  std::size_t force_components() const;
+};
+
+struct HapticState {
+  Nanoseconds sample_time{0};  // clock time at which the report was read
+  std::uint64_t reports = 0;   // input reports handled so far
+  std::vector<Pose> end_effector_poses;
+  std::uint64_t buttons = 0;  // bit i: button i pressed
+  std::vector<double> finger_joint_angles_rad;
+};
+
+struct TrackerState {
+  Nanoseconds sample_time{0};
+  std::uint64_t reports = 0;
+  Pose head_pose;
+};
+
+class Device {
+ public:
+  virtual ~Device();
+  virtual const std::string& driver_name() const = 0;
+  virtual const DeviceDescriptor& descriptor() const = 0;
+  virtual const Capabilities& capabilities() const = 0;
+
+  // Reads and handles every input report waiting, waiting up to `timeout` for the first. Returns
+  // the number handled. Throws DeviceDisconnected when the device is gone (it is then closed),
+  // ProtocolError on a malformed report (the state keeps its previous values).
+  virtual std::size_t poll(std::chrono::microseconds timeout) = 0;
+  // Parses one input report and updates the state, as poll does for each report it reads.
+  virtual void handle_report(std::span<const std::uint8_t> report) = 0;
+
+  bool is_open() const { return transport_ != nullptr; }
+  // Sends zero forces when it can, then releases the transport. Idempotent, never throws.
+  virtual void close();
+
+ protected:
+  explicit Device(std::unique_ptr<Transport> transport, Clock& clock);
+  Transport& transport();
+  Clock& clock() const { return *clock_; }
+  // Reads reports from the transport and calls handle_report for each (the common poll).
+  std::size_t poll_transport(std::chrono::microseconds timeout);
+  // Hook for close(): the driver's "all forces off" bytes, written before the transport goes.
+  virtual void send_zero() {}
+
+ private:
+  std::unique_ptr<Transport> transport_;
+  Clock* clock_;
+};
+
+// Gloves and arms. send_forces takes forces that went through the ForceGuard.
+class HapticDevice : public Device {
+ public:
+  virtual const HapticState& state() const = 0;
+  // forces_N has capabilities().force_components() values, channel after channel. Throws
+  // std::invalid_argument on a wrong length, DeviceDisconnected when the device is gone.
+  virtual void send_forces(std::span<const double> forces_N) = 0;
+
+ protected:
+  using Device::Device;
+};
+
+class Tracker : public Device {
+ public:
+  virtual const TrackerState& state() const = 0;
+
+ protected:
+  using Device::Device;
+};
+
+// Hot-plug and disconnect events (from DeviceManager in hotplug.h).
+enum class DeviceEventKind : std::uint8_t {
+  Arrived,       // enumerated for the first time (or again after leaving)
+  Opened,        // a driver was opened on it
+  Disconnected,  // an open device went away: its forces are stopped
+  Reconnected,   // it came back and its driver was opened again
+  Removed,       // no longer enumerated
+  OpenFailed,    // no driver, or the driver refused it (message says why)
+};
+const char* to_string(DeviceEventKind kind);
+
+struct DeviceEvent {
+  DeviceEventKind kind = DeviceEventKind::Arrived;
+  DeviceDescriptor device;
+  Nanoseconds time{0};
+  std::string message;
+};
+
+using DeviceEventHandler = std::function<void(const DeviceEvent&)>;
+
+// The class of device a driver gives, or nullptr.
+HapticDevice* as_haptic(Device* device);
+Tracker* as_tracker(Device* device);
+
+}  // namespace bisturi::devices

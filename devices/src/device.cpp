@@ -1,0 +1,88 @@
+#include "bisturi/devices/device.h"
+
+namespace bisturi::devices {
+
+const char* to_string(DeviceClass device_class) {
+  switch (device_class) {
+    case DeviceClass::HapticGlove:
+      return "haptic-glove";
+    case DeviceClass::HapticArm:
+      return "haptic-arm";
+    case DeviceClass::HeadTracker:
+      return "head-tracker";
+  }
+  return "unknown";
+}
+
+const char* to_string(DeviceEventKind kind) {
+  switch (kind) {
+    case DeviceEventKind::Arrived:
+      return "arrived";
+    case DeviceEventKind::Opened:
+      return "opened";
+    case DeviceEventKind::Disconnected:
+      return "disconnected";
+    case DeviceEventKind::Reconnected:
+      return "reconnected";
+    case DeviceEventKind::Removed:
+      return "removed";
+    case DeviceEventKind::OpenFailed:
+      return "open-failed";
+  }
+  return "unknown";
+}
+
+std::size_t Capabilities::force_components() const {
+  std::size_t n = 0;
+  for (const auto& channel : force_channels)
+    n += channel.components;
+  return n;
+}
+
+Device::Device(std::unique_ptr<Transport> transport, Clock& clock)
+    : transport_(std::move(transport)), clock_(&clock) {}
+
+Device::~Device() = default;
+
+Transport& Device::transport() {
+  if (!transport_) throw DeviceDisconnected(driver_name() + ": device is closed");
+  return *transport_;
+}
+
+void Device::close() {
+  if (!transport_) return;
+  try {
+    send_zero();
+  } catch (...) {
+    // Gone already: nothing to stop.
+  }
+  transport_.reset();
+}
+
+std::size_t Device::poll_transport(std::chrono::microseconds timeout) {
+  std::size_t handled = 0;
+  auto wait = timeout;
+  for (;;) {
+    std::optional<Bytes> report;
+    try {
+      report = transport().read(wait);
+    } catch (const DeviceDisconnected&) {
+      transport_.reset();
+      throw;
+    }
+    if (!report) break;
+    handle_report(*report);
+    ++handled;
+    wait = std::chrono::microseconds(0);
+  }
+  return handled;
+}
+
+HapticDevice* as_haptic(Device* device) {
+  return dynamic_cast<HapticDevice*>(device);
+}
+Tracker* as_tracker(Device* device) {
+  return dynamic_cast<Tracker*>(device);
+}
+
+}  // namespace bisturi::devices

@@ -1,0 +1,165 @@
+#include "bisturi/devices/hid_drivers.h"
+
+#include <stdexcept>
+
+#include "hid_mapping.h"
+
+namespace bisturi::devices {
+
+namespace {
+
+DeviceDescriptor with_driver(DeviceDescriptor device, const char* driver) {
+  device.driver = driver;
+  return device;
+}
+
+class HidGlove final : public HapticDevice {
+ public:
+  HidGlove(std::unique_ptr<Transport> transport, Clock& clock, HidGloveOptions options)
+      : HapticDevice(std::move(transport), clock),
+        descriptor_(with_driver(Device::transport().descriptor(), kHidGloveDriver)),
+        mapping_(descriptor_, options.max_force_rate_N_per_s) {
+    const auto& caps = mapping_.capabilities();
+    if (caps.finger_joints.empty() && !mapping_.has_pose() && caps.buttons == 0) {
+      throw ProtocolError(describe(descriptor_), 0,
+                          "the report descriptor describes no finger joints, pose or buttons");
+    }
+    state_.end_effector_poses.resize(caps.end_effectors);
+    state_.finger_joint_angles_rad.assign(caps.finger_joints.size(), 0.0);
+    zeros_.assign(caps.force_components(), 0.0);
+  }
+  ~HidGlove() override { close(); }
+
+  const std::string& driver_name() const override { return name_; }
+  const DeviceDescriptor& descriptor() const override { return descriptor_; }
+  const Capabilities& capabilities() const override { return mapping_.capabilities(); }
+  const HapticState& state() const override { return state_; }
+
+  std::size_t poll(std::chrono::microseconds timeout) override { return poll_transport(timeout); }
+
+  void handle_report(std::span<const std::uint8_t> report) override {
+    Pose* pose = state_.end_effector_poses.empty() ? nullptr : &state_.end_effector_poses[0];
+    if (mapping_.apply(report, pose, &state_.finger_joint_angles_rad, &state_.buttons)) {
+      ++state_.reports;
+      state_.sample_time = clock().now();
+    }
+  }
+
+  void send_forces(std::span<const double> forces_N) override {
+    if (forces_N.size() != zeros_.size()) {
+      throw std::invalid_argument(describe(descriptor_) + ": expected " +
+                                  std::to_string(zeros_.size()) + " force values, got " +
+                                  std::to_string(forces_N.size()));
+    }
+    mapping_.encode_forces(forces_N, reports_);
+    for (const auto& report : reports_)
+      transport().write(report);
+  }
+
+ private:
+  void send_zero() override {
+    if (!zeros_.empty()) send_forces(zeros_);
+  }
+
+  std::string name_ = kHidGloveDriver;
+  DeviceDescriptor descriptor_;
+  detail::HidMapping mapping_;
+  HapticState state_;
+  std::vector<double> zeros_;
+  std::vector<Bytes> reports_;
+};
+
+class HidTracker final : public Tracker {
+ public:
+  HidTracker(std::unique_ptr<Transport> transport, Clock& clock)
+      : Tracker(std::move(transport), clock),
+        descriptor_(with_driver(Device::transport().descriptor(), kHidTrackerDriver)),
+        mapping_(descriptor_, 1.0) {
+    if (!mapping_.has_pose()) {
+      throw ProtocolError(describe(descriptor_), 0, "the report descriptor describes no pose");
+    }
+    caps_ = mapping_.capabilities();
+    caps_.device_class = DeviceClass::HeadTracker;
+    caps_.head_pose = true;
+    caps_.end_effectors = 0;
+    caps_.force_channels.clear();
+  }
+  ~HidTracker() override { close(); }
+
+  const std::string& driver_name() const override { return name_; }
+  const DeviceDescriptor& descriptor() const override { return descriptor_; }
+  const Capabilities& capabilities() const override { return caps_; }
+  const TrackerState& state() const override { return state_; }
+
+  std::size_t poll(std::chrono::microseconds timeout) override { return poll_transport(timeout); }
+
+  void handle_report(std::span<const std::uint8_t> report) override {
+    if (mapping_.apply(report, &state_.head_pose, nullptr, nullptr)) {
+      ++state_.reports;
+      state_.sample_time = clock().now();
+    }
+  }
+
+ private:
+  std::string name_ = kHidTrackerDriver;
+  DeviceDescriptor descriptor_;
+  detail::HidMapping mapping_;
+  Capabilities caps_;
+  TrackerState state_;
+};
+
+std::uint32_t application_of(const DeviceDescriptor& device) {
+  if (device.report_descriptor.empty()) return 0;
+  try {
+    return hid::parse_report_descriptor(device.report_descriptor).application_usage();
+  } catch (const ProtocolError&) {
+    return 0;
+  }
+}
+
+}  // namespace
+
+std::unique_ptr<HapticDevice> open_hid_glove(std::unique_ptr<Transport> transport, Clock& clock,
+                                             HidGloveOptions options) {
+  if (!transport) throw std::invalid_argument("open_hid_glove: no transport");
+  return std::make_unique<HidGlove>(std::move(transport), clock, options);
+}
+
+std::unique_ptr<Tracker> open_hid_tracker(std::unique_ptr<Transport> transport, Clock& clock) {
+  if (!transport) throw std::invalid_argument("open_hid_tracker: no transport");
+  return std::make_unique<HidTracker>(std::move(transport), clock);
+}
+
+bool describes_hid_glove(const DeviceDescriptor& device) {
+  return application_of(device) == hid::kUsageGlove;
+}
+
+bool describes_hid_tracker(const DeviceDescriptor& device) {
+  const auto usage = application_of(device);
+  return usage == hid::kUsageHeadTracker || usage == hid::kUsageHeadMountedDisplay;
+}
+
+DriverInfo hid_glove_driver_info() {
+  DriverInfo info;
+  info.name = kHidGloveDriver;
+  info.summary =
+      "generic HID glove (VR Controls:Glove; flexors, pose, buttons, PID/Haptics forces)";
+  info.matches = describes_hid_glove;
+  info.create = [](std::unique_ptr<Transport> transport, Clock& clock) -> std::unique_ptr<Device> {
+    return open_hid_glove(std::move(transport), clock);
+  };
+  return info;
+}
+
+DriverInfo hid_tracker_driver_info() {
+  DriverInfo info;
+  info.name = kHidTrackerDriver;
+  info.summary = "generic HID head tracker (VR Controls:Head Tracker or HMD; pose)";
+  info.matches = describes_hid_tracker;
+  info.create = [](std::unique_ptr<Transport> transport, Clock& clock) -> std::unique_ptr<Device> {
+    return open_hid_tracker(std::move(transport), clock);
+  };
+  return info;
+}
+
+}  // namespace bisturi::devices

@@ -1,0 +1,70 @@
+#include "bisturi/devices/registry.h"
+
+#include <stdexcept>
+
+#include "bisturi/devices/hid_drivers.h"
+#include "bisturi/devices/vendor_arm.h"
+
+namespace bisturi::devices {
+
+void Registry::add(DriverInfo driver) {
+  if (driver.name.empty()) throw std::invalid_argument("registry: a driver needs a name");
+  if (!driver.create)
+    throw std::invalid_argument("registry: driver " + driver.name + " has no factory");
+  if (find_by_name(driver.name)) {
+    throw std::invalid_argument("registry: driver " + driver.name + " is registered already");
+  }
+  drivers_.push_back(std::move(driver));
+}
+
+const DriverInfo* Registry::find_by_name(std::string_view name) const {
+  for (const auto& driver : drivers_) {
+    if (driver.name == name) return &driver;
+  }
+  return nullptr;
+}
+
+const DriverInfo* Registry::find_by_usb_id(UsbId id) const {
+  for (const auto& driver : drivers_) {
+    for (const auto& known : driver.usb_ids) {
+      if (known == id) return &driver;
+    }
+  }
+  return nullptr;
+}
+
+const DriverInfo* Registry::find(const DeviceDescriptor& device) const {
+  if (!device.driver.empty()) return find_by_name(device.driver);
+  if (const auto* driver = find_by_usb_id({device.vendor_id, device.product_id})) return driver;
+  for (const auto& driver : drivers_) {
+    if (driver.matches && driver.matches(device)) return &driver;
+  }
+  return nullptr;
+}
+
+std::unique_ptr<Device> Registry::open(std::unique_ptr<Transport> transport, Clock& clock) const {
+  if (!transport) throw std::invalid_argument("registry: open needs a transport");
+  const DeviceDescriptor& device = transport->descriptor();
+  const DriverInfo* driver = find(device);
+  if (!driver) {
+    if (!device.driver.empty()) {
+      throw DeviceError(describe(device) + ": driver '" + device.driver + "' is not registered");
+    }
+    throw DeviceError(describe(device) + ": no driver for this device");
+  }
+  return driver->create(std::move(transport), clock);
+}
+
+void register_builtin_drivers(Registry& registry) {
+  registry.add(vendor_arm_driver_info());
+  registry.add(hid_glove_driver_info());
+  registry.add(hid_tracker_driver_info());
+}
+
+Registry builtin_registry() {
+  Registry registry;
+  register_builtin_drivers(registry);
+  return registry;
+}
+
+}  // namespace bisturi::devices

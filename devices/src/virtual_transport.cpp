@@ -1,0 +1,182 @@
+#include "bisturi/devices/virtual_transport.h"
+
+#include <algorithm>
+#include <condition_variable>
+#include <deque>
+#include <stdexcept>
+
+namespace bisturi::devices {
+
+namespace detail {
+
+struct VirtualLink {
+  DeviceDescriptor descriptor;
+  std::size_t capacity = 0;
+  mutable std::mutex mutex;
+  std::condition_variable changed;
+  bool connected = true;
+  // queue[0]: towards the host (input reports), queue[1]: towards the device (output reports).
+  std::deque<Bytes> queue[2];
+  std::size_t dropped[2] = {0, 0};
+  std::function<void()> on_report[2];
+};
+
+}  // namespace detail
+
+namespace {
+int inbox(VirtualTransport::Side side) {
+  return side == VirtualTransport::Side::Host ? 0 : 1;
+}
+}  // namespace
+
+VirtualTransport::VirtualTransport(std::shared_ptr<detail::VirtualLink> link, Side side)
+    : link_(std::move(link)), side_(side) {}
+
+VirtualTransport::~VirtualTransport() = default;
+
+const DeviceDescriptor& VirtualTransport::descriptor() const {
+  return link_->descriptor;
+}
+
+std::optional<Bytes> VirtualTransport::read(std::chrono::microseconds timeout) {
+  auto& link = *link_;
+  std::unique_lock lock(link.mutex);
+  auto& queue = link.queue[inbox(side_)];
+  auto ready = [&] { return !link.connected || !queue.empty(); };
+  if (!ready()) {
+    if (timeout.count() <= 0) return std::nullopt;
+    if (!link.changed.wait_for(lock, timeout, ready)) return std::nullopt;
+  }
+  if (!link.connected) {
+    throw DeviceDisconnected(describe(link.descriptor) + ": disconnected");
+  }
+  Bytes report = std::move(queue.front());
+  queue.pop_front();
+  return report;
+}
+
+void VirtualTransport::write(std::span<const std::uint8_t> report) {
+  auto& link = *link_;
+  const int target = 1 - inbox(side_);
+  std::function<void()> callback;
+  {
+    std::lock_guard lock(link.mutex);
+    if (!link.connected) {
+      throw DeviceDisconnected(describe(link.descriptor) + ": disconnected");
+    }
+    auto& queue = link.queue[target];
+    if (queue.size() >= link.capacity) {
+      queue.pop_front();
+      ++link.dropped[target];
+    }
+    queue.emplace_back(report.begin(), report.end());
+    callback = link.on_report[target];
+  }
+  link.changed.notify_all();
+  if (callback) callback();
+}
+
+void VirtualTransport::disconnect() {
+  {
+    std::lock_guard lock(link_->mutex);
+    link_->connected = false;
+    link_->queue[0].clear();
+    link_->queue[1].clear();
+  }
+  link_->changed.notify_all();
+}
+
+bool VirtualTransport::connected() const {
+  std::lock_guard lock(link_->mutex);
+  return link_->connected;
+}
+
+std::size_t VirtualTransport::pending() const {
+  std::lock_guard lock(link_->mutex);
+  return link_->queue[inbox(side_)].size();
+}
+
+std::size_t VirtualTransport::dropped() const {
+  std::lock_guard lock(link_->mutex);
+  return link_->dropped[inbox(side_)];
+}
+
+void VirtualTransport::set_on_report(std::function<void()> callback) {
+  std::lock_guard lock(link_->mutex);
+  link_->on_report[inbox(side_)] = std::move(callback);
+}
+
+VirtualPair make_virtual_pair(DeviceDescriptor descriptor, std::size_t queue_capacity) {
+  auto link = std::make_shared<detail::VirtualLink>();
+  link->descriptor = std::move(descriptor);
+  link->capacity = std::max<std::size_t>(queue_capacity, 1);
+  VirtualPair pair;
+  pair.host.reset(new VirtualTransport(link, VirtualTransport::Side::Host));
+  pair.device.reset(new VirtualTransport(link, VirtualTransport::Side::Device));
+  return pair;
+}
+
+void VirtualBus::plug(DeviceDescriptor device, Connector on_open) {
+  std::lock_guard lock(mutex_);
+  for (const auto& slot : slots_) {
+    if (slot.device.path == device.path) {
+      throw std::invalid_argument("virtual bus: path already plugged in: " + device.path);
+    }
+  }
+  slots_.push_back(Slot{std::move(device), std::move(on_open), {}});
+}
+
+void VirtualBus::unplug(const std::string& path) {
+  std::vector<std::shared_ptr<detail::VirtualLink>> links;
+  {
+    std::lock_guard lock(mutex_);
+    auto it = std::find_if(slots_.begin(), slots_.end(),
+                           [&](const Slot& slot) { return slot.device.path == path; });
+    if (it == slots_.end()) return;
+    for (auto& weak : it->links) {
+      if (auto link = weak.lock()) links.push_back(std::move(link));
+    }
+    slots_.erase(it);
+  }
+  for (auto& link : links) {
+    {
+      std::lock_guard lock(link->mutex);
+      link->connected = false;
+      link->queue[0].clear();
+      link->queue[1].clear();
+    }
+    link->changed.notify_all();
+  }
+}
+
+std::vector<DeviceDescriptor> VirtualBus::enumerate() {
+  std::lock_guard lock(mutex_);
+  std::vector<DeviceDescriptor> out;
+  out.reserve(slots_.size());
+  for (const auto& slot : slots_)
+    out.push_back(slot.device);
+  return out;
+}
+
+std::unique_ptr<Transport> VirtualBus::open(const DeviceDescriptor& device) {
+  Connector connector;
+  VirtualPair pair;
+  {
+    std::lock_guard lock(mutex_);
+    auto it = std::find_if(slots_.begin(), slots_.end(),
+                           [&](const Slot& slot) { return slot.device.path == device.path; });
+    if (it == slots_.end()) {
+      throw DeviceError(describe(device) + ": not plugged in");
+    }
+    pair = make_virtual_pair(it->device);
+    it->links.erase(std::remove_if(it->links.begin(), it->links.end(),
+                                   [](const auto& weak) { return weak.expired(); }),
+                    it->links.end());
+    it->links.push_back(pair.host->link_);
+    connector = it->on_open;
+  }
+  if (connector) connector(std::move(pair.device));
+  return std::unique_ptr<Transport>(std::move(pair.host));
+}
+
+}  // namespace bisturi::devices

@@ -1,0 +1,561 @@
+// Issue 8, device layer: HID descriptors and reports, the generic glove and tracker drivers on
+// their simulated twins, the vendor arm on its twin, the force guard, hot-plug.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "bisturi/devices/clock.h"
+#include "bisturi/devices/force_guard.h"
+#include "bisturi/devices/hid_descriptor.h"
+#include "bisturi/devices/hid_drivers.h"
+#include "bisturi/devices/hid_report.h"
+#include "bisturi/devices/hotplug.h"
+#include "bisturi/devices/registry.h"
+#include "bisturi/devices/simulated.h"
+#include "bisturi/devices/vendor_arm.h"
+#include "bisturi/devices/virtual_transport.h"
+
+namespace bd = bisturi::devices;
+namespace hid = bisturi::devices::hid;
+using namespace std::chrono_literals;
+using bd::Nanoseconds;
+
+namespace {
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+bd::DeviceScript glove_script() {
+  bd::DeviceScript script;
+  bd::MotionKey a;
+  a.t = 0ms;
+  a.pose.position_m = {0.10, -0.20, 0.30};
+  a.joints_rad.assign(15, 0.0);
+  bd::MotionKey b;
+  b.t = 100ms;
+  b.pose.position_m = {0.20, 0.0, 0.40};
+  const double h = std::sqrt(0.5);
+  b.pose.orientation = {h, 0, 0, h};  // 90 degrees about z
+  b.joints_rad.assign(15, 90 * kDeg);
+  script.motion = {a, b};
+  script.presses = {{20ms, 0, true}, {60ms, 2, true}, {80ms, 0, false}};
+  script.contacts = {{50ms, 200ms, 3, 30 * kDeg}};
+  return script;
+}
+
+}  // namespace
+
+TEST(HidDescriptor, ParsesTheRealisticGloveDescriptor) {
+  const auto bytes = bd::SimulatedGlove::report_descriptor();
+  const auto d = hid::parse_report_descriptor(bytes, "glove");
+  EXPECT_TRUE(d.uses_report_ids);
+  EXPECT_EQ(d.application_usage(), hid::kUsageGlove);
+  const auto* input = d.find_report(hid::ReportType::Input, 1);
+  ASSERT_NE(input, nullptr);
+  EXPECT_EQ(input->bits, 304u);
+  EXPECT_EQ(input->bytes(), 39u);
+  const auto* forces = d.find_report(hid::ReportType::Output, 2);
+  ASSERT_NE(forces, nullptr);
+  EXPECT_EQ(forces->bytes(), 12u);
+  ASSERT_NE(d.find_report(hid::ReportType::Output, 3), nullptr);
+  // Buttons, XYZ, quaternion, flexors; effect index, magnitudes, intensity.
+  ASSERT_EQ(d.fields.size(), 7u);
+  const auto& buttons = d.fields[0];
+  EXPECT_EQ(buttons.usages.size(), 4u);
+  EXPECT_EQ(buttons.usages[0], hid::usage(hid::kPageButton, 1));
+  EXPECT_EQ(buttons.bit_offset, 0u);
+  const auto& xyz = d.fields[1];
+  EXPECT_EQ(xyz.bit_offset, 8u);
+  EXPECT_EQ(xyz.usage_of(2), hid::kUsageZ);
+  EXPECT_EQ(xyz.logical_min, -32767);
+  EXPECT_EQ(xyz.physical_max, 100);
+  EXPECT_EQ(xyz.unit.quantity(), hid::Unit::Quantity::Length);
+  EXPECT_NEAR(xyz.to_si(32767), 1.0, 1e-12);  // 100 cm
+  EXPECT_TRUE(d.within(xyz.collection, hid::kUsageGlove));
+  const auto& flexors = d.fields[3];
+  EXPECT_EQ(flexors.bit_size, 12u);
+  EXPECT_EQ(flexors.count, 15u);
+  EXPECT_EQ(flexors.bit_offset, 120u);
+  EXPECT_EQ(flexors.unit.quantity(), hid::Unit::Quantity::Rotation);
+  EXPECT_NEAR(flexors.to_si(4095), std::numbers::pi, 1e-12);
+  const auto& magnitude = d.fields[5];
+  EXPECT_EQ(magnitude.usage_of(0), hid::kUsagePidMagnitude);
+  EXPECT_EQ(magnitude.unit.quantity(), hid::Unit::Quantity::Force);
+  EXPECT_EQ(magnitude.unit.exponent, 5);
+  EXPECT_NEAR(magnitude.to_si(10000), 5.0, 1e-12);
+  EXPECT_EQ(magnitude.from_si(2.5), 5000);
+  EXPECT_EQ(d.fields[6].usage_of(0), hid::kUsageHapticIntensity);
+}
+
+TEST(HidDescriptor, MalformedDescriptorsGiveProtocolErrors) {
+  struct Case {
+    bd::Bytes bytes;
+    std::size_t offset;
+    const char* reason;
+  };
+  const std::vector<Case> cases = {
+      {{0x05, 0x01, 0x09}, 2, "data bytes"},  // truncated usage
+      {{0x05, 0x01, 0xA1, 0x01, 0x75, 0x08, 0x95, 0x01, 0x81, 0x02}, 10, "not closed"},
+      {{0xC0}, 0, "end collection without"},
+      {{0xB4}, 0, "pop without push"},
+      {{0x85, 0x00}, 0, "report id 0"},
+      {{0x75, 0x40, 0x95, 0x01, 0x81, 0x02}, 4, "64 bits"},
+      {{0x15, 0x0A, 0x25, 0x05, 0x75, 0x08, 0x95, 0x01, 0x81, 0x02}, 8, "below minimum"},
+      {{0x81, 0x02}, 0, "before a report size"},
+      {{0x0C}, 0, "reserved item type"},
+      {{0x75, 0x08, 0x95, 0x01, 0x81, 0x02, 0x85, 0x01}, 6, "after items"},
+      {{0x19, 0x01, 0x75, 0x08, 0x95, 0x01, 0x81, 0x00}, 6, "without maximum"},
+      {{}, 0, "no input"},
+  };
+  for (const auto& c : cases) {
+    try {
+      hid::parse_report_descriptor(c.bytes, "bad glove");
+      ADD_FAILURE() << "no error for case " << c.reason;
+    } catch (const bd::ProtocolError& e) {
+      EXPECT_EQ(e.offset(), c.offset) << e.what();
+      EXPECT_NE(std::string(e.what()).find(c.reason), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("bad glove"), std::string::npos);
+    }
+  }
+  // Every truncation of the real descriptor either parses or gives a ProtocolError.
+  const auto full = bd::SimulatedGlove::report_descriptor();
+  for (std::size_t n = 0; n < full.size(); ++n) {
+    try {
+      hid::parse_report_descriptor(std::span(full).first(n));
+    } catch (const bd::ProtocolError&) {
+    }
+  }
+}
+
+TEST(HidReport, BitFieldsSignedValuesAndShortReports) {
+  bd::Bytes data(5, 0);
+  hid::write_bits(data, 3, 12, 0xABC);
+  EXPECT_EQ(hid::read_bits(data, 3, 12), 0xABCu);
+  hid::write_bits(data, 7, 32, 0xDEADBEEF);
+  EXPECT_EQ(hid::read_bits(data, 7, 32), 0xDEADBEEFu);
+  hid::ReportCodec codec(hid::parse_report_descriptor(bd::SimulatedGlove::report_descriptor()),
+                         "glove");
+  auto report = codec.make_report(hid::ReportType::Input, 1);
+  const auto& xyz = codec.descriptor().fields[1];
+  codec.set_si(report, xyz, 1, -0.5);
+  EXPECT_NEAR(codec.si(report, xyz, 1), -0.5, 1e-4);
+  EXPECT_LT(codec.logical(report, xyz, 1), 0);
+  const auto values = codec.decode(hid::ReportType::Input, report);
+  EXPECT_EQ(values.size(), 4u + 3u + 4u + 15u);
+  try {
+    codec.check(hid::ReportType::Input, std::span(report).first(10));
+    ADD_FAILURE();
+  } catch (const bd::ProtocolError& e) {
+    EXPECT_EQ(e.offset(), 10u);
+    EXPECT_NE(std::string(e.what()).find("the descriptor needs 39"), std::string::npos);
+  }
+  report[0] = 9;
+  EXPECT_THROW(codec.check(hid::ReportType::Input, report), bd::ProtocolError);
+}
+
+TEST(HidGlove, GenericDriverReadsTheSimulatedGlove) {
+  bd::SimulatedGlove twin(glove_script());
+  auto pair = bd::make_virtual_pair(twin.descriptor());
+  twin.attach(std::move(pair.device));
+  bd::VirtualClock clock;
+  auto registry = bd::builtin_registry();
+  auto device = registry.open(std::move(pair.host), clock);
+  EXPECT_EQ(device->driver_name(), "hid-glove");
+  EXPECT_EQ(device->descriptor().driver, "hid-glove");
+  auto* glove = bd::as_haptic(device.get());
+  ASSERT_NE(glove, nullptr);
+  const auto& caps = glove->capabilities();
+  EXPECT_EQ(caps.device_class, bd::DeviceClass::HapticGlove);
+  EXPECT_EQ(caps.finger_joints.size(), 15u);
+  EXPECT_EQ(caps.buttons, 4u);
+  EXPECT_EQ(caps.end_effectors, 1u);
+  ASSERT_EQ(caps.force_channels.size(), 6u);
+  EXPECT_NEAR(caps.force_channels[0].max_force_N, 5.0, 1e-12);
+  EXPECT_TRUE(caps.force_channels[5].unitless);
+
+  clock.set(100ms);
+  ASSERT_TRUE(twin.step(100ms));
+  EXPECT_EQ(glove->poll(0us), 1u);
+  const auto& s = glove->state();
+  EXPECT_EQ(s.sample_time, Nanoseconds(100ms));
+  EXPECT_NEAR(s.end_effector_poses[0].position_m.x, 0.20, 1e-4);
+  EXPECT_NEAR(s.end_effector_poses[0].position_m.z, 0.40, 1e-4);
+  EXPECT_NEAR(s.end_effector_poses[0].orientation.w, std::sqrt(0.5), 1e-4);
+  EXPECT_NEAR(s.end_effector_poses[0].orientation.z, std::sqrt(0.5), 1e-4);
+  EXPECT_NEAR(s.finger_joint_angles_rad[0], 90 * kDeg, 1e-3);
+  EXPECT_NEAR(s.finger_joint_angles_rad[3], 30 * kDeg, 1e-3);  // contact holds joint 3
+  EXPECT_EQ(s.buttons, 0b100u);                                // 0 released, 2 pressed
+
+  ASSERT_TRUE(twin.step(101ms + 50ms));  // later, still 90 degrees
+  clock.set(50ms);
+  bd::SimulatedGlove early(glove_script(), "G2");
+  auto pair2 = bd::make_virtual_pair(early.descriptor());
+  early.attach(std::move(pair2.device));
+  auto glove2 = bd::open_hid_glove(std::move(pair2.host), clock);
+  early.step(50ms);
+  glove2->poll(0us);
+  EXPECT_NEAR(glove2->state().finger_joint_angles_rad[0], 45 * kDeg, 1e-3);
+  EXPECT_NEAR(glove2->state().end_effector_poses[0].position_m.x, 0.15, 1e-4);
+  EXPECT_EQ(glove2->state().buttons, 1u);
+
+  const std::vector<double> forces = {0.0, 1.25, 2.5, 5.0, 4.0, 0.5};
+  glove->send_forces(forces);
+  const auto received = twin.actuator_forces_N();
+  for (std::size_t i = 0; i < 5; ++i)
+    EXPECT_NEAR(received[i], forces[i], 1e-3);
+  EXPECT_NEAR(twin.vibration(), 0.5, 1.0 / 255);
+  EXPECT_THROW(glove->send_forces(std::vector<double>(3, 0.0)), std::invalid_argument);
+  // Closing sends zero forces.
+  glove->close();
+  for (double f : twin.actuator_forces_N())
+    EXPECT_EQ(f, 0.0);
+}
+
+TEST(HidGlove, MalformedReportKeepsState) {
+  bd::SimulatedGlove twin(glove_script());
+  auto pair = bd::make_virtual_pair(twin.descriptor());
+  auto device_side = std::move(pair.device);
+  bd::VirtualClock clock;
+  auto glove = bd::open_hid_glove(std::move(pair.host), clock);
+  device_side->write(bd::Bytes{1, 2, 3});
+  EXPECT_THROW(glove->poll(0us), bd::ProtocolError);
+  EXPECT_EQ(glove->state().reports, 0u);
+  EXPECT_TRUE(glove->is_open());
+}
+
+TEST(HidTracker, HeadTrackerWithoutReportIds) {
+  bd::DeviceScript script;
+  bd::MotionKey k;
+  k.pose.position_m = {0.0123, 1.7, -0.25};
+  k.pose.orientation = {std::cos(0.2), std::sin(0.2), 0, 0};
+  script.motion = {k};
+  bd::SimulatedHeadTracker twin(script);
+  auto pair = bd::make_virtual_pair(twin.descriptor());
+  twin.attach(std::move(pair.device));
+  bd::VirtualClock clock;
+  auto device = bd::builtin_registry().open(std::move(pair.host), clock);
+  auto* tracker = bd::as_tracker(device.get());
+  ASSERT_NE(tracker, nullptr);
+  EXPECT_TRUE(tracker->capabilities().head_pose);
+  twin.step(0ms);
+  EXPECT_EQ(tracker->poll(1ms), 1u);
+  const auto& pose = tracker->state().head_pose;
+  EXPECT_NEAR(pose.position_m.x, 0.0123, 1e-6);
+  EXPECT_NEAR(pose.position_m.y, 1.7, 1e-6);
+  EXPECT_NEAR(pose.orientation.w, std::cos(0.2), 1e-4);
+  EXPECT_NEAR(pose.orientation.x, std::sin(0.2), 1e-4);
+}
+
+TEST(VendorArm, DriverAgainstItsTwin) {
+  bd::DeviceScript script;
+  bd::MotionKey k;
+  k.pose.position_m = {0.05, -0.01, 0.12};
+  script.motion = {k};
+  script.presses = {{0ms, 1, true}};
+  bd::SimulatedArm twin(script);
+  auto pair = bd::make_virtual_pair(twin.descriptor());
+  twin.attach(std::move(pair.device));
+  bd::VirtualClock clock;
+  auto device = bd::builtin_registry().open(std::move(pair.host), clock);
+  EXPECT_EQ(device->driver_name(), "vendor-arm");
+  auto* arm = bd::as_haptic(device.get());
+  ASSERT_NE(arm, nullptr);
+  ASSERT_EQ(arm->capabilities().force_channels.size(), 1u);
+  EXPECT_EQ(arm->capabilities().force_channels[0].components, 3);
+  EXPECT_NEAR(arm->capabilities().force_channels[0].max_force_N, 8.0, 1e-9);
+  EXPECT_NEAR(arm->capabilities().force_channels[0].max_force_rate_N_per_s, 400.0, 1e-9);
+  EXPECT_EQ(arm->capabilities().buttons, 2u);
+  twin.step(1ms);
+  EXPECT_EQ(arm->poll(0us), 1u);
+  EXPECT_NEAR(arm->state().end_effector_poses[0].position_m.z, 0.12, 1e-6);
+  EXPECT_EQ(arm->state().buttons, 0b10u);
+  const double f[3] = {1.5, -2.25, 0.001};
+  arm->send_forces(f);
+  EXPECT_NEAR(twin.applied_force_N().x, 1.5, 1e-9);
+  EXPECT_NEAR(twin.applied_force_N().y, -2.25, 1e-9);
+  EXPECT_EQ(twin.force_packets(), 1u);
+  EXPECT_EQ(twin.bad_packets(), 0u);
+  // The device's own watchdog: no force packet for 100 ms.
+  twin.step(200ms);
+  EXPECT_EQ(twin.applied_force_N().x, 0.0);
+}
+
+TEST(VendorArm, CorruptPacketsAndNoAnswer) {
+  bd::SimulatedArm twin({});
+  auto pair = bd::make_virtual_pair(twin.descriptor());
+  twin.attach(std::move(pair.device));
+  auto arm = bd::open_vendor_arm(std::move(pair.host));
+  bd::Bytes bad(32, 0);
+  bad[0] = 0x01;
+  auto [host, device] = bd::make_virtual_pair(twin.descriptor());
+  try {
+    arm->handle_report(bad);
+    ADD_FAILURE();
+  } catch (const bd::ProtocolError& e) {
+    EXPECT_EQ(e.offset(), 30u);
+  }
+  EXPECT_THROW(arm->handle_report(bd::Bytes(5, 0)), bd::ProtocolError);
+  // Nobody answers GET_INFO.
+  bd::VendorArmOptions options;
+  options.info_timeout = 20ms;
+  EXPECT_THROW(bd::open_vendor_arm(std::move(host), bd::steady_clock(), options), bd::DeviceError);
+}
+
+TEST(Registry, ByNameUsbIdAndDescriptor) {
+  auto registry = bd::builtin_registry();
+  EXPECT_NE(registry.find_by_name("hid-glove"), nullptr);
+  EXPECT_EQ(registry.find_by_usb_id({0x1209, 0xB157})->name, "vendor-arm");
+  bd::DeviceDescriptor unknown;
+  unknown.vendor_id = 1;
+  unknown.product = "mystery";
+  EXPECT_EQ(registry.find(unknown), nullptr);
+  auto pair = bd::make_virtual_pair(unknown);
+  EXPECT_THROW(registry.open(std::move(pair.host)), bd::DeviceError);
+  unknown.driver = "nope";
+  auto pair2 = bd::make_virtual_pair(unknown);
+  EXPECT_THROW(registry.open(std::move(pair2.host)), bd::DeviceError);
+  EXPECT_THROW(registry.add(bd::hid_glove_driver_info()), std::invalid_argument);
+  // Rebuilding from a recorded descriptor (as replay does): the driver name wins.
+  bd::DeviceDescriptor recorded = bd::SimulatedGlove(glove_script()).descriptor();
+  recorded.driver = "hid-glove";
+  recorded.vendor_id = 0x1209;
+  recorded.product_id = 0xB157;  // even with the arm's ids
+  EXPECT_EQ(registry.find(recorded)->name, "hid-glove");
+}
+
+namespace {
+
+bd::ForceChannel finger(double max_N = 5.0, double rate = 100.0) {
+  return bd::ForceChannel{"finger", 1, max_N, rate, false};
+}
+
+}  // namespace
+
+TEST(ForceGuard, WaitsForASmallCommandThenRampsIn) {
+  bd::ForceGuardConfig config;
+  config.ramp_in = 100ms;
+  bd::ForceGuard guard({finger(5.0, 1000.0)}, config);
+  double out = -1;
+  double cmd = 3.0;
+  Nanoseconds t = 0ms;
+  auto step = [&](double c) {
+    cmd = c;
+    t += 1ms;
+    guard.device_answered(t);
+    return guard.step(std::span(&cmd, 1), t, std::span(&out, 1));
+  };
+  EXPECT_EQ(step(3.0).state, bd::GuardState::WaitingForSmallCommand);
+  EXPECT_EQ(out, 0.0);
+  EXPECT_EQ(step(0.05).state, bd::GuardState::RampingIn);
+  for (int i = 0; i < 49; ++i)
+    step(2.0);
+  EXPECT_NEAR(out, 1.0, 0.05);  // half way through the ramp
+  for (int i = 0; i < 60; ++i)
+    step(2.0);
+  EXPECT_EQ(guard.state(), bd::GuardState::Engaged);
+  EXPECT_NEAR(out, 2.0, 1e-12);
+}
+
+TEST(ForceGuard, ClampsAndLimitsTheRate) {
+  bd::ForceGuardConfig config;
+  config.ramp_in = 0ms;
+  bd::ForceGuard guard({finger(5.0, 100.0), bd::ForceChannel{"tip", 3, 2.0, 1000.0, false}},
+                       config);
+  double cmd[4] = {0, 0, 0, 0}, out[4];
+  guard.step(cmd, 1ms, out);
+  EXPECT_EQ(guard.state(), bd::GuardState::Engaged);
+  double big[4] = {50, 3, 4, 0};  // 50 N finger, 5 N vector
+  auto r = guard.step(big, 2ms, out);
+  EXPECT_TRUE(r.clamped);
+  EXPECT_TRUE(r.rate_limited);
+  EXPECT_NEAR(out[0], 0.1, 1e-12);                      // 100 N/s for 1 ms
+  EXPECT_NEAR(std::hypot(out[1], out[2]), 1.0, 1e-12);  // 1000 N/s for 1 ms
+  Nanoseconds t = 2ms;
+  for (int i = 0; i < 100; ++i) {
+    guard.device_answered(t += 1ms);
+    guard.step(big, t, out);
+  }
+  EXPECT_NEAR(out[0], 5.0, 1e-12);
+  EXPECT_NEAR(out[1], 2.0 * 3 / 5, 1e-12);
+  EXPECT_NEAR(out[2], 2.0 * 4 / 5, 1e-12);
+  EXPECT_EQ(bd::classify(bd::Fault::ForceAboveLimit), bd::FaultAction::ClampAndContinue);
+  EXPECT_GT(guard.clamp_count(), 0u);
+}
+
+TEST(ForceGuard, NanLatchesUntilRearm) {
+  bd::ForceGuardConfig config;
+  config.ramp_in = 0ms;
+  bd::ForceGuard guard({finger()}, config);
+  double out = 0, cmd = 0;
+  guard.step(std::span(&cmd, 1), 1ms, std::span(&out, 1));
+  cmd = 1;
+  for (int i = 2; i < 30; ++i)
+    guard.step(std::span(&cmd, 1), Nanoseconds(i * 1000000), std::span(&out, 1));
+  EXPECT_GT(out, 0.5);
+  cmd = std::nan("");
+  auto r = guard.step(std::span(&cmd, 1), 30ms, std::span(&out, 1));
+  EXPECT_EQ(r.latched, bd::Fault::NonFiniteCommand);
+  EXPECT_EQ(out, 0.0);
+  cmd = 0;
+  guard.step(std::span(&cmd, 1), 31ms, std::span(&out, 1));
+  EXPECT_EQ(guard.state(), bd::GuardState::Latched);
+  EXPECT_EQ(out, 0.0);
+  guard.rearm();
+  guard.step(std::span(&cmd, 1), 40ms, std::span(&out, 1));
+  EXPECT_EQ(guard.state(), bd::GuardState::Engaged);
+  EXPECT_EQ(bd::classify(bd::Fault::NonFiniteCommand), bd::FaultAction::StopForces);
+}
+
+TEST(ForceGuard, WatchdogDeadlineAndSilence) {
+  bd::ForceGuardConfig config;
+  config.ramp_in = 0ms;
+  bd::ForceGuard guard({finger()}, config);
+  double out = 0, cmd = 0;
+  Nanoseconds t = 0ms;
+  auto step = [&](Nanoseconds dt, bool answer = true) {
+    t += dt;
+    if (answer) guard.device_answered(t);
+    return guard.step(std::span(&cmd, 1), t, std::span(&out, 1));
+  };
+  step(1ms);
+  cmd = 1;
+  for (int i = 0; i < 20; ++i)
+    step(1ms);
+  EXPECT_GT(out, 0.5);
+  // 2.9 ms late is within period (1) + margin (2); 3.1 ms is not.
+  EXPECT_EQ(step(2900us).latched, bd::Fault::None);
+  EXPECT_EQ(step(3100us).latched, bd::Fault::DeadlineOverrun);
+  EXPECT_EQ(out, 0.0);
+  // Back on time: re-arms by itself but waits for a small command again.
+  step(1ms);
+  EXPECT_EQ(guard.state(), bd::GuardState::WaitingForSmallCommand);
+  EXPECT_EQ(out, 0.0);
+  cmd = 0;
+  step(1ms);
+  cmd = 1;
+  for (int i = 0; i < 20; ++i)
+    step(1ms);
+  EXPECT_GT(out, 0.5);
+  // The device stops answering: zero after the silence timeout.
+  bd::GuardStep r;
+  for (int i = 0; i < 60 && r.latched == bd::Fault::None; ++i)
+    r = step(1ms, false);
+  EXPECT_EQ(r.latched, bd::Fault::DeviceSilent);
+  EXPECT_EQ(out, 0.0);
+  // A supervisor's watchdog.
+  bd::LoopWatchdog watchdog;
+  watchdog.kick(10ms);
+  EXPECT_FALSE(watchdog.expired(12ms));
+  EXPECT_TRUE(watchdog.expired(13100us));
+  bd::ForceGuard fresh({finger()}, config);
+  fresh.device_answered(0ms);
+  fresh.step(std::span(&cmd, 1), 0ms, std::span(&out, 1));
+  EXPECT_FALSE(fresh.watchdog_expired(2ms));  // no step missed yet...
+  EXPECT_TRUE(fresh.watchdog_expired(4ms));   // ...now it is late
+  EXPECT_EQ(fresh.latch_reason(), bd::Fault::DeadlineOverrun);
+}
+
+TEST(ForceGuard, DisconnectZeroesFirst) {
+  bd::SimulatedArm twin({});
+  auto pair = bd::make_virtual_pair(twin.descriptor());
+  twin.attach(std::move(pair.device));
+  bd::VirtualClock clock;
+  auto arm = bd::open_vendor_arm(std::move(pair.host), clock);
+  bd::ForceGuardConfig config;
+  config.ramp_in = 0ms;
+  bd::ForceGuard guard(arm->capabilities().force_channels, config);
+  double cmd[3] = {0, 0, 0}, out[3];
+  for (int i = 1; i < 100; ++i) {
+    clock.set(Nanoseconds(i * 1000000));
+    twin.step(clock.now());
+    arm->poll(0us);
+    guard.device_answered(clock.now());
+    cmd[0] = i == 1 ? 0.0 : 2.0;
+    guard.step(cmd, clock.now(), out);
+    arm->send_forces(out);
+  }
+  EXPECT_NEAR(twin.applied_force_N().x, 2.0, 1e-3);
+  // A transport error classified as a lost device: latch, send the zeros, then drop the device.
+  bd::DeviceDisconnected lost("arm: gone");
+  EXPECT_EQ(bd::classify(bd::classify_exception(lost)), bd::FaultAction::StopForces);
+  guard.device_disconnected();
+  EXPECT_EQ(guard.last_output()[0], 0.0);
+  arm->send_forces(guard.last_output());
+  EXPECT_EQ(twin.applied_force_N().x, 0.0);
+  guard.step(cmd, clock.now() + 1ms, out);
+  EXPECT_EQ(out[0], 0.0);
+  EXPECT_EQ(guard.latch_reason(), bd::Fault::DeviceDisconnected);
+}
+
+TEST(Hotplug, DisconnectAndReconnectMidSession) {
+  bd::VirtualClock clock;
+  bd::VirtualBus bus;
+  bd::SimulatedGlove glove(glove_script());
+  bd::SimulatedArm arm({});
+  bus.plug(glove.descriptor(), glove.connector());
+  auto registry = bd::builtin_registry();
+  bd::DeviceManager manager(registry, clock);
+  manager.add_source(bus);
+  auto events = manager.scan();
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_EQ(events[0].kind, bd::DeviceEventKind::Arrived);
+  EXPECT_EQ(events[1].kind, bd::DeviceEventKind::Opened);
+  EXPECT_EQ(events[1].device.driver, "hid-glove");
+  bus.plug(arm.descriptor(), arm.connector());
+  events = manager.scan();
+  ASSERT_EQ(events.size(), 2u);
+  ASSERT_EQ(manager.devices().size(), 2u);
+  EXPECT_TRUE(manager.scan().empty());
+
+  auto* g = bd::as_haptic(manager.find(glove.descriptor().path));
+  ASSERT_NE(g, nullptr);
+  glove.step(10ms);
+  EXPECT_EQ(g->poll(0us), 1u);
+  // Unplug mid-session: the driver sees DeviceDisconnected, the session goes on with the arm.
+  bus.unplug(glove.descriptor().path);
+  EXPECT_THROW(g->poll(0us), bd::DeviceDisconnected);
+  EXPECT_FALSE(g->is_open());
+  events = manager.scan();
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_EQ(events[0].kind, bd::DeviceEventKind::Disconnected);
+  EXPECT_EQ(events[1].kind, bd::DeviceEventKind::Removed);
+  EXPECT_EQ(manager.devices().size(), 1u);
+  // Plug back: picked up again.
+  bus.plug(glove.descriptor(), glove.connector());
+  events = manager.scan();
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_EQ(events[1].kind, bd::DeviceEventKind::Reconnected);
+  g = bd::as_haptic(manager.find(glove.descriptor().path));
+  ASSERT_NE(g, nullptr);
+  glove.step(20ms);
+  EXPECT_EQ(g->poll(0us), 1u);
+  // A link that breaks while still listed is reopened on the next scan.
+  glove.disconnect();
+  EXPECT_THROW(g->poll(0us), bd::DeviceDisconnected);
+  events = manager.scan();
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_EQ(events[0].kind, bd::DeviceEventKind::Disconnected);
+  EXPECT_EQ(events[1].kind, bd::DeviceEventKind::Reconnected);
+}
+
+TEST(VirtualTransport, QueuesTimeoutsAndThreads) {
+  auto pair = bd::make_virtual_pair({}, 2);
+  EXPECT_FALSE(pair.host->read(1ms).has_value());
+  pair.device->write(bd::Bytes{1});
+  pair.device->write(bd::Bytes{2});
+  pair.device->write(bd::Bytes{3});
+  EXPECT_EQ(pair.host->dropped(), 1u);
+  EXPECT_EQ((*pair.host->read(0us))[0], 2);
+  std::thread writer([&] {
+    std::this_thread::sleep_for(5ms);
+    pair.device->write(bd::Bytes{9});
+  });
+  EXPECT_EQ((*pair.host->read(0us))[0], 3);
+  auto r = pair.host->read(2s);
+  writer.join();
+  ASSERT_TRUE(r.has_value());
+  EXPECT_EQ((*r)[0], 9);
+  pair.device->disconnect();
+  EXPECT_THROW(pair.host->read(0us), bd::DeviceDisconnected);
+  EXPECT_THROW(pair.host->write(bd::Bytes{1}), bd::DeviceDisconnected);
+}

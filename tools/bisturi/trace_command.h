@@ -1,0 +1,36 @@
+#pragma once
+// `bisturi trace inspect|replay|cut`: device traces on the command line.
+//   inspect TRACE [--json]   devices, duration, chunks, reports in/out, the first bad chunk (exit
+//                            status 2 when there is one)
+//   replay TRACE [--json]    replays through the same drivers and force guard in virtual time and
+//                            compares the output reports (exit 0: pass, 3: mismatch, 2: bad chunk)
+//   cut TRACE --out FILE [--from S] [--to S] [--from-chunk N] [--to-chunk N] [--json]
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace CLI {
+class App;
+}
+
+namespace bisturi::cli {
+
+struct TraceOptions {
+  std::string input;
+  std::string output;
+  bool json = false;
+  std::optional<double> from_s;
+  std::optional<double> to_s;
+  std::optional<std::uint64_t> from_chunk;
+  std::optional<std::uint64_t> to_chunk;
+};
+
+/// Adds the `trace` command with its sub-commands; `run` is set to the one parsed.
+void add_trace_command(CLI::App& app, TraceOptions& options, int (*&run)(const TraceOptions&));
+
+int run_trace_inspect(const TraceOptions& options);
+int run_trace_replay(const TraceOptions& options);
+int run_trace_cut(const TraceOptions& options);
+
+}  // namespace bisturi::cli
