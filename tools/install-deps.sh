@@ -21,6 +21,7 @@ packages=(
   glslang-tools glslc                # shaders/ to SPIR-V at build time
   vulkan-validationlayers            # the renderer's tests run with validation
   libopenxr-dev libpng-dev           # frame sinks: headset (OpenXR), headless (PNG)
+  libtomlplusplus-dev libcairo2-dev  # scene files (TOML), session report plots
 )
 if [[ "${1:-}" == "--bench-peers" ]]; then
   packages+=(libopenmesh-dev libcgal-dev libvtk9-dev)

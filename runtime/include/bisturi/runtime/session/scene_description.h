@@ -1,0 +1,132 @@
+#pragma once
+// What a session runs: solids, their materials and anchors, instruments, devices, the headset
+// and the loop rates. Read from a TOML scene file (config/*.toml, see config/README.md) or taken
+// from the embedded default scene. Units are in the names: millimetres for geometry (the scene
+// layer's world frame), SI for physics (N/m, N*s/m, kg/m^3), hertz for rates.
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "bisturi/scene/errors.h"
+
+namespace bisturi::runtime {
+
+/// A scene file that cannot be used: the message names the file, the line and the key.
+class SceneFileError : public InputError {
+ public:
+  using InputError::InputError;
+};
+
+struct MaterialDescription {
+  double stiffness_N_per_m = 400.0;
+  double damping_N_s_per_m = 0.8;
+  double density_kg_per_m3 = 1050.0;  // soft tissue
+  std::array<double, 3> colour{0.8, 0.35, 0.3};
+};
+
+/// Vertices held in place: those within `distance_mm` of the plane through `point_mm` with
+/// normal `normal` on its negative side (e.g. the cut ends of a vessel, an organ's base).
+struct AnchorDescription {
+  std::array<double, 3> point_mm{0, 0, 0};
+  std::array<double, 3> normal{0, 0, 1};
+  double distance_mm = 0.0;
+};
+
+struct SolidDescription {
+  std::string name;
+  enum class Source { Mesh, Volume, Phantom } source = Source::Phantom;
+  /// Mesh or volume file, resolved against the scene file's folder.
+  std::filesystem::path path;
+  // Phantom volumes (source Phantom): see bisturi/scene/volume/phantoms.h.
+  std::string phantom = "sphere";
+  std::array<std::int64_t, 3> dims{48, 48, 48};
+  double spacing_mm = 1.0;
+  double a_mm = 0.0;
+  double b_mm = 0.0;
+  // Extraction (Volume and Phantom sources).
+  double iso = 0.0;
+  std::optional<std::uint32_t> label;  ///< extract this label of a label map instead of `iso`
+  double decimate = 1.0;               ///< fraction of faces kept
+  int smooth = 0;                      ///< Taubin iterations
+  /// Added to every vertex (mm): places the solid in the scene.
+  std::array<double, 3> offset_mm{0, 0, 0};
+  MaterialDescription material;
+  std::vector<AnchorDescription> anchors;
+  bool simulate = true;  ///< false: rigid, drawn and touched but not deformed
+};
+
+struct InstrumentDescription {
+  std::string name;
+  enum class Kind { Probe, Grasper, Scalpel } kind = Kind::Probe;
+  double radius_mm = 1.5;
+  double length_mm = 60.0;
+  /// The device (by name) whose end-effector or finger pose drives it.
+  std::string device;
+};
+
+struct DeviceDescription {
+  std::string name;
+  /// Registered driver name (e.g. "hid-glove"), or empty to pick by vendor/product id.
+  std::string driver;
+  enum class Role { Haptic, HeadTracker } role = Role::Haptic;
+  /// Simulated twin through the virtual transport, driven by `script`; false: real hardware.
+  bool simulated = true;
+  /// The scripted procedure of a simulated device ("default" = approach, palpate, grasp, cut).
+  std::string script = "default";
+  std::uint16_t vendor_id = 0;
+  std::uint16_t product_id = 0;
+  std::string serial;
+  /// Upper bound on the force sent (the device's own limit applies too, the lower wins).
+  double max_force_N = 3.0;
+};
+
+struct HeadsetDescription {
+  double ipd_mm = 63.0;
+  /// Per-eye field of view in degrees: left, right, up, down (asymmetric frusta).
+  std::array<double, 4> fov_deg{45.0, 45.0, 45.0, 45.0};
+  int eye_width = 1024;
+  int eye_height = 1024;
+  double refresh_hz = 90.0;
+};
+
+struct RateDescription {
+  double haptic_hz = 1000.0;
+  double display_hz = 90.0;
+};
+
+struct SceneDescription {
+  std::string name = "unnamed";
+  /// The file it was read from; empty for the embedded default scene.
+  std::filesystem::path file;
+  std::vector<SolidDescription> solids;
+  std::vector<InstrumentDescription> instruments;
+  std::vector<DeviceDescription> devices;
+  HeadsetDescription headset;
+  RateDescription rates;
+  /// Session length when the command line does not give one.
+  double duration_s = 10.0;
+};
+
+/// Reads a TOML scene file; SceneFileError names the file, line and key of the first problem
+/// (syntax, unknown key, wrong type, value out of range, missing file, a device named by an
+/// instrument that does not exist).
+SceneDescription read_scene_file(const std::filesystem::path& file);
+
+/// Parses TOML text; `name_for_errors` starts every message, `base_dir` resolves relative paths.
+SceneDescription parse_scene(std::string_view toml_text, const std::string& name_for_errors,
+                             const std::filesystem::path& base_dir = {});
+
+/// The embedded default scene (needs no file): a vessel segment and a soft organ built from
+/// generated phantoms, a simulated glove and head tracker following the scripted procedure.
+SceneDescription default_scene();
+
+/// The embedded default scene as TOML text (what `bisturi run --print-default-scene` shows and
+/// what config/default.toml holds).
+std::string_view default_scene_toml();
+
+}  // namespace bisturi::runtime

@@ -1,0 +1,358 @@
+// Scene files: TOML read with toml++, checked key by key so that every problem names the file,
+// the line and the key (a typo in a key is an error, not a silently ignored setting).
+
+#include <toml++/toml.h>
+
+#include <cmath>
+#include <fstream>
+#include <initializer_list>
+#include <set>
+#include <sstream>
+
+#include "bisturi/runtime/session/scene_description.h"
+#include "default_scene_toml.h"
+
+namespace bisturi::runtime {
+
+namespace {
+
+class SceneReader {
+ public:
+  SceneReader(std::string name, std::filesystem::path base_dir)
+      : name_(std::move(name)), base_dir_(std::move(base_dir)) {}
+
+  SceneDescription read(const toml::table& root) {
+    SceneDescription scene;
+    only_keys(root, "",
+              {"name", "duration_s", "rates", "headset", "solids", "devices", "instruments"});
+    scene.name = string_or(root, "", "name", scene.name);
+    scene.duration_s = positive(root, "", "duration_s", scene.duration_s);
+    if (const toml::table* t = table_at(root, "", "rates")) {
+      only_keys(*t, "rates", {"haptic_hz", "display_hz"});
+      scene.rates.haptic_hz = positive(*t, "rates", "haptic_hz", scene.rates.haptic_hz);
+      scene.rates.display_hz = positive(*t, "rates", "display_hz", scene.rates.display_hz);
+    }
+    if (const toml::table* t = table_at(root, "", "headset")) read_headset(*t, scene.headset);
+    for_each_table(root, "solids", [&](const toml::table& t, const std::string& path) {
+      scene.solids.push_back(read_solid(t, path));
+    });
+    for_each_table(root, "devices", [&](const toml::table& t, const std::string& path) {
+      scene.devices.push_back(read_device(t, path));
+    });
+    for_each_table(root, "instruments", [&](const toml::table& t, const std::string& path) {
+      InstrumentDescription in = read_instrument(t, path);
+      bool found = false;
+      for (const DeviceDescription& d : scene.devices)
+        found = found || d.name == in.device;
+      if (!found)
+        fail(t["device"].node(), t, path + ".device", "no device named '" + in.device + "'");
+      scene.instruments.push_back(std::move(in));
+    });
+    return scene;
+  }
+
+ private:
+  [[noreturn]] void fail(const toml::node* node, const toml::node& parent, const std::string& key,
+                         const std::string& reason) const {
+    const toml::source_region& where = node != nullptr ? node->source() : parent.source();
+    throw SceneFileError(name_ + ": line " + std::to_string(where.begin.line) + ": key '" + key +
+                         "': " + reason);
+  }
+
+  static std::string join(const std::string& path, std::string_view key) {
+    return path.empty() ? std::string(key) : path + "." + std::string(key);
+  }
+
+  void only_keys(const toml::table& t, const std::string& path,
+                 std::initializer_list<std::string_view> allowed) const {
+    for (auto&& [key, value] : t) {
+      bool ok = false;
+      for (std::string_view a : allowed)
+        ok = ok || key.str() == a;
+      if (!ok) {
+        std::string list;
+        for (std::string_view a : allowed)
+          list += (list.empty() ? "" : ", ") + std::string(a);
+        fail(&value, t, join(path, key.str()), "unknown key (expected one of: " + list + ")");
+      }
+    }
+  }
+
+  const toml::table* table_at(const toml::table& t, const std::string& path,
+                              std::string_view key) const {
+    const toml::node* n = t.get(key);
+    if (n == nullptr) return nullptr;
+    if (!n->is_table()) fail(n, t, join(path, key), "expected a table");
+    return n->as_table();
+  }
+
+  template <class Fn>
+  void for_each_table(const toml::table& t, std::string_view key, Fn&& fn) const {
+    const toml::node* n = t.get(key);
+    if (n == nullptr) return;
+    const toml::array* a = n->as_array();
+    if (a == nullptr || !a->is_array_of_tables()) {
+      fail(n, t, std::string(key), "expected an array of tables ([[" + std::string(key) + "]])");
+    }
+    for (std::size_t i = 0; i < a->size(); ++i) {
+      fn(*a->get(i)->as_table(), std::string(key) + "[" + std::to_string(i) + "]");
+    }
+  }
+
+  double number(const toml::table& t, const std::string& path, std::string_view key,
+                double fallback) const {
+    const toml::node* n = t.get(key);
+    if (n == nullptr) return fallback;
+    if (!n->is_number()) fail(n, t, join(path, key), "expected a number");
+    const double v = n->value<double>().value_or(fallback);
+    if (!std::isfinite(v)) fail(n, t, join(path, key), "expected a finite number");
+    return v;
+  }
+
+  double positive(const toml::table& t, const std::string& path, std::string_view key,
+                  double fallback) const {
+    const double v = number(t, path, key, fallback);
+    if (!(v > 0.0)) fail(t.get(key), t, join(path, key), "must be greater than 0");
+    return v;
+  }
+
+  std::int64_t integer(const toml::table& t, const std::string& path, std::string_view key,
+                       std::int64_t fallback, std::int64_t lo, std::int64_t hi) const {
+    const toml::node* n = t.get(key);
+    if (n == nullptr) return fallback;
+    if (!n->is_integer()) fail(n, t, join(path, key), "expected an integer");
+    const std::int64_t v = *n->value<std::int64_t>();
+    if (v < lo || v > hi) {
+      fail(n, t, join(path, key),
+           "must be between " + std::to_string(lo) + " and " + std::to_string(hi));
+    }
+    return v;
+  }
+
+  bool boolean(const toml::table& t, const std::string& path, std::string_view key,
+               bool fallback) const {
+    const toml::node* n = t.get(key);
+    if (n == nullptr) return fallback;
+    if (!n->is_boolean()) fail(n, t, join(path, key), "expected true or false");
+    return *n->value<bool>();
+  }
+
+  std::string string_or(const toml::table& t, const std::string& path, std::string_view key,
+                        const std::string& fallback) const {
+    const toml::node* n = t.get(key);
+    if (n == nullptr) return fallback;
+    if (!n->is_string()) fail(n, t, join(path, key), "expected a string");
+    return *n->value<std::string>();
+  }
+
+  template <std::size_t N>
+  std::array<double, N> numbers(const toml::table& t, const std::string& path, std::string_view key,
+                                const std::array<double, N>& fallback) const {
+    const toml::node* n = t.get(key);
+    if (n == nullptr) return fallback;
+    const toml::array* a = n->as_array();
+    if (a == nullptr || a->size() != N) {
+      fail(n, t, join(path, key), "expected an array of " + std::to_string(N) + " numbers");
+    }
+    std::array<double, N> out{};
+    for (std::size_t i = 0; i < N; ++i) {
+      const toml::node* e = a->get(i);
+      if (!e->is_number() || !std::isfinite(e->value<double>().value_or(NAN))) {
+        fail(e, t, join(path, key) + "[" + std::to_string(i) + "]", "expected a finite number");
+      }
+      out[i] = *e->value<double>();
+    }
+    return out;
+  }
+
+  template <class E>
+  E choice(const toml::table& t, const std::string& path, std::string_view key, E fallback,
+           std::initializer_list<std::pair<std::string_view, E>> options) const {
+    const toml::node* n = t.get(key);
+    if (n == nullptr) return fallback;
+    const std::string v = string_or(t, path, key, "");
+    std::string list;
+    for (const auto& [name, value] : options) {
+      if (v == name) return value;
+      list += (list.empty() ? "" : ", ") + std::string(name);
+    }
+    fail(n, t, join(path, key), "'" + v + "' is not one of: " + list);
+  }
+
+  std::filesystem::path file_path(const toml::table& t, const std::string& path,
+                                  std::string_view key) const {
+    std::filesystem::path p = string_or(t, path, key, "");
+    if (p.empty()) fail(t.get(key), t, join(path, key), "expected a file name");
+    if (p.is_relative() && !base_dir_.empty()) p = base_dir_ / p;
+    if (!std::filesystem::exists(p))
+      fail(t.get(key), t, join(path, key), "no such file: " + p.string());
+    return p;
+  }
+
+  void read_headset(const toml::table& t, HeadsetDescription& h) const {
+    only_keys(t, "headset", {"ipd_mm", "fov_deg", "eye_width", "eye_height", "refresh_hz"});
+    h.ipd_mm = positive(t, "headset", "ipd_mm", h.ipd_mm);
+    h.fov_deg = numbers<4>(t, "headset", "fov_deg", h.fov_deg);
+    for (std::size_t i = 0; i < 4; ++i) {
+      if (!(h.fov_deg[i] > 0.0 && h.fov_deg[i] < 89.0)) {
+        fail(t.get("fov_deg"), t, "headset.fov_deg[" + std::to_string(i) + "]",
+             "each half-angle must be between 0 and 89 degrees");
+      }
+    }
+    h.eye_width = static_cast<int>(integer(t, "headset", "eye_width", h.eye_width, 16, 8192));
+    h.eye_height = static_cast<int>(integer(t, "headset", "eye_height", h.eye_height, 16, 8192));
+    h.refresh_hz = positive(t, "headset", "refresh_hz", h.refresh_hz);
+  }
+
+  SolidDescription read_solid(const toml::table& t, const std::string& path) const {
+    only_keys(t, path,
+              {"name", "mesh", "volume", "phantom", "dims", "spacing_mm", "a_mm", "b_mm", "iso",
+               "label", "decimate", "smooth", "offset_mm", "material", "anchors", "simulate"});
+    SolidDescription s;
+    s.name = string_or(t, path, "name", path);
+    const int sources = (t.contains("mesh") ? 1 : 0) + (t.contains("volume") ? 1 : 0) +
+                        (t.contains("phantom") ? 1 : 0);
+    if (sources != 1) {
+      fail(nullptr, t, path, "give exactly one of 'mesh', 'volume' or 'phantom'");
+    }
+    if (t.contains("mesh")) {
+      s.source = SolidDescription::Source::Mesh;
+      s.path = file_path(t, path, "mesh");
+    } else if (t.contains("volume")) {
+      s.source = SolidDescription::Source::Volume;
+      s.path = file_path(t, path, "volume");
+    } else {
+      s.source = SolidDescription::Source::Phantom;
+      s.phantom = string_or(t, path, "phantom", s.phantom);
+    }
+    if (const toml::node* n = t.get("dims")) {
+      const toml::array* a = n->as_array();
+      if (a == nullptr || a->size() != 3) fail(n, t, path + ".dims", "expected 3 integers");
+      for (std::size_t i = 0; i < 3; ++i) {
+        const auto v = a->get(i)->value<std::int64_t>();
+        if (!a->get(i)->is_integer() || !v || *v < 2 || *v > 1024) {
+          fail(a->get(i), t, path + ".dims[" + std::to_string(i) + "]",
+               "expected an integer between 2 and 1024");
+        }
+        s.dims[i] = *v;
+      }
+    }
+    s.spacing_mm = positive(t, path, "spacing_mm", s.spacing_mm);
+    s.a_mm = number(t, path, "a_mm", s.a_mm);
+    s.b_mm = number(t, path, "b_mm", s.b_mm);
+    s.iso = number(t, path, "iso", s.iso);
+    if (t.contains("label")) {
+      s.label = static_cast<std::uint32_t>(integer(t, path, "label", 1, 0, 0xffffff));
+    }
+    s.decimate = number(t, path, "decimate", s.decimate);
+    if (!(s.decimate > 0.0 && s.decimate <= 1.0)) {
+      fail(t.get("decimate"), t, path + ".decimate", "must be in (0, 1]");
+    }
+    s.smooth = static_cast<int>(integer(t, path, "smooth", s.smooth, 0, 1000));
+    s.offset_mm = numbers<3>(t, path, "offset_mm", s.offset_mm);
+    s.simulate = boolean(t, path, "simulate", s.simulate);
+    if (const toml::table* m = table_at(t, path, "material")) {
+      const std::string mp = path + ".material";
+      only_keys(*m, mp, {"stiffness_N_per_m", "damping_N_s_per_m", "density_kg_per_m3", "colour"});
+      s.material.stiffness_N_per_m =
+          positive(*m, mp, "stiffness_N_per_m", s.material.stiffness_N_per_m);
+      s.material.damping_N_s_per_m =
+          number(*m, mp, "damping_N_s_per_m", s.material.damping_N_s_per_m);
+      if (s.material.damping_N_s_per_m < 0.0) {
+        fail(m->get("damping_N_s_per_m"), *m, mp + ".damping_N_s_per_m", "must not be negative");
+      }
+      s.material.density_kg_per_m3 =
+          positive(*m, mp, "density_kg_per_m3", s.material.density_kg_per_m3);
+      s.material.colour = numbers<3>(*m, mp, "colour", s.material.colour);
+    }
+    for_each_table(t, "anchors", [&](const toml::table& a, const std::string& sub) {
+      const std::string ap = path + "." + sub;
+      only_keys(a, ap, {"point_mm", "normal", "distance_mm"});
+      AnchorDescription anchor;
+      anchor.point_mm = numbers<3>(a, ap, "point_mm", anchor.point_mm);
+      anchor.normal = numbers<3>(a, ap, "normal", anchor.normal);
+      const double len = std::hypot(anchor.normal[0], anchor.normal[1], anchor.normal[2]);
+      if (!(len > 0.0)) fail(a.get("normal"), a, ap + ".normal", "must not be zero");
+      for (double& c : anchor.normal)
+        c /= len;
+      anchor.distance_mm = number(a, ap, "distance_mm", anchor.distance_mm);
+      s.anchors.push_back(anchor);
+    });
+    return s;
+  }
+
+  DeviceDescription read_device(const toml::table& t, const std::string& path) const {
+    only_keys(t, path,
+              {"name", "driver", "role", "simulated", "script", "vendor_id", "product_id", "serial",
+               "max_force_N"});
+    DeviceDescription d;
+    d.name = string_or(t, path, "name", path);
+    d.driver = string_or(t, path, "driver", d.driver);
+    d.role = choice(t, path, "role", d.role,
+                    {{"haptic", DeviceDescription::Role::Haptic},
+                     {"head-tracker", DeviceDescription::Role::HeadTracker}});
+    d.simulated = boolean(t, path, "simulated", d.simulated);
+    d.script = string_or(t, path, "script", d.script);
+    d.vendor_id = static_cast<std::uint16_t>(integer(t, path, "vendor_id", 0, 0, 0xffff));
+    d.product_id = static_cast<std::uint16_t>(integer(t, path, "product_id", 0, 0, 0xffff));
+    d.serial = string_or(t, path, "serial", d.serial);
+    d.max_force_N = positive(t, path, "max_force_N", d.max_force_N);
+    if (d.driver.empty() && d.vendor_id == 0) {
+      fail(nullptr, t, path, "give a 'driver' name or a 'vendor_id' and 'product_id'");
+    }
+    return d;
+  }
+
+  InstrumentDescription read_instrument(const toml::table& t, const std::string& path) const {
+    only_keys(t, path, {"name", "kind", "device", "radius_mm", "length_mm"});
+    InstrumentDescription in;
+    in.name = string_or(t, path, "name", path);
+    in.kind = choice(t, path, "kind", in.kind,
+                     {{"probe", InstrumentDescription::Kind::Probe},
+                      {"grasper", InstrumentDescription::Kind::Grasper},
+                      {"scalpel", InstrumentDescription::Kind::Scalpel}});
+    in.device = string_or(t, path, "device", "");
+    if (in.device.empty())
+      fail(t.get("device"), t, path + ".device", "name the device that drives it");
+    in.radius_mm = positive(t, path, "radius_mm", in.radius_mm);
+    in.length_mm = positive(t, path, "length_mm", in.length_mm);
+    return in;
+  }
+
+  std::string name_;
+  std::filesystem::path base_dir_;
+};
+
+}  // namespace
+
+SceneDescription parse_scene(std::string_view toml_text, const std::string& name_for_errors,
+                             const std::filesystem::path& base_dir) {
+  toml::table root;
+  try {
+    root = toml::parse(toml_text, name_for_errors);
+  } catch (const toml::parse_error& e) {
+    throw SceneFileError(name_for_errors + ": line " + std::to_string(e.source().begin.line) +
+                         ": " + std::string(e.description()));
+  }
+  return SceneReader(name_for_errors, base_dir).read(root);
+}
+
+SceneDescription read_scene_file(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw SceneFileError(file.string() + ": cannot open the scene file");
+  std::ostringstream text;
+  text << in.rdbuf();
+  SceneDescription scene = parse_scene(text.str(), file.string(), file.parent_path());
+  scene.file = file;
+  return scene;
+}
+
+std::string_view default_scene_toml() {
+  return kDefaultSceneToml;
+}
+
+SceneDescription default_scene() {
+  return parse_scene(default_scene_toml(), "default scene (config/default.toml)");
+}
+
+}  // namespace bisturi::runtime
