@@ -1,0 +1,78 @@
+#pragma once
+// Collision on deforming soft bodies through Embree (kept private to sim: no Embree type in a
+// public header). One SurfaceBvh per body: a triangle BVH refitted every step and rebuilt when
+// the body's topology version moves; closest-point and ray queries for the haptic proxy and the
+// scalpel; and, on request, a user-geometry copy for rtcCollide (Embree's collide works on user
+// geometry only) that finds the triangle pairs of tissue-tissue contact.
+
+#include <cstdint>
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "bisturi/sim/soft_body.h"
+
+namespace bisturi::sim {
+
+/// The Embree device shared by every BVH of a world. threads = 0 lets Embree pick; 1 keeps
+/// builds on the calling thread (deterministic timing, no pool).
+class CollisionDevice {
+ public:
+  explicit CollisionDevice(unsigned threads = 1);
+  ~CollisionDevice();
+  CollisionDevice(const CollisionDevice&) = delete;
+  CollisionDevice& operator=(const CollisionDevice&) = delete;
+  [[nodiscard]] void* handle() const { return device_; }  ///< RTCDevice
+
+ private:
+  void* device_ = nullptr;
+};
+
+struct SurfacePoint {
+  bool found = false;
+  glm::dvec3 point_m{0.0};
+  glm::dvec3 normal{0.0};      ///< unit normal of the triangle, pointing out of the tissue
+  double distance_m = 0.0;     ///< from the query point (closest point) or ray parameter (ray)
+  std::uint32_t triangle = 0;  ///< index into the body's SurfaceTriangles
+  glm::dvec3 barycentric{0.0};
+};
+
+class SurfaceBvh {
+ public:
+  SurfaceBvh(const CollisionDevice& device, const SoftBody& body);
+  ~SurfaceBvh();
+  SurfaceBvh(SurfaceBvh&&) noexcept;
+  SurfaceBvh& operator=(SurfaceBvh&&) noexcept;
+
+  /// Refit to the body's positions, or rebuild when its topology version moved.
+  void update(const SoftBody& body);
+  [[nodiscard]] std::uint64_t rebuilds() const;
+  [[nodiscard]] std::uint64_t refits() const;
+
+  /// Closest surface point to p within max_distance_m (found = false when none).
+  [[nodiscard]] SurfacePoint closest_point(const SoftBody& body, const glm::dvec3& p_m,
+                                           double max_distance_m = 1e30) const;
+  /// The triangles with a point within radius_m of p, sorted (the haptic contact patch).
+  [[nodiscard]] std::vector<std::uint32_t> triangles_near(const SoftBody& body,
+                                                          const glm::dvec3& p_m,
+                                                          double radius_m) const;
+  /// First hit of the segment from -> to (found = false when none).
+  [[nodiscard]] SurfacePoint ray(const SoftBody& body, const glm::dvec3& from_m,
+                                 const glm::dvec3& to_m) const;
+  /// Triangle pairs (this body's, other's) whose bounds overlap, sorted; bounds are grown by
+  /// margin_m. Builds the user-geometry copies on first use.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> overlapping_triangles(
+      const SoftBody& body, SurfaceBvh& other, const SoftBody& other_body, double margin_m);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Closest point on triangle (a, b, c) to p, with its barycentric coordinates.
+glm::dvec3 closest_point_on_triangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
+                                     const glm::dvec3& c, glm::dvec3& barycentric);
+
+}  // namespace bisturi::sim

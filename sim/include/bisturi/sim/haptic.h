@@ -1,0 +1,71 @@
+#pragma once
+// Haptic rendering with a god-object proxy. The device point (the probe tip) is coupled to a
+// proxy by a virtual spring; the proxy stays on the tissue surface (at probe-radius distance)
+// while the device is inside, and follows the device outside. The force sent to the device is
+// the coupling force, clamped to max_force_N and rate-limited (ramped, never stepped: its change
+// per step is at most max_force_rate_N_per_s * dt). Optional Coulomb friction holds the proxy
+// still while the tangential pull is inside the friction cone.
+//
+// The contact is a patch, not a triangle: the surface within probe_radius + one edge of the
+// closest point. Its area-weighted normal is the proxy's normal (a single triangle's normal on a
+// dimpled, yielding membrane tilts from step to step and pushes the probe sideways), and the
+// reaction (minus the force) is shared by the patch's vertices with weights (1 - d/R)^2, so the
+// tissue yields under the probe as a smooth dent. The reaction's stiffness (coupling x weight
+// along the normal) goes to the implicit solve with the force (SoftBody::add_contact), which
+// keeps the loop between the proxy and the light surface vertices stable.
+// Output in newtons, world frame; sim never talks to devices (the runtime passes it on).
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "bisturi/sim/collision.h"
+#include "bisturi/sim/soft_body.h"
+
+namespace bisturi::sim {
+
+struct HapticOptions {
+  double coupling_N_per_m = 400.0;
+  double max_force_N = 3.0;
+  double max_force_rate_N_per_s = 300.0;
+  double friction = 0.0;  ///< Coulomb coefficient; 0 turns friction off
+  double probe_radius_m = 0.001;
+  bool apply_reaction = true;
+};
+
+struct HapticOutput {
+  glm::dvec3 force_N{0.0};
+  glm::dvec3 proxy_m{0.0};
+  bool contact = false;
+  std::int32_t body = -1;  ///< touched body, -1 when none
+  double depth_m = 0.0;    ///< how far the device is below the proxy
+};
+
+/// A body the proxy can touch: the body and its BVH (already refitted for this step).
+struct TouchTarget {
+  SoftBody* body;
+  const SurfaceBvh* bvh;
+};
+
+class HapticProxy {
+ public:
+  explicit HapticProxy(const HapticOptions& options = {}) : options_(options) {}
+  /// One haptic step of length dt_s with the device at device_m. Frozen bodies are not touched.
+  HapticOutput update(const glm::dvec3& device_m, std::span<const TouchTarget> targets,
+                      double dt_s);
+  [[nodiscard]] const HapticOptions& options() const { return options_; }
+  void set_options(const HapticOptions& options) { options_ = options; }
+
+ private:
+  HapticOptions options_;
+  glm::dvec3 proxy_{0.0};
+  glm::dvec3 last_force_{0.0};
+  bool initialised_ = false;
+  bool contact_ = false;
+  std::vector<std::uint32_t> patch_;  // scratch
+  std::vector<double> weights_;
+};
+
+}  // namespace bisturi::sim

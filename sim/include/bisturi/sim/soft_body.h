@@ -1,0 +1,148 @@
+#pragma once
+// A soft solid: a DLFL surface with a mass-spring model on it (springs.h), its state in SI units
+// and the implicit integrator that advances it (integrator.h).
+//
+// Per-vertex state lives in property arrays attached to the solid's Dlfl (names "sim.*"), so it
+// follows vertex creation and compaction like every other attribute. Springs, masses and the
+// surface triangles are derived data: they are rebuilt when the Dlfl's topology_version() moves
+// (after a cut), and only then.
+
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "bisturi/scene/dlfl.h"
+#include "bisturi/sim/material.h"
+#include "bisturi/sim/springs.h"
+
+namespace bisturi::sim {
+
+class SoftBody {
+ public:
+  /// Takes the solid (positions in scene millimetres, converted once here) and its material.
+  /// The current shape is the rest shape. Throws SimInputError for a bad material or a solid
+  /// with no faces.
+  SoftBody(Dlfl mesh, const Material& material);
+
+  SoftBody(SoftBody&&) noexcept = default;
+  SoftBody& operator=(SoftBody&&) noexcept = default;
+  SoftBody(const SoftBody&) = delete;
+  SoftBody& operator=(const SoftBody&) = delete;
+
+  [[nodiscard]] const Dlfl& mesh() const { return mesh_; }
+  /// For topological edits (cutting); call refresh_topology() after them.
+  Dlfl& mesh_for_edit() { return mesh_; }
+  [[nodiscard]] const Material& material() const { return material_; }
+
+  // ---- State (metres, m/s, kg), indexed by vertex handle ----
+  [[nodiscard]] const glm::dvec3& position(VertexId v) const { return (*x_)[v]; }
+  [[nodiscard]] const glm::dvec3& velocity(VertexId v) const { return (*v_)[v]; }
+  [[nodiscard]] const glm::dvec3& rest_position(VertexId v) const { return (*rest_)[v]; }
+  [[nodiscard]] double mass(VertexId v) const { return mass_[v.idx]; }
+  void set_position(VertexId v, const glm::dvec3& p_m) { (*x_)[v] = p_m; }
+  void set_velocity(VertexId v, const glm::dvec3& v_m_s) { (*v_)[v] = v_m_s; }
+  void set_rest_position(VertexId v, const glm::dvec3& p_m) { (*rest_)[v] = p_m; }
+  /// Grows the per-vertex arrays to the Dlfl's vertex capacity (vertices created by an edit).
+  void ensure_capacity();
+  /// Dense views over vertex slots (dead slots have zero mass and are never moved).
+  std::vector<glm::dvec3>& positions() { return x_->raw(); }
+  [[nodiscard]] const std::vector<glm::dvec3>& positions() const { return x_->raw(); }
+  std::vector<glm::dvec3>& velocities() { return v_->raw(); }
+  [[nodiscard]] const std::vector<glm::dvec3>& velocities() const { return v_->raw(); }
+  [[nodiscard]] const std::vector<double>& masses() const { return mass_; }
+
+  /// Anchored vertices never move (their velocity is zero).
+  void set_anchored(VertexId v, bool anchored);
+  [[nodiscard]] bool anchored(VertexId v) const { return (*anchored_)[v] != 0; }
+  /// Kinematic vertices follow a prescribed position each step (grasped tissue); they act as
+  /// moving anchors. Cleared by release_kinematic().
+  void set_kinematic_target(VertexId v, const glm::dvec3& target_m);
+  void release_kinematic(VertexId v);
+  [[nodiscard]] bool kinematic(VertexId v) const { return kinematic_[v.idx] != 0; }
+  [[nodiscard]] const glm::dvec3& kinematic_target(VertexId v) const { return target_[v.idx]; }
+
+  /// External force (N) on v for the next step only (contacts, haptic reaction).
+  void add_force(VertexId v, const glm::dvec3& force_N) { force_[v.idx] += force_N; }
+  [[nodiscard]] const std::vector<glm::dvec3>& external_forces() const { return force_; }
+  /// A penalty contact on v for the next step only: the force stiffness * depth along the unit
+  /// normal, with its stiffness (stiffness * n n^T) handed to the implicit solve, so a stiff
+  /// penalty on a light vertex stays stable (an explicit one of the same size would not).
+  void add_contact(VertexId v, const glm::dvec3& normal, double depth_m, double stiffness_N_per_m);
+  struct ContactTerm {
+    std::uint32_t vertex = 0;
+    glm::dvec3 normal{0.0};
+    double stiffness_N_per_m = 0.0;
+  };
+  [[nodiscard]] const std::vector<ContactTerm>& contacts() const { return contacts_; }
+  /// Clears the external forces and contacts.
+  void clear_forces();
+
+  // ---- Derived data ----
+  [[nodiscard]] const std::vector<Spring>& springs() const { return springs_; }
+  [[nodiscard]] const SurfaceTriangles& triangles() const { return triangles_; }
+  /// True when the solid has no labelled face (a closed organ): it gets the volume term.
+  [[nodiscard]] bool closed() const { return closed_; }
+  [[nodiscard]] double rest_volume_m3() const { return rest_volume_m3_; }
+  /// +1 when the faces wind counter-clockwise seen from outside (positive enclosed volume),
+  /// -1 when they wind inward (marching cubes' convention, for one): triangle normals times
+  /// orientation() point out of the tissue.
+  [[nodiscard]] double orientation() const { return orientation_; }
+  /// Enclosed volume at the current positions (positive for either winding).
+  [[nodiscard]] double volume_m3() const;
+  /// Rebuilds springs, masses and triangles when mesh().topology_version() moved; returns true
+  /// when it did. New vertices must already carry positions (cutting copies them).
+  bool refresh_topology();
+  [[nodiscard]] std::uint64_t topology_version() const { return topology_version_; }
+  /// Unique over every body of the process and every rebuild of the derived data: a cache key
+  /// for data derived from springs and masses (the integrator's solver structure).
+  [[nodiscard]] std::uint64_t derived_generation() const { return derived_generation_; }
+
+  // ---- Energies (J) for the divergence guard and the tests ----
+  [[nodiscard]] double kinetic_energy() const;
+  /// Springs + volume term.
+  [[nodiscard]] double elastic_energy() const;
+  /// Kinetic + elastic + gravitational (relative to z = 0) for gravity g.
+  [[nodiscard]] double total_energy(const glm::dvec3& gravity) const;
+
+  // ---- Divergence guard ----
+  [[nodiscard]] bool frozen() const { return frozen_; }
+  void freeze();
+  void unfreeze() { frozen_ = false; }
+
+  /// Writes the positions into the Dlfl in scene millimetres (for renderers and exports).
+  void write_positions_to_scene();
+  /// FNV-1a hash of the bytes of positions and velocities: equal hashes mean identical states.
+  [[nodiscard]] std::uint64_t state_hash() const;
+
+  // Integrator scratch (warm start of the linear solve), kept per body.
+  std::vector<glm::dvec3>& warm_start() { return warm_; }
+
+ private:
+  void resize_arrays();
+  void rebuild_masses();
+
+  Dlfl mesh_;
+  Material material_;
+  PropertyArray<VertexTag, glm::dvec3>* x_ = nullptr;
+  PropertyArray<VertexTag, glm::dvec3>* v_ = nullptr;
+  PropertyArray<VertexTag, glm::dvec3>* rest_ = nullptr;
+  PropertyArray<VertexTag, std::uint8_t>* anchored_ = nullptr;
+  std::vector<double> mass_;
+  std::vector<std::uint8_t> kinematic_;
+  std::vector<glm::dvec3> target_;
+  std::vector<glm::dvec3> force_;
+  std::vector<glm::dvec3> warm_;
+  std::vector<ContactTerm> contacts_;
+  std::vector<Spring> springs_;
+  SurfaceTriangles triangles_;
+  bool closed_ = false;
+  double rest_volume_m3_ = 0.0;
+  double orientation_ = 1.0;
+  std::uint64_t topology_version_ = 0;
+  std::uint64_t derived_generation_ = 0;
+  bool frozen_ = false;
+};
+
+}  // namespace bisturi::sim

@@ -1,0 +1,76 @@
+#pragma once
+// A simulation world: soft bodies with their BVHs, one haptic proxy, tissue-tissue contact and
+// the integrator, advanced by one full haptic-rate step at a time:
+//   haptic proxy force (on the current surface, reaction onto the tissue) -> tissue-tissue
+//   contact forces -> implicit step of every body (with the divergence guard) -> BVH refit.
+// Single-threaded and deterministic. Divergence events are collected for the runtime to report.
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "bisturi/sim/collision.h"
+#include "bisturi/sim/cutting.h"
+#include "bisturi/sim/haptic.h"
+#include "bisturi/sim/integrator.h"
+#include "bisturi/sim/soft_body.h"
+
+namespace bisturi::sim {
+
+struct ContactOptions {
+  bool enabled = true;
+  double margin_m = 0.0005;  ///< contact starts this close to the other surface
+  /// Penalty per vertex; implicit (SoftBody::add_contact), so it may be stiff.
+  double stiffness_N_per_m = 200.0;
+  /// Deeper than this a vertex is taken for a wrong pairing (the far side of a thin part), not
+  /// a penetration, and left alone.
+  double max_depth_m = 0.005;
+};
+
+struct WorldOptions {
+  IntegratorOptions integrator;
+  HapticOptions haptic;
+  ContactOptions contact;
+  unsigned embree_threads = 1;
+};
+
+class SimWorld {
+ public:
+  explicit SimWorld(const WorldOptions& options = {});
+
+  /// Adds a body (and builds its BVH); returns its index.
+  std::uint32_t add_body(SoftBody body);
+  [[nodiscard]] std::size_t body_count() const { return bodies_.size(); }
+  SoftBody& body(std::uint32_t i) { return bodies_[i]; }
+  [[nodiscard]] const SurfaceBvh& bvh(std::uint32_t i) const { return bvhs_[i]; }
+
+  /// One full step with the device (probe tip) at device_m; returns the force for the device.
+  HapticOutput step(const glm::dvec3& device_m);
+  /// Cuts body i along blade contact points and rebuilds its BVH.
+  CutResult cut(std::uint32_t i, std::span<const glm::dvec3> points_m,
+                const CutOptions& options = {});
+
+  /// Vertex contacts made by the last step's tissue-tissue phase (one per vertex pushed out).
+  [[nodiscard]] std::size_t last_contacts() const { return last_contacts_; }
+  [[nodiscard]] std::uint64_t step_count() const { return steps_; }
+  [[nodiscard]] const StepStats& last_stats(std::uint32_t i) const { return stats_[i]; }
+  /// Returns and clears the divergence events since the last call.
+  std::vector<SimEvent> take_events();
+  WorldOptions& options() { return options_; }
+
+ private:
+  void tissue_contacts();
+
+  WorldOptions options_;
+  std::unique_ptr<CollisionDevice> device_;  // heap: the world stays movable
+  std::vector<SoftBody> bodies_;
+  std::vector<SurfaceBvh> bvhs_;
+  std::vector<StepStats> stats_;
+  ImplicitIntegrator integrator_;
+  HapticProxy proxy_;
+  std::vector<SimEvent> events_;
+  std::uint64_t steps_ = 0;
+  std::size_t last_contacts_ = 0;
+};
+
+}  // namespace bisturi::sim

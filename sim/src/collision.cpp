@@ -1,0 +1,353 @@
+#include "bisturi/sim/collision.h"
+
+#include <embree3/rtcore.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <string>
+
+#include <glm/geometric.hpp>
+
+#include "bisturi/sim/errors.h"
+
+namespace bisturi::sim {
+
+CollisionDevice::CollisionDevice(unsigned threads) {
+  const std::string config = threads == 0 ? std::string() : "threads=" + std::to_string(threads);
+  RTCDevice d = rtcNewDevice(config.c_str());
+  if (d == nullptr) throw CollisionError("embree: rtcNewDevice failed");
+  device_ = d;
+}
+
+CollisionDevice::~CollisionDevice() {
+  rtcReleaseDevice(static_cast<RTCDevice>(device_));
+}
+
+glm::dvec3 closest_point_on_triangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
+                                     const glm::dvec3& c, glm::dvec3& bc) {
+  // Ericson, Real-Time Collision Detection, 5.1.5 (region tests on the barycentric coordinates).
+  const glm::dvec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
+  if (d1 <= 0.0 && d2 <= 0.0) return bc = {1, 0, 0}, a;
+  const glm::dvec3 bp = p - b;
+  const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
+  if (d3 >= 0.0 && d4 <= d3) return bc = {0, 1, 0}, b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+    const double v = d1 / (d1 - d3);
+    bc = {1 - v, v, 0};
+    return a + v * ab;
+  }
+  const glm::dvec3 cp = p - c;
+  const double d5 = glm::dot(ab, cp), d6 = glm::dot(ac, cp);
+  if (d6 >= 0.0 && d5 <= d6) return bc = {0, 0, 1}, c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+    const double w = d2 / (d2 - d6);
+    bc = {1 - w, 0, w};
+    return a + w * ac;
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    bc = {0, 1 - w, w};
+    return b + w * (c - b);
+  }
+  const double denom = 1.0 / (va + vb + vc);
+  const double v = vb * denom, w = vc * denom;
+  bc = {1 - v - w, v, w};
+  return a + ab * v + ac * w;
+}
+
+struct SurfaceBvh::Impl {
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  RTCGeometry geometry = nullptr;
+  RTCScene user_scene = nullptr;  // for rtcCollide
+  RTCGeometry user_geometry = nullptr;
+  const SoftBody* body = nullptr;  // for the bounds callback during a commit only
+  double margin = 0.0;
+  std::uint64_t version = 0;
+  std::uint64_t rebuilds = 0, refits = 0;
+  std::vector<std::uint32_t> indices;  // copy of the body's triangles at the last build
+
+  ~Impl() { release(); }
+  void release() {
+    if (scene) rtcReleaseScene(scene);
+    if (user_scene) rtcReleaseScene(user_scene);
+    scene = user_scene = nullptr;
+    geometry = user_geometry = nullptr;
+  }
+
+  void fill_vertices(const SoftBody& b) {
+    auto* vb = static_cast<float*>(rtcGetGeometryBufferData(geometry, RTC_BUFFER_TYPE_VERTEX, 0));
+    const auto& x = b.positions();
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      vb[3 * i] = static_cast<float>(x[i].x);
+      vb[3 * i + 1] = static_cast<float>(x[i].y);
+      vb[3 * i + 2] = static_cast<float>(x[i].z);
+    }
+  }
+
+  void build(const SoftBody& b) {
+    release();
+    scene = rtcNewScene(device);
+    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_LOW);
+    geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    rtcSetGeometryBuildQuality(geometry, RTC_BUILD_QUALITY_REFIT);
+    const std::size_t nv = std::max<std::size_t>(b.positions().size(), 1);
+    rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                            3 * sizeof(float), nv);
+    indices = b.triangles().indices;
+    const std::size_t nt = indices.size() / 3;
+    auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+        geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), nt));
+    std::copy(indices.begin(), indices.end(), ib);
+    fill_vertices(b);
+    rtcCommitGeometry(geometry);
+    rtcAttachGeometry(scene, geometry);
+    rtcReleaseGeometry(geometry);  // the scene holds it
+    rtcCommitScene(scene);
+    if (rtcGetDeviceError(device) != RTC_ERROR_NONE) throw CollisionError("embree: build failed");
+    version = b.topology_version();
+    ++rebuilds;
+  }
+
+  static void bounds(const RTCBoundsFunctionArguments* args) {
+    const auto* self = static_cast<const Impl*>(args->geometryUserPtr);
+    const auto& x = self->body->positions();
+    const std::uint32_t* t = &self->indices[3 * args->primID];
+    glm::dvec3 lo = x[t[0]], hi = x[t[0]];
+    for (int k = 1; k < 3; ++k) {
+      lo = glm::min(lo, x[t[k]]);
+      hi = glm::max(hi, x[t[k]]);
+    }
+    lo -= glm::dvec3(self->margin);
+    hi += glm::dvec3(self->margin);
+    RTCBounds* o = args->bounds_o;
+    o->lower_x = static_cast<float>(lo.x);
+    o->lower_y = static_cast<float>(lo.y);
+    o->lower_z = static_cast<float>(lo.z);
+    o->upper_x = static_cast<float>(hi.x);
+    o->upper_y = static_cast<float>(hi.y);
+    o->upper_z = static_cast<float>(hi.z);
+  }
+
+  void commit_user(const SoftBody& b, double m) {
+    body = &b;
+    margin = m;
+    if (user_scene == nullptr) {
+      user_scene = rtcNewScene(device);
+      rtcSetSceneFlags(user_scene, RTC_SCENE_FLAG_DYNAMIC);
+      rtcSetSceneBuildQuality(user_scene, RTC_BUILD_QUALITY_LOW);
+      user_geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
+      rtcSetGeometryBuildQuality(user_geometry, RTC_BUILD_QUALITY_REFIT);
+      rtcSetGeometryUserPrimitiveCount(user_geometry, static_cast<unsigned>(indices.size() / 3));
+      rtcSetGeometryUserData(user_geometry, this);
+      rtcSetGeometryBoundsFunction(user_geometry, &Impl::bounds, this);
+      rtcAttachGeometry(user_scene, user_geometry);
+      rtcReleaseGeometry(user_geometry);
+    }
+    rtcCommitGeometry(user_geometry);
+    rtcCommitScene(user_scene);
+    body = nullptr;
+  }
+};
+
+SurfaceBvh::SurfaceBvh(const CollisionDevice& device, const SoftBody& body)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->device = static_cast<RTCDevice>(device.handle());
+  rtcRetainDevice(impl_->device);
+  impl_->build(body);
+}
+
+SurfaceBvh::~SurfaceBvh() {
+  if (impl_) {
+    RTCDevice d = impl_->device;
+    impl_.reset();
+    rtcReleaseDevice(d);
+  }
+}
+SurfaceBvh::SurfaceBvh(SurfaceBvh&&) noexcept = default;
+SurfaceBvh& SurfaceBvh::operator=(SurfaceBvh&&) noexcept = default;
+
+void SurfaceBvh::update(const SoftBody& body) {
+  if (body.topology_version() != impl_->version ||
+      impl_->indices.size() != body.triangles().indices.size()) {
+    impl_->build(body);
+    return;
+  }
+  impl_->fill_vertices(body);
+  rtcUpdateGeometryBuffer(impl_->geometry, RTC_BUFFER_TYPE_VERTEX, 0);
+  rtcCommitGeometry(impl_->geometry);
+  rtcCommitScene(impl_->scene);
+  ++impl_->refits;
+}
+
+std::uint64_t SurfaceBvh::rebuilds() const {
+  return impl_->rebuilds;
+}
+std::uint64_t SurfaceBvh::refits() const {
+  return impl_->refits;
+}
+
+namespace {
+
+struct PointQueryData {
+  const SoftBody* body;
+  const std::vector<std::uint32_t>* indices;
+  glm::dvec3 p;
+  SurfacePoint best;
+};
+
+bool point_query(RTCPointQueryFunctionArguments* args) {
+  auto* d = static_cast<PointQueryData*>(args->userPtr);
+  const std::uint32_t* t = &(*d->indices)[3 * args->primID];
+  const auto& x = d->body->positions();
+  glm::dvec3 bc;
+  const glm::dvec3 q = closest_point_on_triangle(d->p, x[t[0]], x[t[1]], x[t[2]], bc);
+  const double dist = glm::length(q - d->p);
+  const bool better = !d->best.found || dist < d->best.distance_m ||
+                      (dist == d->best.distance_m && args->primID < d->best.triangle);
+  if (!better || dist > args->query->radius) return false;
+  d->best.found = true;
+  d->best.point_m = q;
+  d->best.distance_m = dist;
+  d->best.triangle = args->primID;
+  d->best.barycentric = bc;
+  args->query->radius = static_cast<float>(dist) * 1.0001f + 1e-9f;
+  return true;
+}
+
+glm::dvec3 triangle_normal(const SoftBody& body, const std::vector<std::uint32_t>& idx,
+                           std::uint32_t t) {
+  const auto& x = body.positions();
+  const glm::dvec3 n =
+      glm::cross(x[idx[3 * t + 1]] - x[idx[3 * t]], x[idx[3 * t + 2]] - x[idx[3 * t]]);
+  const double l = glm::length(n);
+  return l > 0.0 ? n / l : glm::dvec3(0.0, 0.0, 1.0);
+}
+
+}  // namespace
+
+SurfacePoint SurfaceBvh::closest_point(const SoftBody& body, const glm::dvec3& p,
+                                       double max_distance_m) const {
+  PointQueryData data{&body, &impl_->indices, p, {}};
+  RTCPointQuery q;
+  q.x = static_cast<float>(p.x);
+  q.y = static_cast<float>(p.y);
+  q.z = static_cast<float>(p.z);
+  q.time = 0.0f;
+  q.radius = static_cast<float>(std::min(max_distance_m, 1e30));
+  RTCPointQueryContext ctx;
+  rtcInitPointQueryContext(&ctx);
+  rtcPointQuery(impl_->scene, &q, &ctx, &point_query, &data);
+  if (data.best.found) {
+    data.best.normal =
+        body.orientation() * triangle_normal(body, impl_->indices, data.best.triangle);
+  }
+  return data.best;
+}
+
+namespace {
+
+struct NearQueryData {
+  const SoftBody* body;
+  const std::vector<std::uint32_t>* indices;
+  glm::dvec3 p;
+  double radius;
+  std::vector<std::uint32_t> found;
+};
+
+bool near_query(RTCPointQueryFunctionArguments* args) {
+  auto* d = static_cast<NearQueryData*>(args->userPtr);
+  const std::uint32_t* t = &(*d->indices)[3 * args->primID];
+  const auto& x = d->body->positions();
+  glm::dvec3 bc;
+  const glm::dvec3 q = closest_point_on_triangle(d->p, x[t[0]], x[t[1]], x[t[2]], bc);
+  if (glm::length(q - d->p) <= d->radius) d->found.push_back(args->primID);
+  return false;  // keep the radius: every triangle within it is wanted
+}
+
+}  // namespace
+
+std::vector<std::uint32_t> SurfaceBvh::triangles_near(const SoftBody& body, const glm::dvec3& p,
+                                                      double radius_m) const {
+  NearQueryData data{&body, &impl_->indices, p, radius_m, {}};
+  RTCPointQuery q;
+  q.x = static_cast<float>(p.x);
+  q.y = static_cast<float>(p.y);
+  q.z = static_cast<float>(p.z);
+  q.time = 0.0f;
+  q.radius = static_cast<float>(radius_m) * 1.0001f + 1e-9f;
+  RTCPointQueryContext ctx;
+  rtcInitPointQueryContext(&ctx);
+  rtcPointQuery(impl_->scene, &q, &ctx, &near_query, &data);
+  std::sort(data.found.begin(), data.found.end());
+  data.found.erase(std::unique(data.found.begin(), data.found.end()), data.found.end());
+  return std::move(data.found);
+}
+
+SurfacePoint SurfaceBvh::ray(const SoftBody& body, const glm::dvec3& from,
+                             const glm::dvec3& to) const {
+  SurfacePoint out;
+  const glm::dvec3 d = to - from;
+  const double len = glm::length(d);
+  if (!(len > 0.0)) return out;
+  RTCRayHit rh{};
+  rh.ray.org_x = static_cast<float>(from.x);
+  rh.ray.org_y = static_cast<float>(from.y);
+  rh.ray.org_z = static_cast<float>(from.z);
+  rh.ray.dir_x = static_cast<float>(d.x / len);
+  rh.ray.dir_y = static_cast<float>(d.y / len);
+  rh.ray.dir_z = static_cast<float>(d.z / len);
+  rh.ray.tnear = 0.0f;
+  rh.ray.tfar = static_cast<float>(len);
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.ray.flags = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  rtcIntersect1(impl_->scene, &ctx, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return out;
+  out.found = true;
+  out.triangle = rh.hit.primID;
+  out.distance_m = rh.ray.tfar;
+  out.barycentric = {1.0 - rh.hit.u - rh.hit.v, rh.hit.u, rh.hit.v};
+  const auto& x = body.positions();
+  const std::uint32_t* t = &impl_->indices[3 * out.triangle];
+  out.point_m =
+      out.barycentric.x * x[t[0]] + out.barycentric.y * x[t[1]] + out.barycentric.z * x[t[2]];
+  out.normal = body.orientation() * triangle_normal(body, impl_->indices, out.triangle);
+  return out;
+}
+
+namespace {
+struct CollideData {
+  std::mutex mutex;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
+};
+void collide(void* user, RTCCollision* collisions, unsigned count) {
+  auto* d = static_cast<CollideData*>(user);
+  std::lock_guard<std::mutex> lock(d->mutex);
+  for (unsigned i = 0; i < count; ++i)
+    d->pairs.emplace_back(collisions[i].primID0, collisions[i].primID1);
+}
+}  // namespace
+
+std::vector<std::pair<std::uint32_t, std::uint32_t>> SurfaceBvh::overlapping_triangles(
+    const SoftBody& body, SurfaceBvh& other, const SoftBody& other_body, double margin_m) {
+  impl_->commit_user(body, margin_m);
+  other.impl_->commit_user(other_body, margin_m);
+  CollideData data;
+  rtcCollide(impl_->user_scene, other.impl_->user_scene, &collide, &data);
+  // Embree may call back from several threads: sort for one deterministic order.
+  std::sort(data.pairs.begin(), data.pairs.end());
+  data.pairs.erase(std::unique(data.pairs.begin(), data.pairs.end()), data.pairs.end());
+  return std::move(data.pairs);
+}
+
+}  // namespace bisturi::sim

@@ -1,0 +1,289 @@
+#include "bisturi/sim/cutting.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <set>
+
+#include <glm/geometric.hpp>
+
+#include "bisturi/sim/errors.h"
+#include "bisturi/sim/units.h"
+
+namespace bisturi::sim {
+namespace {
+
+std::vector<CornerId> vertex_corners(const Dlfl& mesh, VertexId v) {
+  std::vector<CornerId> out;
+  for (RotationId r = mesh.first_rotation(v); r.valid(); r = mesh.next_rotation(r)) {
+    const CornerId start = mesh.rotation_corner(r);
+    CornerId c = start;
+    do {
+      out.push_back(c);
+      c = mesh.rot_next(c);
+    } while (c != start && out.size() < 100000);
+  }
+  return out;
+}
+
+bool on_boundary(const Dlfl& mesh, VertexId v) {
+  for (CornerId c : vertex_corners(mesh, v)) {
+    if (mesh.is_bounding(mesh.face(c))) return true;
+  }
+  return false;
+}
+
+bool has_real_face(const Dlfl& mesh, VertexId v) {
+  for (CornerId c : vertex_corners(mesh, v)) {
+    if (!mesh.is_bounding(mesh.face(c)) && !mesh.is_point_sphere(c)) return true;
+  }
+  return false;
+}
+
+double point_segment_distance(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b) {
+  const glm::dvec3 ab = b - a;
+  const double l2 = glm::dot(ab, ab);
+  const double t = l2 > 0.0 ? std::clamp(glm::dot(p - a, ab) / l2, 0.0, 1.0) : 0.0;
+  return glm::length(p - (a + t * ab));
+}
+
+VertexId nearest_vertex(const SoftBody& body, const glm::dvec3& p) {
+  const Dlfl& mesh = body.mesh();
+  VertexId best;
+  double best_d = std::numeric_limits<double>::infinity();
+  for (std::uint32_t i = 0; i < mesh.vertex_capacity(); ++i) {
+    const VertexId v(i);
+    if (!mesh.alive(v)) continue;
+    const double d = glm::length(body.position(v) - p);
+    if (d < best_d && has_real_face(mesh, v)) {
+      best_d = d;
+      best = v;
+    }
+  }
+  return best;
+}
+
+/// The corner of u whose side goes to w (invalid if none).
+CornerId side_to(const Dlfl& mesh, VertexId u, VertexId w) {
+  for (CornerId c : vertex_corners(mesh, u)) {
+    if (!mesh.is_point_sphere(c) && mesh.vertex(mesh.next(c)) == w) return c;
+  }
+  return CornerId{};
+}
+
+struct Step {
+  VertexId to;
+  CornerId diagonal_from;  // valid: split this face from here to diagonal_to
+  CornerId diagonal_to;
+};
+
+}  // namespace
+
+CutResult cut_surface(SoftBody& body, std::span<const glm::dvec3> points,
+                      const CutOptions& options) {
+  if (points.size() < 2) throw CutError("cut: need at least two blade points");
+  Dlfl& mesh = body.mesh_for_edit();
+  const auto& x = body.positions();
+
+  // ---- 1. The path (planned on the unchanged mesh) ----
+  const VertexId start = nearest_vertex(body, points.front());
+  if (!start.valid()) throw CutError("cut: the solid has no surface to cut");
+  std::vector<VertexId> path{start};
+  std::vector<Step> steps;
+  std::set<std::uint32_t> visited{start.idx};
+  std::set<std::uint32_t> used_faces;
+  bool reached_boundary = false;
+  for (std::size_t seg = 1; seg < points.size() && !reached_boundary; ++seg) {
+    const VertexId target =
+        seg + 1 == points.size() ? nearest_vertex(body, points[seg]) : VertexId{};
+    const glm::dvec3 a = points[seg - 1], b = points[seg];
+    for (int guard = 0; guard < 100000; ++guard) {
+      const VertexId u = path.back();
+      if (u == target) break;
+      const double du = glm::length(x[u.idx] - b);
+      double best_score = std::numeric_limits<double>::infinity();
+      Step best{};
+      for (CornerId c : vertex_corners(mesh, u)) {
+        const FaceId f = mesh.face(c);
+        if (mesh.is_bounding(f) || mesh.is_point_sphere(c) || used_faces.count(f.idx)) continue;
+        const VertexId after = mesh.vertex(mesh.next(c));
+        const VertexId before = mesh.vertex(mesh.prev(c));
+        // Mean edge length of the face, for the sliver rule.
+        double perimeter = 0.0;
+        std::size_t corners = 0;
+        for (CornerId k = mesh.next(c);; k = mesh.next(k)) {
+          perimeter += glm::length(x[mesh.vertex(mesh.next(k)).idx] - x[mesh.vertex(k).idx]);
+          ++corners;
+          if (k == c) break;
+        }
+        const double mean_edge = perimeter / double(corners);
+        for (CornerId k = mesh.next(c); k != c; k = mesh.next(k)) {
+          const VertexId w = mesh.vertex(k);
+          if (w == u || visited.count(w.idx)) continue;
+          const double dw = glm::length(x[w.idx] - b);
+          if (!(dw < du) && w != target) continue;
+          const bool is_edge = (w == after || w == before);
+          if (is_edge) {
+            // Never along the boundary: both faces of the edge must be real.
+            const CornerId s = w == after ? c : mesh.prev(c);
+            if (mesh.is_bounding(mesh.face(mesh.partner(s)))) continue;
+          } else {
+            bool sliver = false;
+            for (CornerId o = mesh.next(c); o != c; o = mesh.next(o)) {
+              const VertexId ov = mesh.vertex(o);
+              if (ov == w) continue;
+              if (point_segment_distance(x[ov.idx], x[u.idx], x[w.idx]) <
+                  options.sliver_fraction * mean_edge) {
+                sliver = true;
+              }
+            }
+            if (sliver) continue;
+          }
+          const double score = dw + 2.0 * point_segment_distance(x[w.idx], a, b);
+          if (score < best_score) {
+            best_score = score;
+            best = Step{w, is_edge ? CornerId{} : c, is_edge ? CornerId{} : k};
+          }
+        }
+      }
+      if (!best.to.valid()) break;  // no vertex comes closer: this segment is done
+      if (best.diagonal_from.valid()) used_faces.insert(mesh.face(best.diagonal_from).idx);
+      steps.push_back(best);
+      path.push_back(best.to);
+      visited.insert(best.to.idx);
+      if (on_boundary(mesh, best.to)) {
+        reached_boundary = true;
+        break;
+      }
+    }
+  }
+  const std::size_t k = path.size() - 1;
+  CutResult result;
+  result.starts_on_boundary = on_boundary(mesh, path.front());
+  result.ends_on_boundary = on_boundary(mesh, path.back());
+  std::vector<bool> opens(path.size(), false);
+  for (std::size_t i = 0; i <= k; ++i) {
+    opens[i] = (i > 0 && i < k) || (i == 0 && result.starts_on_boundary && k > 0) ||
+               (i == k && result.ends_on_boundary && k > 0);
+  }
+  if (k == 0 || std::none_of(opens.begin(), opens.end(), [](bool o) { return o; })) {
+    throw CutError("cut: the blade path covers " + std::to_string(k) +
+                   " edge(s) and opens no vertex (too short or off the surface)");
+  }
+  if (k == 1 && result.starts_on_boundary && result.ends_on_boundary) {
+    // A single chord edge between two boundary vertices: allowed (it separates a corner).
+  }
+
+  // ---- 2. Diagonals: split the faces the path crosses ----
+  std::vector<EdgeId> inserted;
+  InsertEdgeOptions no_check;
+  no_check.check_label_orientation = false;
+  for (const Step& s : steps) {
+    if (!s.diagonal_from.valid()) continue;
+    const InsertEdgeResult r = mesh.insert_edge(s.diagonal_from, s.diagonal_to, no_check);
+    inserted.push_back(r.edge);
+    ++result.split_faces;
+  }
+
+  // ---- 3. Open the incision: split every opening vertex along the path ----
+  auto& xs = body.positions();
+  std::vector<VertexId> right(path.begin(), path.end());  // right lip: the copy where opened
+  for (std::size_t i = 0; i <= k; ++i) {
+    if (!opens[i]) continue;
+    const VertexId p = path[i];
+    const CornerId s = i < k ? side_to(mesh, p, path[i + 1]) : CornerId{};
+    const CornerId g = i > 0 ? side_to(mesh, p, path[i - 1]) : CornerId{};
+    // Right-side fan corners c_1..c_m (their edges move to the copy).
+    std::vector<CornerId> fan;
+    CornerId c;
+    if (i < k) {
+      c = mesh.next(mesh.partner(s));
+    } else {
+      c = g;
+      int guard = 0;
+      do {
+        c = mesh.rot_next(c);
+      } while (!mesh.is_bounding(mesh.face(c)) && ++guard < 100000);
+    }
+    for (int guard = 0; guard < 100000; ++guard) {
+      if (i > 0 && c == g) break;
+      if (i == 0 && mesh.is_bounding(mesh.face(c))) break;
+      fan.push_back(c);
+      c = mesh.next(mesh.partner(c));
+    }
+    const CornerId stop = c;  // the corner left on the open side (g, or the boundary's)
+    std::vector<CornerId> survivors;
+    for (CornerId fc : fan)
+      survivors.push_back(mesh.next(fc));
+    for (CornerId fc : fan)
+      mesh.delete_edge_pair(fc);
+
+    const VertexId q = mesh.create_vertex(mesh.position(p));
+    body.ensure_capacity();
+    body.set_position(q, xs[p.idx]);
+    body.set_velocity(q, body.velocity(p));
+    body.set_anchored(q, body.anchored(p));
+    body.set_rest_position(q, body.rest_position(p));
+    right[i] = q;
+    result.new_vertices.push_back(q);
+    std::vector<EdgeId> local;
+    const CornerId pc = mesh.rotation_corner(mesh.first_rotation(q));
+    for (CornerId sv : survivors)
+      local.push_back(mesh.insert_edge(pc, sv, no_check).edge);
+    CornerId open_corner = pc;
+    if (i < k) {
+      const InsertEdgeResult r = mesh.insert_edge(pc, mesh.partner(s), no_check);
+      local.push_back(r.edge);
+      open_corner = r.side12;
+    }
+    if (i > 0 && !opens[i - 1]) {
+      local.push_back(mesh.insert_edge(open_corner, mesh.next(g), no_check).edge);
+    }
+    // Labels went wherever the merges and splits took them: the faces around the new edges are
+    // real faces except the open one (incision or boundary), found from its two lips.
+    for (EdgeId e : local) {
+      const CornerPair pr = mesh.primary_pair(e);
+      mesh.set_bounding(mesh.face(pr.a), false);
+      mesh.set_bounding(mesh.face(pr.b), false);
+    }
+    mesh.set_bounding(mesh.face(stop), true);
+    mesh.set_bounding(mesh.face(open_corner), true);
+    inserted.insert(inserted.end(), local.begin(), local.end());
+  }
+
+  // ---- 4. Labels: the incision (or the boundary it joined) is labelled, real faces are not ----
+  for (EdgeId e : inserted) {
+    if (!mesh.alive(e)) continue;
+    const CornerPair pr = mesh.primary_pair(e);
+    mesh.set_bounding(mesh.face(pr.a), false);
+    mesh.set_bounding(mesh.face(pr.b), false);
+  }
+  for (std::size_t i = 1; i <= k; ++i) {
+    const CornerId g = side_to(mesh, path[i], path[i - 1]);
+    if (g.valid()) mesh.set_bounding(mesh.face(g), true);
+    if (right[i - 1] != path[i - 1] || right[i] != path[i]) {
+      const CornerId r = side_to(mesh, right[i - 1], right[i]);
+      if (r.valid()) mesh.set_bounding(mesh.face(r), true);
+    }
+  }
+  body.refresh_topology();
+  result.path = std::move(path);
+  return result;
+}
+
+bool ScalpelSweep::sample(const SoftBody& body, const SurfaceBvh& bvh,
+                          const glm::dvec3& edge_from_m, const glm::dvec3& edge_to_m) {
+  const SurfacePoint hit = bvh.ray(body, edge_from_m, edge_to_m);
+  if (!hit.found) return false;
+  points_.push_back(hit.point_m);
+  return true;
+}
+
+CutResult ScalpelSweep::finish(SoftBody& body, const CutOptions& options) {
+  std::vector<glm::dvec3> pts;
+  pts.swap(points_);
+  if (pts.size() < 2) throw CutError("scalpel: the blade touched the surface fewer than twice");
+  return cut_surface(body, pts, options);
+}
+
+}  // namespace bisturi::sim

@@ -1,0 +1,133 @@
+#include "bisturi/sim/haptic.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <glm/geometric.hpp>
+
+namespace bisturi::sim {
+namespace {
+
+/// The contact patch around a surface point: its area-weighted outward normal and its vertices
+/// with the weights the reaction is shared by.
+glm::dvec3 contact_patch(const SoftBody& body, const SurfaceBvh& bvh, const SurfacePoint& at,
+                         double probe_radius_m, std::vector<std::uint32_t>& vertices,
+                         std::vector<double>& weights) {
+  const auto& x = body.positions();
+  const auto& idx = body.triangles().indices;
+  const std::uint32_t* hit = &idx[3 * at.triangle];
+  double longest = 0.0;
+  for (int k = 0; k < 3; ++k)
+    longest = std::max(longest, glm::length(x[hit[(k + 1) % 3]] - x[hit[k]]));
+  const double radius = probe_radius_m + longest;
+  const std::vector<std::uint32_t> tris = bvh.triangles_near(body, at.point_m, radius);
+  glm::dvec3 normal(0.0);
+  vertices.clear();
+  for (std::uint32_t t : tris) {
+    const std::uint32_t* c = &idx[3 * t];
+    normal += glm::cross(x[c[1]] - x[c[0]], x[c[2]] - x[c[0]]);
+    vertices.insert(vertices.end(), {c[0], c[1], c[2]});
+  }
+  normal *= body.orientation();
+  const double len = glm::length(normal);
+  normal = len > 0.0 && glm::dot(normal, at.normal) > 0.0 ? normal / len : at.normal;
+  std::sort(vertices.begin(), vertices.end());
+  vertices.erase(std::unique(vertices.begin(), vertices.end()), vertices.end());
+  weights.assign(vertices.size(), 0.0);
+  double total = 0.0;
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    const double d = glm::length(x[vertices[i]] - at.point_m) / radius;
+    if (d < 1.0 && body.mass(VertexId(vertices[i])) > 0.0) weights[i] = (1.0 - d) * (1.0 - d);
+    total += weights[i];
+  }
+  if (!(total > 0.0)) {  // degenerate patch: the touched triangle's corners by barycentrics
+    vertices.assign(hit, hit + 3);
+    weights.assign({at.barycentric.x, at.barycentric.y, at.barycentric.z});
+    total = 1.0;
+  }
+  for (double& w : weights)
+    w /= total;
+  return normal;
+}
+
+}  // namespace
+
+HapticOutput HapticProxy::update(const glm::dvec3& device, std::span<const TouchTarget> targets,
+                                 double dt_s) {
+  if (!initialised_) {
+    proxy_ = device;
+    initialised_ = true;
+  }
+  const double r = options_.probe_radius_m;
+  // The closest surface point over every live body.
+  SurfacePoint best;
+  std::int32_t best_body = -1;
+  for (std::size_t b = 0; b < targets.size(); ++b) {
+    if (targets[b].body->frozen()) continue;
+    const SurfacePoint sp = targets[b].bvh->closest_point(*targets[b].body, device);
+    if (sp.found && (!best.found || sp.distance_m < best.distance_m)) {
+      best = sp;
+      best_body = static_cast<std::int32_t>(b);
+    }
+  }
+  HapticOutput out;
+  glm::dvec3 target_proxy = device;
+  bool contact = false;
+  glm::dvec3 n(0.0);
+  if (best.found && glm::dot(device - best.point_m, best.normal) < 2.0 * r) {
+    const TouchTarget& t = targets[static_cast<std::size_t>(best_body)];
+    n = contact_patch(*t.body, *t.bvh, best, r, patch_, weights_);
+    const double signed_distance = glm::dot(device - best.point_m, n);
+    if (signed_distance < r) {
+      contact = true;
+      // On the patch's tangent plane at probe-radius distance, straight above the device: the
+      // coupling pulls along the patch normal (facets of the dent tilt; the patch does not).
+      target_proxy = device + (r - signed_distance) * n;
+      out.depth_m = r - signed_distance;
+    }
+  }
+  if (contact && contact_ && options_.friction > 0.0) {
+    // Stick while the tangential pull is inside the cone; else slide to the cone's edge.
+    glm::dvec3 slip = target_proxy - proxy_;
+    slip -= glm::dot(slip, n) * n;
+    const double normal_force = options_.coupling_N_per_m * out.depth_m;
+    const double allowed = options_.friction * normal_force / options_.coupling_N_per_m;
+    const double len = glm::length(slip);
+    if (len <= allowed) {
+      target_proxy -= slip;
+    } else {
+      target_proxy -= slip * (allowed / len);
+    }
+  }
+  proxy_ = target_proxy;
+  contact_ = contact;
+
+  glm::dvec3 force = options_.coupling_N_per_m * (proxy_ - device);
+  const double mag = glm::length(force);
+  if (mag > options_.max_force_N) force *= options_.max_force_N / mag;
+  // Ramp: the output never changes by more than the rate limit in one step.
+  const glm::dvec3 change = force - last_force_;
+  const double max_change = options_.max_force_rate_N_per_s * dt_s;
+  const double change_len = glm::length(change);
+  if (change_len > max_change) force = last_force_ + change * (max_change / change_len);
+  last_force_ = force;
+
+  if (contact && options_.apply_reaction) {
+    SoftBody& body = *targets[static_cast<std::size_t>(best_body)].body;
+    for (std::size_t i = 0; i < patch_.size(); ++i) {
+      if (weights_[i] <= 0.0) continue;
+      const VertexId v(patch_[i]);
+      body.add_force(v, -force * weights_[i]);
+      // Stiffness only (no force): the proxy rides on the surface, so the reaction on the patch
+      // weakens as the patch gives way; the solve sees that.
+      body.add_contact(v, n, 0.0, options_.coupling_N_per_m * weights_[i]);
+    }
+  }
+  out.force_N = force;
+  out.proxy_m = proxy_;
+  out.contact = contact;
+  out.body = contact ? best_body : -1;
+  return out;
+}
+
+}  // namespace bisturi::sim

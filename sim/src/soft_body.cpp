@@ -1,0 +1,198 @@
+#include "bisturi/sim/soft_body.h"
+
+#include <atomic>
+#include <cmath>
+#include <cstring>
+
+#include <glm/geometric.hpp>
+
+#include "bisturi/sim/errors.h"
+#include "bisturi/sim/units.h"
+
+namespace bisturi::sim {
+namespace {
+
+std::atomic<std::uint64_t> g_generation{0};
+
+double signed_volume(const SurfaceTriangles& t, const std::vector<glm::dvec3>& x) {
+  double six_v = 0.0;
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    const glm::dvec3& a = x[t.indices[3 * i]];
+    const glm::dvec3& b = x[t.indices[3 * i + 1]];
+    const glm::dvec3& c = x[t.indices[3 * i + 2]];
+    six_v += glm::dot(a, glm::cross(b, c));
+  }
+  return six_v / 6.0;
+}
+
+}  // namespace
+
+SoftBody::SoftBody(Dlfl mesh, const Material& material)
+    : mesh_(std::move(mesh)), material_(material) {
+  check_material(material_);
+  if (mesh_.num_faces() == 0) throw SimInputError("soft body: the solid has no faces");
+  auto& props = mesh_.vertex_properties();
+  x_ = &props.add<glm::dvec3>("sim.position_m");
+  v_ = &props.add<glm::dvec3>("sim.velocity_m_s");
+  rest_ = &props.add<glm::dvec3>("sim.rest_position_m");
+  anchored_ = &props.add<std::uint8_t>("sim.anchored", 0);
+  for (std::uint32_t i = 0; i < mesh_.vertex_capacity(); ++i) {
+    const VertexId v(i);
+    if (!mesh_.alive(v)) continue;
+    (*x_)[v] = scene_to_sim(mesh_.position(v));
+    (*rest_)[v] = (*x_)[v];
+  }
+  topology_version_ = mesh_.topology_version() + 1;  // force the first build
+  refresh_topology();
+  const double v0 = signed_volume(triangles_, rest_->raw());
+  orientation_ = v0 < 0.0 ? -1.0 : 1.0;
+  rest_volume_m3_ = closed_ ? std::abs(v0) : 0.0;
+}
+
+void SoftBody::resize_arrays() {
+  const std::size_t n = mesh_.vertex_capacity();
+  mass_.assign(n, 0.0);
+  kinematic_.resize(n, 0);
+  target_.resize(n, glm::dvec3(0.0));
+  force_.resize(n, glm::dvec3(0.0));
+  warm_.resize(n, glm::dvec3(0.0));
+}
+
+void SoftBody::ensure_capacity() {
+  const std::size_t n = mesh_.vertex_capacity();
+  mass_.resize(n, 0.0);
+  kinematic_.resize(n, 0);
+  target_.resize(n, glm::dvec3(0.0));
+  force_.resize(n, glm::dvec3(0.0));
+  warm_.resize(n, glm::dvec3(0.0));
+}
+
+void SoftBody::rebuild_masses() {
+  // Each real face's area (vector area of the polygon at rest) is shared equally by its corners.
+  const double area_density = material_.density_kg_per_m3 * material_.thickness_m;
+  const auto& rest = rest_->raw();
+  std::vector<std::uint32_t> ring;
+  for (std::uint32_t fi = 0; fi < mesh_.face_capacity(); ++fi) {
+    const FaceId f(fi);
+    if (!mesh_.alive(f) || mesh_.is_bounding(f)) continue;
+    const CornerId first = mesh_.first_corner(f);
+    if (mesh_.is_point_sphere(first)) continue;
+    ring.clear();
+    CornerId c = first;
+    do {
+      ring.push_back(mesh_.vertex(c).idx);
+      c = mesh_.next(c);
+    } while (c != first);
+    glm::dvec3 twice_area(0.0);
+    for (std::size_t i = 0; i < ring.size(); ++i) {
+      twice_area += glm::cross(rest[ring[i]], rest[ring[(i + 1) % ring.size()]]);
+    }
+    const double share = 0.5 * glm::length(twice_area) * area_density / double(ring.size());
+    for (std::uint32_t v : ring)
+      mass_[v] += share;
+  }
+}
+
+bool SoftBody::refresh_topology() {
+  if (mesh_.topology_version() == topology_version_) return false;
+  resize_arrays();
+  triangles_ = triangulate_surface(mesh_);
+  springs_ = build_springs(mesh_, rest_->raw(), material_);
+  rebuild_masses();
+  closed_ = material_.bulk_modulus_Pa > 0.0;
+  for (std::uint32_t f = 0; f < mesh_.face_capacity() && closed_; ++f) {
+    if (mesh_.alive(FaceId(f)) && mesh_.is_bounding(FaceId(f))) closed_ = false;
+  }
+  topology_version_ = mesh_.topology_version();
+  derived_generation_ = ++g_generation;
+  return true;
+}
+
+void SoftBody::set_anchored(VertexId v, bool anchored) {
+  (*anchored_)[v] = anchored ? 1 : 0;
+  if (anchored) (*v_)[v] = glm::dvec3(0.0);
+}
+
+void SoftBody::set_kinematic_target(VertexId v, const glm::dvec3& target_m) {
+  kinematic_[v.idx] = 1;
+  target_[v.idx] = target_m;
+}
+
+void SoftBody::release_kinematic(VertexId v) {
+  kinematic_[v.idx] = 0;
+}
+
+void SoftBody::add_contact(VertexId v, const glm::dvec3& normal, double depth_m,
+                           double stiffness_N_per_m) {
+  force_[v.idx] += (stiffness_N_per_m * depth_m) * normal;
+  contacts_.push_back({v.idx, normal, stiffness_N_per_m});
+}
+
+void SoftBody::clear_forces() {
+  std::fill(force_.begin(), force_.end(), glm::dvec3(0.0));
+  contacts_.clear();
+}
+
+double SoftBody::volume_m3() const {
+  return orientation_ * signed_volume(triangles_, x_->raw());
+}
+
+double SoftBody::kinetic_energy() const {
+  double e = 0.0;
+  const auto& v = v_->raw();
+  for (std::size_t i = 0; i < mass_.size(); ++i)
+    e += 0.5 * mass_[i] * glm::dot(v[i], v[i]);
+  return e;
+}
+
+double SoftBody::elastic_energy() const {
+  const auto& x = x_->raw();
+  double e = 0.0;
+  for (const Spring& s : springs_) {
+    const double stretch = glm::length(x[s.b] - x[s.a]) - s.rest_m;
+    e += 0.5 * s.k_N_per_m * stretch * stretch;
+  }
+  if (closed_ && rest_volume_m3_ > 0.0) {
+    const double dv = volume_m3() - rest_volume_m3_;
+    e += 0.5 * material_.bulk_modulus_Pa * dv * dv / rest_volume_m3_;
+  }
+  return e;
+}
+
+double SoftBody::total_energy(const glm::dvec3& gravity) const {
+  double potential = 0.0;
+  const auto& x = x_->raw();
+  for (std::size_t i = 0; i < mass_.size(); ++i)
+    potential -= mass_[i] * glm::dot(gravity, x[i]);
+  return kinetic_energy() + elastic_energy() + potential;
+}
+
+void SoftBody::freeze() {
+  frozen_ = true;
+  std::fill(v_->raw().begin(), v_->raw().end(), glm::dvec3(0.0));
+  std::fill(warm_.begin(), warm_.end(), glm::dvec3(0.0));
+  clear_forces();
+}
+
+void SoftBody::write_positions_to_scene() {
+  for (std::uint32_t i = 0; i < mesh_.vertex_capacity(); ++i) {
+    const VertexId v(i);
+    if (mesh_.alive(v)) mesh_.set_position(v, sim_to_scene((*x_)[v]));
+  }
+}
+
+std::uint64_t SoftBody::state_hash() const {
+  std::uint64_t h = 1469598103934665603ull;
+  auto mix = [&h](const std::vector<glm::dvec3>& data) {
+    const auto* bytes = reinterpret_cast<const unsigned char*>(data.data());
+    for (std::size_t i = 0; i < data.size() * sizeof(glm::dvec3); ++i) {
+      h ^= bytes[i];
+      h *= 1099511628211ull;
+    }
+  };
+  mix(x_->raw());
+  mix(v_->raw());
+  return h;
+}
+
+}  // namespace bisturi::sim

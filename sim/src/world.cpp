@@ -1,0 +1,127 @@
+#include "bisturi/sim/world.h"
+
+#include <algorithm>
+#include <limits>
+
+#include <glm/geometric.hpp>
+
+namespace bisturi::sim {
+
+SimWorld::SimWorld(const WorldOptions& options)
+    : options_(options),
+      device_(std::make_unique<CollisionDevice>(options.embree_threads)),
+      proxy_(options.haptic) {}
+
+std::uint32_t SimWorld::add_body(SoftBody body) {
+  bodies_.push_back(std::move(body));
+  bvhs_.emplace_back(*device_, bodies_.back());
+  stats_.emplace_back();
+  return static_cast<std::uint32_t>(bodies_.size() - 1);
+}
+
+HapticOutput SimWorld::step(const glm::dvec3& device_m) {
+  std::vector<TouchTarget> targets;
+  targets.reserve(bodies_.size());
+  for (std::size_t i = 0; i < bodies_.size(); ++i)
+    targets.push_back({&bodies_[i], &bvhs_[i]});
+  proxy_.set_options(options_.haptic);
+  const HapticOutput out = proxy_.update(device_m, targets, options_.integrator.dt_s);
+  if (options_.contact.enabled && bodies_.size() > 1) tissue_contacts();
+  for (std::uint32_t i = 0; i < bodies_.size(); ++i) {
+    stats_[i] = integrator_.step(bodies_[i], options_.integrator, events_, i, steps_);
+    bvhs_[i].update(bodies_[i]);
+  }
+  ++steps_;
+  return out;
+}
+
+namespace {
+
+/// Vertices of `from` against the surface of `onto`: each vertex of a candidate triangle takes
+/// the nearest of the triangles of `onto` it was paired with; closer than margin along that
+/// triangle's outward normal (or inside) it gets an implicit penalty contact pushing it out.
+/// One contact per vertex, however many triangle pairs it shows up in.
+std::size_t push_out(SoftBody& from, const SoftBody& onto,
+                     const std::vector<std::pair<std::uint32_t, std::uint32_t>>& candidates,
+                     const ContactOptions& options) {
+  const auto& fi = from.triangles().indices;
+  const auto& oi = onto.triangles().indices;
+  const auto& xf = from.positions();
+  const auto& xo = onto.positions();
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> vt;  // (vertex of from, triangle of onto)
+  vt.reserve(candidates.size() * 3);
+  for (const auto& [tf, to] : candidates) {
+    for (int c = 0; c < 3; ++c)
+      vt.emplace_back(fi[3 * tf + c], to);
+  }
+  std::sort(vt.begin(), vt.end());
+  vt.erase(std::unique(vt.begin(), vt.end()), vt.end());
+  std::size_t contacts = 0;
+  for (std::size_t i = 0; i < vt.size();) {
+    const std::uint32_t v = vt[i].first;
+    const glm::dvec3& p = xf[v];
+    double best = std::numeric_limits<double>::infinity();
+    glm::dvec3 best_q(0.0);
+    std::uint32_t best_t = 0;
+    for (; i < vt.size() && vt[i].first == v; ++i) {
+      const std::uint32_t t = vt[i].second;
+      glm::dvec3 bc;
+      const glm::dvec3 q =
+          closest_point_on_triangle(p, xo[oi[3 * t]], xo[oi[3 * t + 1]], xo[oi[3 * t + 2]], bc);
+      const double dist = glm::length(p - q);
+      if (dist < best) {
+        best = dist;
+        best_q = q;
+        best_t = t;
+      }
+    }
+    const glm::dvec3 p0 = xo[oi[3 * best_t]], p1 = xo[oi[3 * best_t + 1]],
+                     p2 = xo[oi[3 * best_t + 2]];
+    glm::dvec3 n = glm::cross(p1 - p0, p2 - p0);
+    const double nl = glm::length(n);
+    if (!(nl > 0.0) || from.mass(VertexId(v)) <= 0.0) continue;
+    n *= onto.orientation() / nl;
+    const double d = glm::dot(p - best_q, n);  // < 0: inside `onto`
+    if (d >= options.margin_m || -d > options.max_depth_m) continue;
+    from.add_contact(VertexId(v), n, options.margin_m - d, options.stiffness_N_per_m);
+    ++contacts;
+  }
+  return contacts;
+}
+
+}  // namespace
+
+void SimWorld::tissue_contacts() {
+  last_contacts_ = 0;
+  const double margin = options_.contact.margin_m;
+  for (std::size_t a = 0; a < bodies_.size(); ++a) {
+    for (std::size_t b = a + 1; b < bodies_.size(); ++b) {
+      SoftBody& A = bodies_[a];
+      SoftBody& B = bodies_[b];
+      if (A.frozen() || B.frozen()) continue;
+      auto pairs = bvhs_[a].overlapping_triangles(A, bvhs_[b], B, margin);
+      if (pairs.empty()) continue;
+      // Both ways: A's vertices out of B, B's out of A (each side's push is the other's
+      // reaction, spread over its own vertices).
+      last_contacts_ += push_out(A, B, pairs, options_.contact);
+      for (auto& pr : pairs)
+        std::swap(pr.first, pr.second);
+      last_contacts_ += push_out(B, A, pairs, options_.contact);
+    }
+  }
+}
+
+CutResult SimWorld::cut(std::uint32_t i, std::span<const glm::dvec3> points_m,
+                        const CutOptions& options) {
+  CutResult r = cut_surface(bodies_[i], points_m, options);
+  bvhs_[i].update(bodies_[i]);
+  return r;
+}
+
+std::vector<SimEvent> SimWorld::take_events() {
+  std::vector<SimEvent> out;
+  out.swap(events_);
+  return out;
+}
+
+}  // namespace bisturi::sim

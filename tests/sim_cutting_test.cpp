@@ -1,0 +1,134 @@
+// Cutting: across a square sheet gives exactly two parts, inside it one new boundary loop, a
+// diagonal cut splits faces with insert_edge; validate() passes after every cut; springs,
+// masses and the BVH follow; a cut that opens nothing is refused without a change.
+
+#include <gtest/gtest.h>
+
+#include <glm/geometric.hpp>
+
+#include "bisturi/scene/dlfl_queries.h"
+#include "bisturi/scene/dlfl_validate.h"
+#include "bisturi/sim/cutting.h"
+#include "bisturi/sim/errors.h"
+#include "bisturi/sim/world.h"
+#include "sim_test_shapes.h"
+
+namespace bisturi::sim {
+namespace {
+
+SoftBody square() {
+  return SoftBody(testing::sheet(10, 10, 10.0), Material{});
+}
+
+TEST(SimCutting, CutAcrossSquareSheetGivesTwoParts) {
+  SoftBody body = square();
+  const std::vector<glm::dvec3> blade{{-0.005, 0.05, 0.0}, {0.105, 0.05, 0.0}};
+  const CutResult r = cut_surface(body, blade);
+  const ValidationReport report = validate(body.mesh());
+  ASSERT_TRUE(report.ok()) << report.summary();
+  EXPECT_TRUE(r.starts_on_boundary);
+  EXPECT_TRUE(r.ends_on_boundary);
+  EXPECT_EQ(r.path.size(), 11u);
+  EXPECT_EQ(r.new_vertices.size(), 11u);
+  const auto parts = connected_parts(body.mesh());
+  EXPECT_EQ(parts.size(), 2u);
+  EXPECT_EQ(boundary_loops(body.mesh()).size(), 2u);
+  for (const Part& part : parts)
+    EXPECT_EQ(part_topology(body.mesh(), part).genus, 0);
+  double total_mass = 0.0;
+  for (double m : body.masses())
+    total_mass += m;
+  const Material mat;
+  EXPECT_NEAR(total_mass, mat.density_kg_per_m3 * mat.thickness_m * 0.01, 1e-12);
+}
+
+TEST(SimCutting, CutInsideSheetOpensOneNewBoundaryLoop) {
+  SoftBody body = square();
+  ASSERT_EQ(boundary_loops(body.mesh()).size(), 1u);
+  const std::vector<glm::dvec3> blade{{0.021, 0.05, 0.0}, {0.079, 0.05, 0.0}};
+  const CutResult r = cut_surface(body, blade);
+  const ValidationReport report = validate(body.mesh());
+  ASSERT_TRUE(report.ok()) << report.summary();
+  EXPECT_FALSE(r.starts_on_boundary);
+  EXPECT_FALSE(r.ends_on_boundary);
+  EXPECT_EQ(connected_parts(body.mesh()).size(), 1u);
+  const auto loops = boundary_loops(body.mesh());
+  ASSERT_EQ(loops.size(), 2u);
+  // The new loop runs along the path and back: 2 (path length) - 2 corners.
+  bool found = false;
+  for (FaceId f : loops) {
+    if (face_valence(body.mesh(), f) == 2 * (r.path.size() - 1)) found = true;
+  }
+  EXPECT_TRUE(found);
+  EXPECT_EQ(r.new_vertices.size(), r.path.size() - 2);
+}
+
+TEST(SimCutting, DiagonalCutSplitsFacesAndStaysValid) {
+  SoftBody body = square();
+  const std::vector<glm::dvec3> blade{{0.02, 0.02, 0.0}, {0.08, 0.08, 0.0}};
+  const CutResult r = cut_surface(body, blade);
+  const ValidationReport report = validate(body.mesh());
+  ASSERT_TRUE(report.ok()) << report.summary();
+  EXPECT_GT(r.split_faces, 0u);
+  EXPECT_EQ(boundary_loops(body.mesh()).size(), 2u);
+  EXPECT_EQ(connected_parts(body.mesh()).size(), 1u);
+}
+
+TEST(SimCutting, NotchFromTheBoundaryKeepsOneLoop) {
+  SoftBody body = square();
+  const std::vector<glm::dvec3> blade{{-0.005, 0.05, 0.0}, {0.05, 0.05, 0.0}};
+  cut_surface(body, blade);
+  ASSERT_TRUE(validate(body.mesh()).ok()) << validate(body.mesh()).summary();
+  EXPECT_EQ(boundary_loops(body.mesh()).size(), 1u);
+  EXPECT_EQ(connected_parts(body.mesh()).size(), 1u);
+}
+
+TEST(SimCutting, ConsecutiveCutsAndSimulationAfterwards) {
+  WorldOptions options;
+  SimWorld world(options);
+  world.add_body(square());
+  SoftBody& body = world.body(0);
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+    if (body.position(VertexId(i)).y > 0.0999) body.set_anchored(VertexId(i), true);
+  }
+  const std::uint64_t rebuilds = world.bvh(0).rebuilds();
+  const std::vector<glm::dvec3> first{{0.021, 0.03, 0.0}, {0.079, 0.03, 0.0}};
+  world.cut(0, first);
+  ASSERT_TRUE(validate(body.mesh()).ok());
+  const std::vector<glm::dvec3> second{{0.03, 0.061, 0.0}, {0.03, 0.089, 0.0}};
+  world.cut(0, second);
+  ASSERT_TRUE(validate(body.mesh()).ok()) << validate(body.mesh()).summary();
+  EXPECT_EQ(boundary_loops(body.mesh()).size(), 3u);
+  EXPECT_GE(world.bvh(0).rebuilds(), rebuilds + 2);
+  for (int s = 0; s < 200; ++s)
+    world.step({1.0, 1.0, 1.0});
+  EXPECT_TRUE(world.take_events().empty());
+  for (const auto& p : body.positions())
+    EXPECT_TRUE(std::isfinite(p.x + p.y + p.z));
+}
+
+TEST(SimCutting, ScalpelSweepCutsWhereTheBladeCrossesTheSurface) {
+  WorldOptions options;
+  SimWorld world(options);
+  world.add_body(square());
+  ScalpelSweep sweep;
+  for (int s = 0; s <= 20; ++s) {
+    const double x = 0.02 + 0.06 * s / 20.0;
+    sweep.sample(world.body(0), world.bvh(0), {x, 0.05, 0.005}, {x, 0.05, -0.005});
+  }
+  EXPECT_EQ(sweep.points().size(), 21u);
+  sweep.finish(world.body(0));
+  ASSERT_TRUE(validate(world.body(0).mesh()).ok());
+  EXPECT_EQ(boundary_loops(world.body(0).mesh()).size(), 2u);
+}
+
+TEST(SimCutting, TooShortCutIsRefusedUnchanged) {
+  SoftBody body = square();
+  const std::uint64_t version = body.mesh().topology_version();
+  const std::vector<glm::dvec3> blade{{0.05, 0.05, 0.0}, {0.0501, 0.05, 0.0}};
+  EXPECT_THROW(cut_surface(body, blade), CutError);
+  EXPECT_EQ(body.mesh().topology_version(), version);
+}
+
+}  // namespace
+}  // namespace bisturi::sim

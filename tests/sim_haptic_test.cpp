@@ -1,0 +1,140 @@
+// Haptic rendering and collision: a probe pressed into a sphere gets a force that grows with
+// depth and vanishes on release; the force is clamped and ramped; a grasper drags tissue; two
+// touching bodies push each other apart; the BVH refits every step and rebuilds after a cut.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include <glm/geometric.hpp>
+
+#include "bisturi/sim/grasp.h"
+#include "bisturi/sim/world.h"
+#include "sim_test_shapes.h"
+
+namespace bisturi::sim {
+namespace {
+
+constexpr double kCentre = 0.0115;  // sphere(24, ...) is centred at 11.5 mm
+constexpr double kRadius = 0.008;
+
+SimWorld sphere_world(const HapticOptions& haptic) {
+  WorldOptions options;
+  options.haptic = haptic;
+  options.integrator.gravity_m_s2 = glm::dvec3(0.0);  // the probe alone loads the tissue
+  SimWorld world(options);
+  Material firm;  // firm enough that the probe stays on the cap it presses
+  firm.structural_N_per_m = 3000.0;
+  firm.shear_N_per_m = 1000.0;
+  firm.bending_N_per_m = 300.0;
+  firm.bulk_modulus_Pa = 20000.0;
+  firm.drag_per_s = 20.0;
+  const std::uint32_t id = world.add_body(SoftBody(testing::sphere(24, 8.0), firm));
+  SoftBody& body = world.body(id);
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+    if (body.position(VertexId(i)).z < kCentre) body.set_anchored(VertexId(i), true);
+  }
+  return world;
+}
+
+TEST(SimHaptic, ProbeForceGrowsWithDepthAndVanishesOnRelease) {
+  HapticOptions haptic;
+  haptic.max_force_N = 100.0;
+  haptic.max_force_rate_N_per_s = 1e6;
+  SimWorld world = sphere_world(haptic);
+  const glm::dvec3 top(kCentre, kCentre, kCentre + kRadius);
+  HapticOutput out = world.step(top + glm::dvec3(0, 0, 0.003));
+  EXPECT_FALSE(out.contact);
+  EXPECT_EQ(out.force_N, glm::dvec3(0.0));
+  double previous = 0.0;
+  for (double depth : {0.0005, 0.001, 0.002, 0.003}) {
+    for (int s = 0; s < 300; ++s)
+      out = world.step(top - glm::dvec3(0, 0, depth));
+    EXPECT_TRUE(out.contact) << depth;
+    EXPECT_GT(out.force_N.z, previous) << "depth " << depth;  // pushes the probe back out
+    EXPECT_LT(std::abs(out.force_N.x) + std::abs(out.force_N.y), 0.2 * out.force_N.z);
+    previous = out.force_N.z;
+  }
+  for (int s = 0; s < 50; ++s)
+    out = world.step(top + glm::dvec3(0, 0, 0.01));
+  EXPECT_FALSE(out.contact);
+  EXPECT_LT(glm::length(out.force_N), 1e-12);
+  EXPECT_TRUE(world.take_events().empty());
+}
+
+TEST(SimHaptic, ForceIsClampedAndRamped) {
+  HapticOptions haptic;
+  haptic.max_force_N = 0.5;
+  haptic.max_force_rate_N_per_s = 100.0;  // 0.1 N per 1 ms step
+  haptic.apply_reaction = false;
+  SimWorld world = sphere_world(haptic);
+  const glm::dvec3 top(kCentre, kCentre, kCentre + kRadius);
+  world.step(top + glm::dvec3(0, 0, 0.002));
+  glm::dvec3 last(0.0);
+  double peak = 0.0;
+  for (int s = 0; s < 40; ++s) {
+    const HapticOutput out = world.step(top - glm::dvec3(0, 0, 0.004));  // a sudden deep jump
+    EXPECT_LE(glm::length(out.force_N - last), 0.1 + 1e-12) << "step " << s;
+    EXPECT_LE(glm::length(out.force_N), 0.5 + 1e-12);
+    peak = std::max(peak, glm::length(out.force_N));
+    last = out.force_N;
+  }
+  EXPECT_NEAR(peak, 0.5, 1e-9);
+}
+
+TEST(SimHaptic, FrozenBodyGivesNoForce) {
+  SimWorld world = sphere_world(HapticOptions{});
+  world.body(0).freeze();
+  const glm::dvec3 top(kCentre, kCentre, kCentre + kRadius);
+  const HapticOutput out = world.step(top - glm::dvec3(0, 0, 0.002));
+  EXPECT_FALSE(out.contact);
+  EXPECT_EQ(out.force_N, glm::dvec3(0.0));
+}
+
+TEST(SimGrasp, GrasperDragsHeldVertices) {
+  SimWorld world = sphere_world(HapticOptions{});
+  SoftBody& body = world.body(0);
+  const glm::dvec3 top(kCentre, kCentre, kCentre + kRadius);
+  Grasper g{{top + glm::dvec3(-0.001, 0, 0.004), top + glm::dvec3(-0.001, 0, 0), 0.0008},
+            {top + glm::dvec3(0.001, 0, 0.004), top + glm::dvec3(0.001, 0, 0), 0.0008}};
+  Grasp grasp;
+  ASSERT_GT(grasp.close(body, g, 0.001), 0u);
+  const VertexId held = grasp.held().front();
+  const glm::dvec3 before = body.position(held);
+  for (int s = 1; s <= 200; ++s) {
+    grasp.drag(body, top + glm::dvec3(0, 0, 0.005 * s / 200.0));
+    world.step(top + glm::dvec3(0.05, 0, 0));  // probe far away
+  }
+  EXPECT_NEAR(body.position(held).z - before.z, 0.005, 1e-9);
+  grasp.release(body);
+  EXPECT_FALSE(body.kinematic(held));
+  EXPECT_TRUE(world.take_events().empty());
+}
+
+TEST(SimCollision, TouchingBodiesPushApartAndBvhFollows) {
+  WorldOptions options;
+  options.integrator.gravity_m_s2 = glm::dvec3(0.0);
+  SimWorld world(options);
+  world.add_body(SoftBody(testing::sphere(20, 6.0), Material{}));
+  world.add_body(SoftBody(testing::sphere(20, 6.0), Material{}));
+  // Second sphere overlapping the first by 1 mm along x.
+  for (auto& p : world.body(1).positions())
+    p.x += 0.011;
+  const std::uint64_t rebuilds = world.bvh(1).rebuilds();
+  double gap_before = 0.0;
+  for (auto& p : world.body(1).positions())
+    gap_before += p.x;
+  world.step({1.0, 1.0, 1.0});
+  EXPECT_GT(world.last_contacts(), 0u);
+  for (int s = 0; s < 100; ++s)
+    world.step({1.0, 1.0, 1.0});
+  double gap_after = 0.0;
+  for (auto& p : world.body(1).positions())
+    gap_after += p.x;
+  EXPECT_GT(gap_after, gap_before);              // pushed away along +x
+  EXPECT_EQ(world.bvh(1).rebuilds(), rebuilds);  // refits only
+  EXPECT_GE(world.bvh(1).refits(), 100u);
+}
+
+}  // namespace
+}  // namespace bisturi::sim

@@ -1,0 +1,163 @@
+// Soft-tissue simulation (issue 7): one full haptic-rate step (haptic proxy force with its
+// reaction, implicit integrator with the divergence guard, BVH refit) on closed spheres of about
+// 2k, 20k and 100k vertices (phantom + marching cubes, 1 mm voxels), single thread (Embree with
+// threads=1); p50 and p99 of the step time come out as counters, with the mean number of CG
+// iterations and the last relative residual. And the time to apply one 5 cm cut (blade points
+// along an arc over the top of the 20k-vertex sphere), BVH rebuild included.
+// Run by hand: build/bin/sim_bench [--benchmark_filter=...]. Goal: p99 <= 1 ms at 20k.
+
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <vector>
+
+#include "bisturi/scene/oriented_builder.h"
+#include "bisturi/scene/volume/marching_cubes.h"
+#include "bisturi/scene/volume/phantoms.h"
+#include "bisturi/sim/world.h"
+
+namespace {
+
+using namespace bisturi;
+using namespace bisturi::sim;
+
+struct Shape {
+  PolygonMesh polygons;  // a Dlfl does not copy: each body is built from these
+  double centre_mm = 0.0;
+  double radius_mm = 0.0;
+};
+
+/// A sphere of radius_mm (1 mm voxels), cached per radius.
+const Shape& sphere(double radius_mm) {
+  static std::map<double, Shape> cache;
+  auto it = cache.find(radius_mm);
+  if (it != cache.end()) return it->second;
+  PhantomOptions o;
+  o.shape = PhantomShape::Sphere;
+  const auto dims = static_cast<std::int64_t>(2.0 * radius_mm + 6.0);
+  o.dims = {dims, dims, dims};
+  o.spacing = glm::dvec3(1.0);
+  o.a = radius_mm;
+  Shape s;
+  s.polygons = extract_isosurface_mesh(make_phantom(o));
+  s.centre_mm = double(dims - 1) / 2.0;
+  s.radius_mm = radius_mm;
+  std::fprintf(stderr, "sphere r=%.0f mm: %zu vertices\n", radius_mm, s.polygons.positions.size());
+  return cache.emplace(radius_mm, std::move(s)).first->second;
+}
+
+/// Radii that give about 2k, 20k and 100k vertices.
+double radius_for(std::int64_t vertices) {
+  switch (vertices) {
+    case 2000:
+      return 10.0;
+    case 20000:
+      return 32.0;
+    default:
+      return 71.0;
+  }
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const auto i = static_cast<std::size_t>(q * double(v.size() - 1) + 0.5);
+  return v[std::min(i, v.size() - 1)];
+}
+
+// Full step: the probe presses 0..3 mm into the top of the sphere and back (a 2 Hz sine), the
+// lower third is anchored, gravity on, default material and integrator options.
+void BM_FullStep(benchmark::State& state) {
+  const Shape& shape = sphere(radius_for(state.range(0)));
+  WorldOptions options;
+  options.embree_threads = 1;
+  SimWorld world(options);
+  const std::uint32_t id =
+      world.add_body(SoftBody(build_oriented_manifold(shape.polygons), Material{}));
+  SoftBody& body = world.body(id);
+  const double c = shape.centre_mm * 1e-3;
+  const double r = shape.radius_mm * 1e-3;
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+    const VertexId v(i);
+    if (body.mesh().alive(v) && body.position(v).z < c - r / 3.0) body.set_anchored(v, true);
+  }
+  std::uint64_t s = 0;
+  auto device = [&] {
+    const double depth =
+        0.0015 * (1.0 - std::cos(2.0 * 3.141592653589793 * 2.0 * double(s) * 1e-3));
+    return glm::dvec3(c, c, c + r + 0.001 - depth);
+  };
+  for (int w = 0; w < 200; ++w, ++s)
+    world.step(device());  // settle the warm start
+  std::vector<double> samples;
+  double cg = 0.0;
+  double residual = 0.0;
+  for (auto _ : state) {
+    const glm::dvec3 d = device();
+    const auto t0 = std::chrono::steady_clock::now();
+    const HapticOutput out = world.step(d);
+    const auto t1 = std::chrono::steady_clock::now();
+    benchmark::DoNotOptimize(out);
+    const double sec = std::chrono::duration<double>(t1 - t0).count();
+    state.SetIterationTime(sec);
+    samples.push_back(sec * 1e6);
+    cg += world.last_stats(id).cg_iterations;
+    residual = world.last_stats(id).relative_residual;
+    ++s;
+  }
+  state.counters["vertices"] = double(body.mesh().num_vertices());
+  state.counters["springs"] = double(body.springs().size());
+  state.counters["p50_us"] = percentile(samples, 0.50);
+  state.counters["p99_us"] = percentile(samples, 0.99);
+  state.counters["cg_iters"] = cg / double(std::max<std::size_t>(samples.size(), 1));
+  state.counters["last_residual"] = residual;
+  state.counters["events"] = double(world.take_events().size());
+}
+BENCHMARK(BM_FullStep)
+    ->Arg(2000)
+    ->Arg(20000)
+    ->Arg(100000)
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond)
+    ->Iterations(3000);
+
+// One 5 cm cut over the top of the 20k-vertex sphere (path, face splits, vertex splits, springs,
+// masses, triangles and the BVH rebuilt), on a fresh body each time.
+void BM_Cut5cm(benchmark::State& state) {
+  const Shape& shape = sphere(radius_for(20000));
+  const double c = shape.centre_mm * 1e-3;
+  const double r = shape.radius_mm * 1e-3;
+  const double half_angle = 0.025 / r;  // arc length 5 cm
+  std::vector<glm::dvec3> points;
+  for (int i = 0; i <= 8; ++i) {
+    const double a = -half_angle + 2.0 * half_angle * i / 8.0;
+    points.emplace_back(c + r * std::sin(a), c, c + r * std::cos(a));
+  }
+  std::vector<double> samples;
+  std::size_t path = 0;
+  for (auto _ : state) {
+    WorldOptions options;
+    options.embree_threads = 1;
+    SimWorld world(options);
+    world.add_body(SoftBody(build_oriented_manifold(shape.polygons), Material{}));
+    const auto t0 = std::chrono::steady_clock::now();
+    const CutResult cut = world.cut(0, points);
+    const auto t1 = std::chrono::steady_clock::now();
+    path = cut.path.size();
+    const double sec = std::chrono::duration<double>(t1 - t0).count();
+    state.SetIterationTime(sec);
+    samples.push_back(sec * 1e3);
+  }
+  state.counters["path_vertices"] = double(path);
+  state.counters["p50_ms"] = percentile(samples, 0.50);
+  state.counters["max_ms"] = percentile(samples, 1.0);
+}
+BENCHMARK(BM_Cut5cm)->UseManualTime()->Unit(benchmark::kMillisecond)->Iterations(10);
+
+}  // namespace
+
+BENCHMARK_MAIN();
