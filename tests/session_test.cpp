@@ -40,7 +40,9 @@ TEST(SceneFile, DefaultSceneIsTheShippedFileAndParses) {
   EXPECT_EQ(scene.solids[1].anchors.size(), 2u);
   ASSERT_EQ(scene.devices.size(), 2u);
   EXPECT_EQ(scene.devices[1].role, DeviceDescription::Role::HeadTracker);
-  ASSERT_EQ(scene.instruments.size(), 1u);
+  EXPECT_EQ(scene.devices[0].driver, "hid-glove");
+  EXPECT_EQ(scene.devices[1].driver, "hid-tracker");
+  ASSERT_EQ(scene.instruments.size(), 3u);
   EXPECT_EQ(scene.instruments[0].device, "glove");
   EXPECT_DOUBLE_EQ(scene.rates.haptic_hz, 1000.0);
 }

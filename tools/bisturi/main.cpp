@@ -11,6 +11,7 @@
 #include "mesh_command.h"
 #include "mesh_demo.h"
 #include "render_command.h"
+#include "run_command.h"
 #include "segment_command.h"
 #include "trace_command.h"
 #include "volume_command.h"
@@ -61,6 +62,14 @@ int run(int argc, char** argv) {
   int (*run_render)(const bisturi::cli::RenderOptions&) = nullptr;
   bisturi::cli::add_render_command(app, render, run_render);
 
+  bisturi::cli::RunOptions run_options;
+  int (*run_run)(const bisturi::cli::RunOptions&) = nullptr;
+  bisturi::cli::add_run_command(app, run_options, run_run);
+
+  bisturi::cli::ReplayOptions replay;
+  int (*run_replay)(const bisturi::cli::ReplayOptions&) = nullptr;
+  bisturi::cli::add_replay_command(app, replay, run_replay);
+
   CLI11_PARSE(app, argc, argv);
   if (version) {
     std::cout << "bisturi " << bisturi::kVersion << " (" << bisturi::kBuildType << ")\n";
@@ -74,6 +83,8 @@ int run(int argc, char** argv) {
   if (run_measure != nullptr) return run_measure(measure);
   if (run_trace != nullptr) return run_trace(trace);
   if (run_render != nullptr) return run_render(render);
+  if (run_run != nullptr) return run_run(run_options);
+  if (run_replay != nullptr) return run_replay(replay);
   std::cout << app.help();
   return 0;
 }

@@ -1,0 +1,35 @@
+#pragma once
+// Builds the solids of a SceneDescription at start-up: phantom or volume -> isosurface (marching
+// cubes into the DLFL) -> decimation -> Taubin smoothing -> offset; mesh files through the
+// polygon import. Deterministic: a live session and its replay build identical solids.
+
+#include <cstddef>
+#include <functional>
+#include <string_view>
+#include <vector>
+
+#include "bisturi/runtime/session/scene_description.h"
+#include "bisturi/scene/dlfl.h"
+
+namespace bisturi::runtime {
+
+struct BuiltSolid {
+  const SolidDescription* description = nullptr;  ///< into the scene it was built from
+  Dlfl mesh;                                      ///< world millimetres, compacted
+  double build_ms = 0.0;
+};
+
+/// (solid name, stage, done, total) while a solid is built.
+using BuildProgress =
+    std::function<void(std::string_view solid, std::string_view stage, std::size_t, std::size_t)>;
+
+/// Builds one solid. Throws SceneFileError (naming the scene file and the solid) when the source
+/// gives no surface; InputError from the readers for bad files.
+Dlfl build_solid(const SolidDescription& solid, const std::string& scene_name,
+                 const BuildProgress& progress = {});
+
+/// Builds every solid of `scene`, in order.
+std::vector<BuiltSolid> build_solids(const SceneDescription& scene,
+                                     const BuildProgress& progress = {});
+
+}  // namespace bisturi::runtime

@@ -1,0 +1,143 @@
+#pragma once
+// The headset session (the seed's figure 33 as threads):
+//  - haptic thread, at the scene's haptic rate: the simulated devices send their reports (they
+//    stand in for hardware that sends on its own), the glove's and tracker's real drivers read
+//    them over the virtual transport -> SessionSim::tick (instruments, collision, proxy force and
+//    the soft-tissue step) -> GuardedHaptic (force guard) -> the glove's driver -> the trace;
+//    then it publishes a snapshot (positions per solid, topology, head pose with its sample time,
+//    instrument poses, events) into a TripleBuffer;
+//  - render thread, at the headset's rate: takes the newest snapshot -> StereoRenderer -> sink
+//    (OpenXR when a runtime is there, PNG files otherwise);
+//  - the calling thread only starts, watches (progress callback) and stops them.
+// Nothing waits on the renderer. The soft-tissue step runs inside the haptic tick (measured: the
+// default scene's step takes a fraction of the period; see the report's step_ms). All times come
+// from one injectable devices::Clock (SteadyClock live).
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "bisturi/devices/clock.h"
+#include "bisturi/runtime/render/stereo_renderer.h"
+#include "bisturi/runtime/session/scene_description.h"
+#include "bisturi/runtime/session/session_sim.h"
+#include "bisturi/runtime/session/timing.h"
+
+namespace bisturi::runtime {
+
+struct SessionProgress {
+  double elapsed_s = 0.0;
+  double duration_s = 0.0;
+  std::uint64_t ticks = 0;
+  std::uint64_t frames = 0;
+  std::uint64_t overruns = 0;
+  std::size_t events = 0;
+  double force_N = 0.0;  ///< proxy force on the tip now
+  std::string stage;     ///< "build", "start", "run"
+};
+
+struct SessionOptions {
+  /// Overrides the scene's duration_s.
+  std::optional<double> duration_s;
+  /// Folder for frames (PNG + frames.csv); empty: frames are rendered but not written.
+  std::filesystem::path frames_dir;
+  /// Write every n-th frame's image (frames.csv has every frame).
+  std::uint32_t image_every = 1;
+  /// Trace file to record into; empty: no recording.
+  std::filesystem::path record;
+  std::optional<std::uint32_t> eye_width;
+  std::optional<std::uint32_t> eye_height;
+  /// Try OpenXR first; without a runtime the PNG sink is used (the report says why).
+  bool openxr = true;
+  render::DevicePreference render_device = render::DevicePreference::Any;
+  /// The haptic thread sleeps until this long before each deadline, then spins (0: sleep only).
+  double spin_us = 200.0;
+  /// Ask for SCHED_FIFO for the haptic thread (kept quietly when refused).
+  bool realtime_priority = true;
+  /// The session's clock; nullptr: devices::steady_clock().
+  devices::Clock* clock = nullptr;
+  /// Called from the calling thread about ten times a second, and for start-up stages.
+  std::function<void(const SessionProgress&)> progress;
+};
+
+struct SolidReport {
+  std::string name;
+  std::size_t vertices = 0;
+  std::size_t faces = 0;
+  double build_ms = 0.0;
+};
+
+struct EventReport {
+  SessionEvent event;
+  double time_s = 0.0;  ///< since the session started
+  /// From the device report that carried the action to the first frame that shows it; negative
+  /// when no frame showed it before the session ended.
+  double response_ms = -1.0;
+};
+
+struct ForceSample {
+  double t_s = 0.0;
+  double proxy_N = 0.0;    ///< magnitude of the proxy force on the tip
+  double command_N = 0.0;  ///< the first actuator's command (before the guard)
+  double output_N = 0.0;   ///< what the guard let through to it
+};
+
+struct SessionReport {
+  std::string scene;
+  double duration_s = 0.0;
+  double haptic_hz = 0.0;
+  double display_hz = 0.0;
+  std::uint32_t eye_width = 0, eye_height = 0;
+  std::string render_device;
+  bool render_device_is_cpu = false;
+  std::string sink;       ///< "openxr" or "png"
+  std::string sink_note;  ///< why OpenXR was not used
+  bool realtime_priority = false;
+  bool tissue_in_haptic_thread = true;
+  std::vector<SolidReport> solids;
+  std::vector<std::string> devices;  ///< "glove: hid-glove (simulated)"
+
+  std::uint64_t ticks = 0;
+  std::uint64_t frames = 0;
+  std::uint64_t images = 0;
+  double render_fps = 0.0;
+
+  TimingRecorder haptic_period_ms{"ms"};
+  TimingRecorder haptic_period_error_ms{"ms"};  ///< |period - nominal|
+  TimingRecorder tick_ms{"ms"};                 ///< the whole tick's work
+  TimingRecorder step_ms{"ms"};                 ///< SessionSim::tick (instruments + tissue)
+  TimingRecorder frame_ms{"ms"};                ///< between frames handed to the renderer
+  TimingRecorder render_ms{"ms"};               ///< update + render() call
+  TimingRecorder motion_to_photon_ms{"ms"};
+  TimingRecorder action_to_response_ms{"ms"};
+
+  std::uint64_t overruns = 0;          ///< ticks whose work took longer than the period
+  std::uint64_t missed_deadlines = 0;  ///< ticks that ended after the next tick was due
+  std::uint64_t skipped_ticks = 0;     ///< periods dropped when the loop fell behind
+  std::uint64_t clamped_forces = 0;    ///< force guard clamps
+  std::uint64_t rate_limited_forces = 0;
+  std::uint64_t guard_latches = 0;   ///< steps on which the guard latched (watchdog, NaN, ...)
+  std::uint64_t dropped_frames = 0;  ///< display refreshes without a new frame
+  std::uint64_t malformed_reports = 0;
+  std::uint64_t divergence_events = 0;
+  std::vector<EventReport> events;
+  std::vector<ForceSample> force;
+  double max_force_N = 0.0;
+  std::uint64_t final_state_hash = 0;
+  std::filesystem::path trace;
+};
+
+/// Runs a live session of `scene`. Throws SceneFileError, render::RenderError (no Vulkan device),
+/// devices::DeviceError / TraceError from the layers below.
+SessionReport run_session(const SceneDescription& scene, const SessionOptions& options);
+
+/// The configuration a session writes into its trace (JSON): the force guard's settings and the
+/// scene's TOML text, so a replay rebuilds the same session from the trace alone.
+std::string session_trace_config(const std::string& scene_toml,
+                                 const std::filesystem::path& base_dir, double haptic_hz,
+                                 std::uint16_t glove_device);
+
+}  // namespace bisturi::runtime

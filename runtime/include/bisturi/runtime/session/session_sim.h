@@ -1,0 +1,115 @@
+#pragma once
+// The simulation side of one haptic tick, shared by the live session and its replay so both run
+// exactly the same code on the same inputs: glove state in -> instruments (probe, grasper,
+// scalpel) -> SimWorld step (collision, proxy force, soft tissue) -> the force command for the
+// glove's actuators. Nothing here reads a clock: the step length is the scene's fixed haptic
+// period, so a replay in virtual time reaches bit-identical forces and state.
+//
+// How the glove drives the instruments (device poses are SI metres in the scene's world frame, so
+// the one unit seam is sim::scene_to_sim / sim_to_scene):
+//  - the end effector's position is the probe tip (the haptic point of the god-object proxy);
+//  - closing the hand (mean finger joint angle above grasp_close_rad) closes the grasper's jaws
+//    at the tip, opening it (below grasp_open_rad) releases;
+//  - button 0 held sweeps the scalpel blade (from the tip along the hand's +z, blade_length) and
+//    its release cuts along the sweep.
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+#include "bisturi/devices/device.h"
+#include "bisturi/runtime/session/scene_builder.h"
+#include "bisturi/runtime/session/scene_description.h"
+#include "bisturi/sim/grasp.h"
+#include "bisturi/sim/world.h"
+
+namespace bisturi::runtime {
+
+/// Something a device did that the picture must show (action-to-response is measured from it).
+enum class SessionEventKind : std::uint8_t { Contact, GraspClosed, GraspReleased, CutStarted, Cut };
+const char* to_string(SessionEventKind kind);
+
+struct SessionEvent {
+  SessionEventKind kind = SessionEventKind::Contact;
+  std::uint64_t tick = 0;
+  std::int32_t body = -1;
+  std::string detail;  ///< e.g. "42 vertices held", "path of 9 vertices", the cut error
+};
+
+struct TickOutput {
+  glm::dvec3 force_N{0.0};        ///< proxy force on the tip (world frame)
+  std::vector<double> command_N;  ///< per glove force component, before the force guard
+  bool contact = false;
+  bool topology_changed = false;
+  std::size_t events = 0;  ///< events added by this tick (the last ones of events())
+};
+
+struct SessionSimOptions {
+  double grasp_close_rad = 0.7;
+  double grasp_open_rad = 0.4;
+  double grasp_capture_mm = 1.0;
+  double jaw_length_mm = 8.0;
+  double blade_length_mm = 15.0;
+  /// Glove actuator force while the grasper holds tissue (the fingers feel the jaws close).
+  double grasp_force_N = 0.8;
+  /// Haptics intensity (0-1) while the scalpel cuts.
+  double cut_vibration = 0.3;
+};
+
+class SessionSim {
+ public:
+  /// Takes the built solids (moved into soft bodies) and the glove's force channel layout.
+  SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> solids,
+             std::vector<devices::ForceChannel> glove_channels,
+             const SessionSimOptions& options = {});
+
+  /// One haptic tick with the glove in `state`.
+  const TickOutput& tick(const devices::HapticState& state);
+
+  [[nodiscard]] std::size_t body_count() const { return world_.body_count(); }
+  sim::SimWorld& world() { return world_; }
+  [[nodiscard]] const std::string& body_name(std::size_t i) const { return names_[i]; }
+  [[nodiscard]] std::uint64_t ticks() const { return ticks_; }
+  [[nodiscard]] const std::vector<SessionEvent>& events() const { return events_; }
+  /// Divergence events of the integrator (rollbacks, frozen bodies) so far.
+  [[nodiscard]] std::uint64_t divergence_events() const { return divergence_events_; }
+  /// Combined state hash of every body (FNV-1a over their SoftBody::state_hash in order).
+  [[nodiscard]] std::uint64_t state_hash();
+  /// Where the tip and the blade are (mm), for drawing the instruments.
+  [[nodiscard]] const glm::dvec3& tip_mm() const { return tip_mm_; }
+  [[nodiscard]] const glm::dvec3& blade_to_mm() const { return blade_to_mm_; }
+  [[nodiscard]] bool grasping() const { return grasp_body_ >= 0; }
+  [[nodiscard]] bool cutting() const { return cut_body_ >= 0; }
+
+ private:
+  std::int32_t nearest_body(const glm::dvec3& p_m);
+  void add_event(SessionEventKind kind, std::int32_t body, std::string detail);
+
+  SessionSimOptions options_;
+  sim::SimWorld world_;
+  std::vector<std::string> names_;
+  std::vector<devices::ForceChannel> channels_;
+  double max_force_N_ = 3.0;
+  double jaw_radius_mm_ = 1.5;
+  sim::Grasp grasp_;
+  std::int32_t grasp_body_ = -1;
+  bool hand_closed_ = false;
+  std::vector<glm::dvec3> cut_points_m_;
+  std::int32_t cut_body_ = -1;
+  bool button_ = false;
+  bool contact_ = false;
+  std::uint64_t last_contact_tick_ = 0;
+  std::uint64_t ticks_ = 0;
+  std::uint64_t divergence_events_ = 0;
+  std::vector<SessionEvent> events_;
+  TickOutput out_;
+  glm::dvec3 tip_mm_{0.0};
+  glm::dvec3 blade_to_mm_{0.0};
+};
+
+}  // namespace bisturi::runtime

@@ -1,0 +1,107 @@
+// The default scripted procedure (see procedure.h).
+
+#include "bisturi/runtime/session/procedure.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <glm/geometric.hpp>
+#include <glm/vec3.hpp>
+
+#include "bisturi/runtime/render/headset.h"
+#include "bisturi/runtime/session/scene_description.h"
+#include "bisturi/sim/units.h"
+
+namespace bisturi::runtime {
+
+namespace {
+
+struct Box {
+  glm::dvec3 lo{std::numeric_limits<double>::infinity()};
+  glm::dvec3 hi{-std::numeric_limits<double>::infinity()};
+  [[nodiscard]] glm::dvec3 centre() const { return (lo + hi) * 0.5; }
+};
+
+Box bounds(const Dlfl& mesh) {
+  Box b;
+  for (std::size_t i = 0; i < mesh.vertex_capacity(); ++i) {
+    const VertexId v{static_cast<std::uint32_t>(i)};
+    if (!mesh.alive(v)) continue;
+    b.lo = glm::min(b.lo, mesh.position(v));
+    b.hi = glm::max(b.hi, mesh.position(v));
+  }
+  return b;
+}
+
+devices::Vec3 to_metres(const glm::dvec3& mm) {
+  const glm::dvec3 m = sim::scene_to_sim(mm);
+  return {m.x, m.y, m.z};
+}
+
+}  // namespace
+
+Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid>& solids,
+                         devices::Nanoseconds duration, std::size_t glove_joints) {
+  if (script != "default")
+    throw SceneFileError("device script '" + script + "': the only script is \"default\"");
+  if (solids.empty()) throw SceneFileError("the scripted procedure needs at least one solid");
+  const Box first = bounds(solids.front().mesh);
+  const Box second = bounds(solids.size() > 1 ? solids[1].mesh : solids.front().mesh);
+  const glm::dvec3 top(first.centre().x, first.centre().y, first.hi.z);
+  // The second solid's wall facing the viewer (anterior, -y), halfway up.
+  const glm::dvec3 wall(second.centre().x, second.lo.y, second.centre().z);
+
+  Procedure p;
+  const double total = static_cast<double>(duration.count());
+  const auto at = [total](double fraction) {
+    return devices::Nanoseconds{static_cast<std::int64_t>(std::llround(fraction * total))};
+  };
+  const auto key = [&](double fraction, const glm::dvec3& tip_mm, double joints_rad) {
+    devices::MotionKey k;
+    k.t = at(fraction);
+    k.pose.position_m = to_metres(tip_mm);
+    k.joints_rad.assign(glove_joints, joints_rad);
+    p.glove.motion.push_back(k);
+  };
+  const double open = 0.1, closed = 1.1;
+  key(0.00, top + glm::dvec3(0, 0, 30), open);
+  key(0.12, top + glm::dvec3(0, 0, 4), open);     // approach
+  key(0.20, top + glm::dvec3(0, 0, -6), open);    // palpate: press in
+  key(0.26, top + glm::dvec3(0, 0, 4), open);     // and let go
+  key(0.36, wall + glm::dvec3(0, -10, 0), open);  // to the second solid
+  key(0.42, wall + glm::dvec3(0, 1, 0), open);
+  key(0.46, wall + glm::dvec3(0, 1, 0), closed);   // grasp
+  key(0.56, wall + glm::dvec3(0, -6, 0), closed);  // pull
+  key(0.60, wall + glm::dvec3(0, 0.5, 0), closed);
+  key(0.63, wall + glm::dvec3(0, 0.5, 0), open);  // release
+  key(0.68, wall + glm::dvec3(0, -10, 0), open);
+  key(0.74, top + glm::dvec3(-12, 0, 4), open);
+  key(0.78, top + glm::dvec3(-12, 0, -9), open);  // blade in
+  key(0.90, top + glm::dvec3(12, 0, -9), open);   // sweep
+  key(0.96, top + glm::dvec3(12, 0, 20), open);
+  p.glove.presses = {{at(0.785), 0, true}, {at(0.905), 0, false}};
+  p.phases = {{"approach", at(0.0), at(0.12)},
+              {"palpate", at(0.12), at(0.26)},
+              {"grasp", at(0.36), at(0.63)},
+              {"cut", at(0.74), at(0.905)}};
+
+  // The head: in front of the scene (anterior), above it, swaying a little from side to side.
+  const glm::dvec3 centre = (glm::min(first.lo, second.lo) + glm::max(first.hi, second.hi)) * 0.5;
+  const double size = glm::length(glm::max(first.hi, second.hi) - glm::min(first.lo, second.lo));
+  for (int i = 0; i <= 8; ++i) {
+    const double f = i / 8.0;
+    const glm::dvec3 eye =
+        centre + glm::dvec3(0.15 * size * std::sin(f * 6.283185307179586), -1.6 * size, 0.9 * size);
+    const render::HeadPose look = render::look_at(eye, centre, {0.0, 0.0, 1.0});
+    devices::MotionKey k;
+    k.t = at(f);
+    k.pose.position_m = to_metres(eye);
+    k.pose.orientation = {look.orientation.w, look.orientation.x, look.orientation.y,
+                          look.orientation.z};
+    p.head.motion.push_back(k);
+  }
+  return p;
+}
+
+}  // namespace bisturi::runtime

@@ -1,0 +1,637 @@
+// The headset session: haptic thread, render thread, hand-off and timing (see session.h).
+
+#include "bisturi/runtime/session/session.h"
+
+#include <pthread.h>
+#include <sched.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <exception>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <thread>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtx/quaternion.hpp>
+
+#include "bisturi/devices/force_guard.h"
+#include "bisturi/devices/registry.h"
+#include "bisturi/devices/simulated.h"
+#include "bisturi/devices/trace/guarded_haptic.h"
+#include "bisturi/devices/trace/trace_writer.h"
+#include "bisturi/devices/virtual_transport.h"
+#include "bisturi/runtime/render/errors.h"
+#include "bisturi/runtime/render/instrument_mesh.h"
+#include "bisturi/runtime/render/openxr_sink.h"
+#include "bisturi/runtime/render/png_sink.h"
+#include "bisturi/runtime/session/procedure.h"
+#include "bisturi/runtime/session/scene_builder.h"
+#include "bisturi/runtime/session/triple_buffer.h"
+#include "bisturi/runtime/version.h"
+#include "bisturi/scene/polygon_export.h"
+#include "bisturi/scene/polygon_import.h"
+#include "bisturi/sim/units.h"
+
+namespace bisturi::runtime {
+
+namespace {
+
+using devices::Nanoseconds;
+
+double ms(Nanoseconds d) {
+  return static_cast<double>(d.count()) * 1e-6;
+}
+
+render::PoseClock::time_point to_pose_clock(Nanoseconds t) {
+  return render::PoseClock::time_point(std::chrono::duration_cast<render::PoseClock::duration>(t));
+}
+
+/// An event as the render thread sees it: which one, and when its device report was read.
+struct EventStamp {
+  std::uint64_t index = 0;
+  Nanoseconds time{0};
+};
+
+/// A solid's faces as the render thread rebuilds its own DLFL from them (a Dlfl is not
+/// copyable, and the haptic thread's one must not be read while it steps): made by the haptic
+/// thread at start and after each topology change (a cut), shared read-only.
+struct Topology {
+  std::uint64_t version = 0;
+  PolygonMesh polygons;
+  std::vector<std::uint32_t> slot_of_position;  ///< body vertex slot of each polygon position
+};
+
+std::shared_ptr<const Topology> make_topology(const Dlfl& mesh) {
+  auto t = std::make_shared<Topology>();
+  t->version = mesh.topology_version();
+  ExportedPolygons e = export_polygons(mesh);
+  t->polygons = std::move(e.polygons);
+  t->slot_of_position.reserve(e.vertex_of_position.size());
+  for (VertexId v : e.vertex_of_position)
+    t->slot_of_position.push_back(v.idx);
+  return t;
+}
+
+/// The render thread's copy of a solid: its DLFL and where each body vertex slot went.
+struct RenderSolid {
+  Dlfl mesh;
+  std::uint64_t version = 0;
+  std::vector<std::pair<std::uint32_t, VertexId>> slot_to_vertex;
+
+  void rebuild(const Topology& t) {
+    ImportResult r = import_polygons(t.polygons, true);
+    mesh = std::move(r.mesh);
+    version = t.version;
+    slot_to_vertex.clear();
+    for (std::size_t k = 0; k < t.slot_of_position.size(); ++k)
+      slot_to_vertex.emplace_back(t.slot_of_position[k], r.vertex_of_input[k]);
+  }
+  void set_positions(const std::vector<glm::dvec3>& positions_mm) {
+    for (const auto& [slot, v] : slot_to_vertex)
+      if (slot < positions_mm.size() && v.idx < mesh.vertex_capacity())
+        mesh.positions()[v.idx] = positions_mm[slot];
+  }
+};
+
+/// What the haptic thread hands the render thread.
+struct SolidState {
+  std::vector<glm::dvec3> positions_mm;  ///< by body vertex slot
+  std::shared_ptr<const Topology> topology;
+};
+
+struct Snapshot {
+  std::uint64_t tick = 0;
+  std::vector<SolidState> solids;
+  render::HeadPose head;
+  glm::dvec3 tip_mm{0.0};
+  glm::dvec3 blade_to_mm{0.0};
+  bool grasping = false;
+  bool cutting = false;
+  std::uint64_t event_count = 0;
+  std::array<EventStamp, 16> recent{};  ///< the last events, by index % size
+};
+
+std::string read_text(const std::filesystem::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+/// Frames pass through here on their way to the real sink: motion-to-photon and action-to-response
+/// are measured at the moment the image is finished.
+class MeasuringSink final : public render::FrameSink {
+ public:
+  MeasuringSink(render::FrameSink* inner, SessionReport& report,
+                std::vector<double>& event_response_ms, std::vector<Nanoseconds>& event_times)
+      : inner_(inner), report_(report), response_(event_response_ms), event_times_(event_times) {}
+
+  /// Events first shown by frame `frame`.
+  void shows(std::uint64_t frame, std::uint64_t event) { pending_.push_back({frame, event}); }
+
+  void consume(const render::StereoFrame& frame) override {
+    if (inner_ != nullptr) inner_->consume(frame);
+    ++consumed_;
+    if (frame.pose.sample_time.time_since_epoch().count() == 0) return;  // no pose yet
+    report_.motion_to_photon_ms.record(
+        std::chrono::duration<double, std::milli>(frame.ready_time - frame.pose.sample_time)
+            .count());
+    const Nanoseconds ready =
+        std::chrono::duration_cast<Nanoseconds>(frame.ready_time.time_since_epoch());
+    std::size_t kept = 0;
+    for (const auto& [f, e] : pending_) {
+      if (f <= frame.index) {
+        const double latency = ms(ready - event_times_[e]);
+        response_[e] = latency;
+        report_.action_to_response_ms.record(latency);
+      } else {
+        pending_[kept++] = {f, e};
+      }
+    }
+    pending_.resize(kept);
+  }
+  [[nodiscard]] std::uint64_t consumed() const { return consumed_; }
+
+ private:
+  render::FrameSink* inner_;
+  SessionReport& report_;
+  std::vector<double>& response_;
+  std::vector<Nanoseconds>& event_times_;
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> pending_;
+  std::uint64_t consumed_ = 0;
+};
+
+glm::dmat4 instrument_pose(const glm::dvec3& from_mm, const glm::dvec3& to_mm) {
+  // The capsule runs along +z from the origin: rotate +z onto (to - from), then translate.
+  const glm::dvec3 axis = to_mm - from_mm;
+  const double len = glm::length(axis);
+  glm::dmat4 m = glm::translate(glm::dmat4(1.0), from_mm);
+  if (len > 1e-9) {
+    const glm::dquat q = glm::rotation(glm::dvec3(0, 0, 1), axis / len);
+    m = m * glm::mat4_cast(q);
+  }
+  return m;
+}
+
+}  // namespace
+
+std::string session_trace_config(const std::string& scene_toml,
+                                 const std::filesystem::path& base_dir, double haptic_hz,
+                                 std::uint16_t glove_device) {
+  devices::ForceGuardConfig guard;
+  guard.period = Nanoseconds{static_cast<std::int64_t>(std::llround(1e9 / haptic_hz))};
+  nlohmann::json j = nlohmann::json::parse(devices::force_guard_config_json(guard));
+  j["session"] = {{"scene_toml", scene_toml},
+                  {"base_dir", base_dir.string()},
+                  {"haptic_hz", haptic_hz},
+                  {"glove_device", glove_device},
+                  {"producer", std::string("bisturi ") + kVersion}};
+  return j.dump();
+}
+
+SessionReport run_session(const SceneDescription& scene, const SessionOptions& options) {
+  devices::Clock& clock = options.clock != nullptr ? *options.clock : devices::steady_clock();
+  SessionReport report;
+  report.scene = scene.name;
+  report.duration_s = options.duration_s.value_or(scene.duration_s);
+  report.haptic_hz = scene.rates.haptic_hz;
+  report.display_hz = std::min(scene.rates.display_hz, scene.headset.refresh_hz);
+  report.eye_width =
+      options.eye_width.value_or(static_cast<std::uint32_t>(scene.headset.eye_width));
+  report.eye_height =
+      options.eye_height.value_or(static_cast<std::uint32_t>(scene.headset.eye_height));
+  SessionProgress progress;
+  progress.duration_s = report.duration_s;
+  const auto stage = [&](const std::string& name) {
+    progress.stage = name;
+    if (options.progress) options.progress(progress);
+  };
+
+  // ---- The scene's solids and devices ----
+  const DeviceDescription* glove_desc = nullptr;
+  const DeviceDescription* head_desc = nullptr;
+  for (const DeviceDescription& d : scene.devices) {
+    if (d.role == DeviceDescription::Role::Haptic && glove_desc == nullptr) glove_desc = &d;
+    if (d.role == DeviceDescription::Role::HeadTracker && head_desc == nullptr) head_desc = &d;
+  }
+  if (glove_desc == nullptr || !glove_desc->simulated || glove_desc->driver != "hid-glove")
+    throw SceneFileError(scene.name +
+                         ": the session needs a simulated haptic device with driver \"hid-glove\"");
+  if (head_desc == nullptr || !head_desc->simulated || head_desc->driver != "hid-tracker")
+    throw SceneFileError(
+        scene.name + ": the session needs a simulated head tracker with driver \"hid-tracker\"");
+  stage("build");
+  std::vector<BuiltSolid> solids = build_solids(scene);
+  for (const BuiltSolid& s : solids)
+    report.solids.push_back(
+        {s.description->name, s.mesh.num_vertices(), s.mesh.num_faces(), s.build_ms});
+  const auto duration =
+      Nanoseconds{static_cast<std::int64_t>(std::llround(report.duration_s * 1e9))};
+  const Procedure procedure =
+      make_procedure(glove_desc->script, solids, duration, devices::SimulatedGlove::kJoints);
+
+  devices::SimulatedGlove glove_twin(procedure.glove, "GLOVE-0001", scene.rates.haptic_hz);
+  devices::SimulatedHeadTracker head_twin(procedure.head);
+  devices::VirtualPair glove_link = devices::make_virtual_pair(glove_twin.descriptor());
+  devices::VirtualPair head_link = devices::make_virtual_pair(head_twin.descriptor());
+  glove_twin.attach(std::move(glove_link.device));
+  head_twin.attach(std::move(head_link.device));
+  const devices::Registry registry = devices::builtin_registry();
+
+  std::unique_ptr<devices::TraceWriter> writer;
+  std::unique_ptr<devices::Device> glove_device, head_device;
+  std::uint16_t glove_index = 0;
+  if (!options.record.empty()) {
+    const std::string toml =
+        scene.file.empty() ? std::string(default_scene_toml()) : read_text(scene.file);
+    devices::TraceHeader header;
+    header.start_time_ns = clock.now().count();
+    header.wall_clock_unix_ns =
+        std::chrono::duration_cast<Nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+            .count();
+    header.producer = std::string("bisturi ") + kVersion;
+    header.config = session_trace_config(
+        toml, scene.file.empty() ? std::filesystem::path() : scene.file.parent_path(),
+        scene.rates.haptic_hz, 0);
+    writer = std::make_unique<devices::TraceWriter>(options.record, header);
+    devices::RecordedDevice g =
+        devices::open_recorded(registry, std::move(glove_link.host), *writer, clock);
+    glove_index = g.index;
+    glove_device = std::move(g.device);
+    head_device =
+        devices::open_recorded(registry, std::move(head_link.host), *writer, clock).device;
+    report.trace = options.record;
+  } else {
+    glove_device = registry.open(std::move(glove_link.host), clock);
+    head_device = registry.open(std::move(head_link.host), clock);
+  }
+  devices::HapticDevice* glove = devices::as_haptic(glove_device.get());
+  devices::Tracker* head = devices::as_tracker(head_device.get());
+  if (glove == nullptr || head == nullptr)
+    throw SceneFileError(scene.name + ": the drivers opened are not a glove and a tracker");
+  report.devices = {glove_desc->name + ": " + glove->driver_name() + " (simulated)",
+                    head_desc->name + ": " + head->driver_name() + " (simulated)"};
+  devices::ForceGuardConfig guard_config =
+      devices::force_guard_config_from_json(session_trace_config("", {}, scene.rates.haptic_hz, 0));
+  devices::ForceGuard guard(glove->capabilities().force_channels, guard_config);
+  devices::GuardedHaptic guarded(*glove, guard, clock, writer.get(), glove_index);
+  report.max_force_N = glove_desc->max_force_N;
+
+  SessionSim sim(scene, std::move(solids), glove->capabilities().force_channels);
+
+  // ---- The hand-off ----
+  Snapshot initial;
+  initial.solids.resize(sim.body_count());
+  for (std::size_t b = 0; b < sim.body_count(); ++b) {
+    const sim::SoftBody& body = sim.world().body(static_cast<std::uint32_t>(b));
+    initial.solids[b].positions_mm.resize(body.positions().size());
+    initial.solids[b].topology = make_topology(body.mesh());
+    for (std::size_t i = 0; i < body.positions().size(); ++i)
+      initial.solids[b].positions_mm[i] = sim::sim_to_scene(body.positions()[i]);
+  }
+  TripleBuffer<Snapshot> handoff(initial);
+
+  std::atomic<bool> stop{false};
+  std::atomic<bool> render_ready{false};
+  std::atomic<std::uint64_t> ticks{0}, frames{0}, overruns{0};
+  std::atomic<std::size_t> event_count{0};
+  std::atomic<double> force_now{0.0};
+  std::exception_ptr render_error, haptic_error;
+  std::vector<Nanoseconds> event_times;  // written by the haptic thread, read after the join...
+  event_times.reserve(4096);             // ...and by the render thread below its published count
+  std::vector<double> event_response(4096, -1.0);
+  std::atomic<bool> realtime{false};
+  Nanoseconds t0{0};
+
+  // ---- Render thread ----
+  const double display_period_ms = 1000.0 / report.display_hz;
+  std::thread render_thread([&] {
+    try {
+      render::RendererOptions ro;
+      ro.device = options.render_device;
+      ro.headset.ipd_mm = scene.headset.ipd_mm;
+      ro.headset.eye_width = report.eye_width;
+      ro.headset.eye_height = report.eye_height;
+      constexpr double kRad = 3.14159265358979323846 / 180.0;
+      for (render::EyeFov& f : ro.headset.fov) {
+        f.angle_left = static_cast<float>(-scene.headset.fov_deg[0] * kRad);
+        f.angle_right = static_cast<float>(scene.headset.fov_deg[1] * kRad);
+        f.angle_up = static_cast<float>(scene.headset.fov_deg[2] * kRad);
+        f.angle_down = static_cast<float>(-scene.headset.fov_deg[3] * kRad);
+      }
+      render::StereoRenderer renderer(ro);
+      report.render_device = renderer.device_name();
+      report.render_device_is_cpu = renderer.device_is_cpu();
+      std::unique_ptr<render::FrameSink> sink;
+      render::PngSink* png = nullptr;
+      if (options.openxr) {
+        try {
+          sink = std::make_unique<render::OpenXrSink>();
+          report.sink = "openxr";
+        } catch (const render::XrUnavailable& e) {
+          report.sink_note =
+              std::string("OpenXR unavailable (") + e.what() + "): frames go to the PNG sink";
+        }
+      }
+      if (!sink && !options.frames_dir.empty()) {
+        auto p = std::make_unique<render::PngSink>(
+            options.frames_dir,
+            render::PngSinkOptions{render::PngLayout::SideBySide, options.image_every});
+        png = p.get();
+        sink = std::move(p);
+        report.sink = "png";
+      }
+      if (!sink) report.sink = "none";
+      MeasuringSink measuring(sink.get(), report, event_response, event_times);
+      renderer.set_sink(&measuring);
+
+      std::vector<RenderSolid> meshes(initial.solids.size());
+      std::vector<render::SolidId> ids;
+      for (std::size_t b = 0; b < initial.solids.size(); ++b) {
+        meshes[b].rebuild(*initial.solids[b].topology);
+        meshes[b].set_positions(initial.solids[b].positions_mm);
+        const auto& c = scene.solids[b].material.colour;
+        render::Material m;
+        m.colour =
+            glm::vec3(static_cast<float>(c[0]), static_cast<float>(c[1]), static_cast<float>(c[2]));
+        ids.push_back(renderer.add_solid(meshes[b].mesh, m));
+      }
+      double probe_radius = 1.5, probe_length = 60.0;
+      for (const InstrumentDescription& in : scene.instruments) {
+        if (in.kind == InstrumentDescription::Kind::Probe) {
+          probe_radius = in.radius_mm;
+          probe_length = in.length_mm;
+        }
+      }
+      render::Material steel;
+      steel.colour = {0.75f, 0.78f, 0.82f};
+      steel.specular = 0.8f;
+      const render::SolidId probe_id = renderer.add_instrument(
+          render::capsule_solid(probe_radius, probe_length), steel, glm::dmat4(1.0));
+      render::Material blade_material = steel;
+      blade_material.colour = {0.95f, 0.95f, 1.0f};
+      const render::SolidId blade_id =
+          renderer.add_instrument(render::capsule_solid(0.4, 1.0), blade_material, glm::dmat4(1.0));
+      renderer.set_visible(blade_id, false);
+      render_ready.store(true);
+
+      std::uint64_t seen_events = 0;
+      const auto period = std::chrono::duration<double, std::milli>(display_period_ms);
+      auto next = std::chrono::steady_clock::now();
+      auto previous = next;
+      bool first = true;
+      // The first frame waits for the first snapshot (the haptic thread's start).
+      while (!stop.load(std::memory_order_relaxed) && !handoff.take())
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+      while (!stop.load(std::memory_order_relaxed)) {
+        const auto begin = std::chrono::steady_clock::now();
+        handoff.take();
+        const Snapshot& s = handoff.front();
+        for (std::size_t b = 0; b < s.solids.size(); ++b) {
+          const SolidState& st = s.solids[b];
+          if (st.topology->version != meshes[b].version) meshes[b].rebuild(*st.topology);
+          meshes[b].set_positions(st.positions_mm);
+          renderer.update_solid(ids[b], meshes[b].mesh);
+        }
+        // The probe's shaft rises from the tip along the hand; the blade shows while it cuts.
+        const glm::dvec3 along = s.blade_to_mm - s.tip_mm;
+        const double along_len = glm::length(along);
+        const glm::dvec3 dir = along_len > 1e-9 ? along / along_len : glm::dvec3(0, 0, 1);
+        renderer.set_pose(probe_id, instrument_pose(s.tip_mm, s.tip_mm + dir * probe_length));
+        renderer.set_visible(blade_id, s.cutting);
+        if (s.cutting) {
+          glm::dmat4 m = instrument_pose(s.tip_mm, s.blade_to_mm);
+          m = m * glm::scale(glm::dmat4(1.0),
+                             glm::dvec3(1.0, 1.0, glm::length(s.blade_to_mm - s.tip_mm)));
+          renderer.set_pose(blade_id, m);
+        }
+        const render::HeadPose pose = s.head;
+        const render::FrameStats stats = renderer.render(pose);
+        for (; seen_events < s.event_count; ++seen_events) {
+          if (s.event_count - seen_events <= s.recent.size())
+            measuring.shows(stats.frame, seen_events);
+        }
+        const auto end = std::chrono::steady_clock::now();
+        report.render_ms.record(std::chrono::duration<double, std::milli>(end - begin).count());
+        if (!first) {
+          const double gap = std::chrono::duration<double, std::milli>(begin - previous).count();
+          report.frame_ms.record(gap);
+          const auto missed = static_cast<std::uint64_t>(gap / display_period_ms + 0.5);
+          if (missed > 1) report.dropped_frames += missed - 1;
+        }
+        first = false;
+        previous = begin;
+        frames.fetch_add(1, std::memory_order_relaxed);
+        next += std::chrono::duration_cast<std::chrono::steady_clock::duration>(period);
+        if (next < end) {
+          next = end;  // behind: the next frame starts at once (no catch-up burst)
+        } else {
+          std::this_thread::sleep_until(next);
+        }
+      }
+      renderer.flush();
+      report.frames = frames.load();
+      report.images = png != nullptr ? png->images_written() : measuring.consumed();
+    } catch (...) {
+      render_error = std::current_exception();
+      render_ready.store(true);
+      stop.store(true);
+    }
+  });
+
+  // ---- Haptic thread ----
+  const Nanoseconds period{static_cast<std::int64_t>(std::llround(1e9 / scene.rates.haptic_hz))};
+  const Nanoseconds spin{static_cast<std::int64_t>(options.spin_us * 1e3)};
+  const std::size_t force_every =
+      std::max<std::size_t>(1, static_cast<std::size_t>(scene.rates.haptic_hz / 200.0));
+  report.force.reserve(static_cast<std::size_t>(report.duration_s * 200.0) + 16);
+  std::thread haptic_thread([&] {
+    try {
+      if (options.realtime_priority) {
+        sched_param p{};
+        p.sched_priority = std::max(1, sched_get_priority_max(SCHED_FIFO) / 2);
+        realtime.store(pthread_setschedparam(pthread_self(), SCHED_FIFO, &p) == 0);
+      }
+      while (!render_ready.load())
+        std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      t0 = clock.now();
+      Nanoseconds next = t0;
+      Nanoseconds previous_start{0};
+      bool first = true, lost = false;
+      devices::HapticState last_state;
+      std::uint64_t published_events = 0;
+      std::array<EventStamp, 16> recent{};
+      std::vector<std::shared_ptr<const Topology>> topology;
+      for (std::size_t b = 0; b < initial.solids.size(); ++b)
+        topology.push_back(initial.solids[b].topology);
+      while (!stop.load(std::memory_order_relaxed)) {
+        if (spin.count() > 0) {
+          clock.sleep_until(next - spin);
+          while (clock.now() < next) {
+          }
+        } else {
+          clock.sleep_until(next);
+        }
+        const Nanoseconds start = clock.now();
+        const Nanoseconds t = start - t0;
+        if (t >= duration) break;
+        if (!first) {
+          const double p_ms = ms(start - previous_start);
+          report.haptic_period_ms.record(p_ms);
+          report.haptic_period_error_ms.record(std::abs(p_ms - ms(period)));
+        }
+        first = false;
+        previous_start = start;
+
+        // Device input: the twins send (as hardware would), the drivers read.
+        glove_twin.step(t);
+        head_twin.step(t);
+        try {
+          if (!lost) guarded.poll(std::chrono::microseconds(0));
+        } catch (const devices::DeviceDisconnected&) {
+          lost = true;
+        } catch (const devices::ProtocolError&) {
+          ++report.malformed_reports;
+        }
+        try {
+          head->poll(std::chrono::microseconds(0));
+        } catch (const devices::ProtocolError&) {
+          ++report.malformed_reports;
+        }
+        if (!lost) last_state = glove->state();
+
+        // Simulation, then the guarded force out.
+        const Nanoseconds step_begin = clock.now();
+        const TickOutput& out = sim.tick(last_state);
+        const Nanoseconds step_end = clock.now();
+        report.step_ms.record(ms(step_end - step_begin));
+        devices::GuardStep g;
+        if (!lost) {
+          try {
+            g = guarded.send(out.command_N);
+          } catch (const devices::DeviceDisconnected&) {
+            lost = true;
+          }
+        }
+        if (lost && writer) writer->note(clock.now().count(), "tick");
+        if (g.latched != devices::Fault::None) ++report.guard_latches;
+        if (sim.ticks() % force_every == 0 && report.force.size() < report.force.capacity()) {
+          report.force.push_back(
+              {ms(t) * 1e-3, glm::length(out.force_N),
+               out.command_N.empty() ? 0.0 : out.command_N[0],
+               guarded.last_output_N().empty() ? 0.0 : guarded.last_output_N()[0]});
+        }
+
+        // Publish the snapshot.
+        Snapshot& s = handoff.back();
+        s.tick = sim.ticks();
+        for (std::size_t b = 0; b < sim.body_count(); ++b) {
+          const sim::SoftBody& body = sim.world().body(static_cast<std::uint32_t>(b));
+          SolidState& st = s.solids[b];
+          if (out.topology_changed && body.mesh().topology_version() != topology[b]->version)
+            topology[b] = make_topology(body.mesh());
+          st.topology = topology[b];
+          const auto& x = body.positions();
+          st.positions_mm.resize(x.size());
+          for (std::size_t i = 0; i < x.size(); ++i)
+            st.positions_mm[i] = sim::sim_to_scene(x[i]);
+        }
+        const devices::TrackerState& hs = head->state();
+        s.head.position_mm = sim::sim_to_scene(glm::dvec3(
+            hs.head_pose.position_m.x, hs.head_pose.position_m.y, hs.head_pose.position_m.z));
+        s.head.orientation = glm::dquat(hs.head_pose.orientation.w, hs.head_pose.orientation.x,
+                                        hs.head_pose.orientation.y, hs.head_pose.orientation.z);
+        s.head.sample_time = to_pose_clock(hs.sample_time);
+        s.tip_mm = sim.tip_mm();
+        s.blade_to_mm = sim.blade_to_mm();
+        s.grasping = sim.grasping();
+        s.cutting = sim.cutting();
+        for (; published_events < sim.events().size(); ++published_events) {
+          if (event_times.size() < event_times.capacity())
+            event_times.push_back(last_state.sample_time);
+          recent[published_events % recent.size()] = {published_events, last_state.sample_time};
+        }
+        s.event_count = std::min<std::uint64_t>(published_events, event_times.size());
+        s.recent = recent;
+        handoff.publish();
+        event_count.store(sim.events().size(), std::memory_order_relaxed);
+        force_now.store(glm::length(out.force_N), std::memory_order_relaxed);
+
+        const Nanoseconds end = clock.now();
+        report.tick_ms.record(ms(end - start));
+        if (end - start > period) overruns.fetch_add(1, std::memory_order_relaxed);
+        next += period;
+        if (end > next) ++report.missed_deadlines;
+        if (end > next + period) {  // fell behind by more than a period: drop those ticks
+          const std::int64_t behind = (end - next).count() / period.count();
+          report.skipped_ticks += static_cast<std::uint64_t>(behind);
+          next += period * behind;
+        }
+        ticks.store(sim.ticks(), std::memory_order_relaxed);
+      }
+    } catch (...) {
+      haptic_error = std::current_exception();
+    }
+    stop.store(true);
+  });
+
+  // ---- The calling thread watches ----
+  progress.stage = "run";
+  const auto wall_start = std::chrono::steady_clock::now();
+  while (!stop.load()) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    progress.elapsed_s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+    progress.ticks = ticks.load();
+    progress.frames = frames.load();
+    progress.overruns = overruns.load();
+    progress.events = event_count.load();
+    progress.force_N = force_now.load();
+    if (options.progress) options.progress(progress);
+  }
+  haptic_thread.join();
+  render_thread.join();
+  const double run_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+
+  // ---- The session ends: final state, devices closed (zero forces), trace closed ----
+  report.ticks = sim.ticks();
+  report.overruns = overruns.load();
+  report.realtime_priority = realtime.load();
+  report.final_state_hash = sim.state_hash();
+  report.clamped_forces = guard.clamp_count();
+  report.rate_limited_forces = guard.rate_limit_count();
+  report.divergence_events = sim.divergence_events();
+  report.render_fps = report.frames > 1 && report.frame_ms.count() > 0
+                          ? 1000.0 / report.frame_ms.summary().mean
+                          : 0.0;
+  (void)run_s;
+  for (std::size_t i = 0; i < sim.events().size(); ++i) {
+    EventReport e;
+    e.event = sim.events()[i];
+    e.time_s = static_cast<double>(e.event.tick) / scene.rates.haptic_hz;
+    if (i < event_response.size()) e.response_ms = event_response[i];
+    report.events.push_back(std::move(e));
+  }
+  if (writer) {
+    const nlohmann::json end = {{"session_end",
+                                 {{"ticks", report.ticks},
+                                  {"state_hash", report.final_state_hash},
+                                  {"events", report.events.size()}}}};
+    writer->note(clock.now().count(), end.dump());
+  }
+  glove_device->close();
+  head_device->close();
+  if (writer) writer->close();
+  if (render_error) std::rethrow_exception(render_error);
+  if (haptic_error) std::rethrow_exception(haptic_error);
+  return report;
+}
+
+}  // namespace bisturi::runtime

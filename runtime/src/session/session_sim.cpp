@@ -1,0 +1,252 @@
+// One haptic tick of the session's simulation (see session_sim.h).
+
+#include "bisturi/runtime/session/session_sim.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <utility>
+
+#include <glm/geometric.hpp>
+#include <glm/gtc/quaternion.hpp>
+
+#include "bisturi/sim/errors.h"
+#include "bisturi/sim/units.h"
+
+namespace bisturi::runtime {
+
+const char* to_string(SessionEventKind kind) {
+  switch (kind) {
+    case SessionEventKind::Contact:
+      return "contact";
+    case SessionEventKind::GraspClosed:
+      return "grasp";
+    case SessionEventKind::GraspReleased:
+      return "release";
+    case SessionEventKind::CutStarted:
+      return "cut-start";
+    case SessionEventKind::Cut:
+      return "cut";
+  }
+  return "?";
+}
+
+namespace {
+
+sim::Material to_material(const MaterialDescription& m) {
+  sim::Material out;
+  out.structural_N_per_m = m.stiffness_N_per_m;
+  out.shear_N_per_m = m.stiffness_N_per_m * 0.25;
+  out.bending_N_per_m = m.stiffness_N_per_m * 0.05;
+  out.spring_damping_N_s_per_m = m.damping_N_s_per_m;
+  out.density_kg_per_m3 = m.density_kg_per_m3;
+  return out;
+}
+
+glm::dvec3 to_glm(const devices::Vec3& v) {
+  return {v.x, v.y, v.z};
+}
+
+}  // namespace
+
+SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> solids,
+                       std::vector<devices::ForceChannel> glove_channels,
+                       const SessionSimOptions& options)
+    : options_(options), channels_(std::move(glove_channels)) {
+  for (const DeviceDescription& d : scene.devices) {
+    if (d.role == DeviceDescription::Role::Haptic) {
+      max_force_N_ = d.max_force_N;
+      break;
+    }
+  }
+  for (const InstrumentDescription& in : scene.instruments) {
+    if (in.kind == InstrumentDescription::Kind::Probe) {
+      world_.options().haptic.probe_radius_m = in.radius_mm * sim::kMetresPerMillimetre;
+    } else if (in.kind == InstrumentDescription::Kind::Grasper) {
+      jaw_radius_mm_ = in.radius_mm;
+    } else {
+      options_.blade_length_mm = in.length_mm;
+    }
+  }
+  world_.options().haptic.max_force_N = max_force_N_;
+  world_.options().integrator.dt_s = 1.0 / scene.rates.haptic_hz;
+  for (BuiltSolid& s : solids) {
+    const SolidDescription& d = *s.description;
+    sim::SoftBody body(std::move(s.mesh), to_material(d.material));
+    const Dlfl& mesh = body.mesh();
+    for (std::size_t i = 0; i < mesh.vertex_capacity(); ++i) {
+      const VertexId v{static_cast<std::uint32_t>(i)};
+      if (!mesh.alive(v)) continue;
+      bool anchored = !d.simulate;
+      const glm::dvec3 p = mesh.position(v);
+      for (const AnchorDescription& a : d.anchors) {
+        const glm::dvec3 n = glm::normalize(glm::dvec3(a.normal[0], a.normal[1], a.normal[2]));
+        const glm::dvec3 q(a.point_mm[0], a.point_mm[1], a.point_mm[2]);
+        anchored = anchored || glm::dot(p - q, n) <= a.distance_mm;
+      }
+      if (anchored) body.set_anchored(v, true);
+    }
+    names_.push_back(d.name);
+    world_.add_body(std::move(body));
+  }
+  out_.command_N.assign(
+      [&] {
+        std::size_t n = 0;
+        for (const devices::ForceChannel& c : channels_)
+          n += c.components;
+        return n;
+      }(),
+      0.0);
+}
+
+void SessionSim::add_event(SessionEventKind kind, std::int32_t body, std::string detail) {
+  events_.push_back(SessionEvent{kind, ticks_, body, std::move(detail)});
+  ++out_.events;
+}
+
+std::int32_t SessionSim::nearest_body(const glm::dvec3& p_m) {
+  // The body with a vertex closest to p (a linear pass, done once per grasp or cut).
+  std::int32_t best = -1;
+  double best_d = std::numeric_limits<double>::infinity();
+  for (std::size_t b = 0; b < world_.body_count(); ++b) {
+    const sim::SoftBody& x = world_.body(static_cast<std::uint32_t>(b));
+    for (std::size_t i = 0; i < x.positions().size(); ++i) {
+      if (x.masses()[i] <= 0.0) continue;
+      const glm::dvec3 d = x.positions()[i] - p_m;
+      const double dd = glm::dot(d, d);
+      if (dd < best_d) {
+        best_d = dd;
+        best = static_cast<std::int32_t>(b);
+      }
+    }
+  }
+  return best;
+}
+
+const TickOutput& SessionSim::tick(const devices::HapticState& state) {
+  out_.events = 0;
+  out_.topology_changed = false;
+  const devices::Pose pose =
+      state.end_effector_poses.empty() ? devices::Pose{} : state.end_effector_poses.front();
+  const glm::dvec3 tip_m = to_glm(pose.position_m);
+  const glm::dquat q(pose.orientation.w, pose.orientation.x, pose.orientation.y,
+                     pose.orientation.z);
+  tip_mm_ = sim::sim_to_scene(tip_m);
+  blade_to_mm_ = tip_mm_ + q * glm::dvec3(0.0, 0.0, options_.blade_length_mm);
+
+  // Grasper: the hand closes and opens it (with hysteresis).
+  double grip = 0.0;
+  for (double a : state.finger_joint_angles_rad)
+    grip += a;
+  if (!state.finger_joint_angles_rad.empty())
+    grip /= static_cast<double>(state.finger_joint_angles_rad.size());
+  if (!hand_closed_ && grip > options_.grasp_close_rad) {
+    hand_closed_ = true;
+    const std::int32_t b = nearest_body(tip_m);
+    if (b >= 0) {
+      const glm::dvec3 half = q * glm::dvec3(options_.jaw_length_mm * 0.5, 0.0, 0.0);
+      const glm::dvec3 gap = q * glm::dvec3(0.0, 0.0, jaw_radius_mm_);
+      const double r = jaw_radius_mm_ * sim::kMetresPerMillimetre;
+      sim::Grasper g{
+          {sim::scene_to_sim(tip_mm_ - half + gap), sim::scene_to_sim(tip_mm_ + half + gap), r},
+          {sim::scene_to_sim(tip_mm_ - half - gap), sim::scene_to_sim(tip_mm_ + half - gap), r}};
+      const std::size_t held = grasp_.close(world_.body(static_cast<std::uint32_t>(b)), g,
+                                            options_.grasp_capture_mm * sim::kMetresPerMillimetre);
+      if (held > 0) grasp_body_ = b;
+      add_event(SessionEventKind::GraspClosed, held > 0 ? b : -1,
+                std::to_string(held) + " vertices held");
+    }
+  } else if (hand_closed_ && grip < options_.grasp_open_rad) {
+    hand_closed_ = false;
+    if (grasp_body_ >= 0) {
+      grasp_.release(world_.body(static_cast<std::uint32_t>(grasp_body_)));
+      add_event(SessionEventKind::GraspReleased, grasp_body_, "");
+      grasp_body_ = -1;
+    }
+  }
+  if (grasp_body_ >= 0) grasp_.drag(world_.body(static_cast<std::uint32_t>(grasp_body_)), tip_m);
+
+  // Probe, tissue contact and the soft-tissue step. While the scalpel cuts, the blade parts the
+  // tissue instead of pushing it (no reaction on the surface; the hand still feels it).
+  world_.options().haptic.apply_reaction = cut_body_ < 0;
+  const sim::HapticOutput h = world_.step(tip_m);
+  out_.force_N = h.force_N;
+  out_.contact = h.contact;
+  // A new touch (not a flicker at the edge of one: 100 ticks without contact before it).
+  if (h.contact && !contact_ && ticks_ >= last_contact_tick_ + 100)
+    add_event(SessionEventKind::Contact, h.body, "");
+  if (h.contact) last_contact_tick_ = ticks_;
+  contact_ = h.contact;
+  for (const sim::SimEvent& e : world_.take_events()) {
+    (void)e;
+    ++divergence_events_;
+  }
+
+  // Scalpel: button 0 held sweeps the blade, its release cuts.
+  const bool button = (state.buttons & 1u) != 0;
+  if (button && !button_) {
+    cut_body_ = nearest_body(tip_m);
+    cut_points_m_.clear();
+    add_event(SessionEventKind::CutStarted, cut_body_, "");
+  }
+  if (button && cut_body_ >= 0) {
+    const auto b = static_cast<std::uint32_t>(cut_body_);
+    sim::ScalpelSweep sweep;
+    if (sweep.sample(world_.body(b), world_.bvh(b), tip_m, sim::scene_to_sim(blade_to_mm_)))
+      cut_points_m_.push_back(sweep.points().back());
+  }
+  if (!button && button_ && cut_body_ >= 0) {
+    const auto b = static_cast<std::uint32_t>(cut_body_);
+    std::string detail;
+    try {
+      if (grasp_body_ == cut_body_) {  // the held vertices may be renumbered by the cut
+        grasp_.release(world_.body(b));
+        grasp_body_ = -1;
+      }
+      const sim::CutResult cut = world_.cut(b, cut_points_m_);
+      detail = "incision through " + std::to_string(cut.path.size()) + " vertices";
+      out_.topology_changed = true;
+    } catch (const sim::CutError& e) {
+      detail = std::string("no cut: ") + e.what();
+    }
+    add_event(SessionEventKind::Cut, cut_body_, std::move(detail));
+    cut_body_ = -1;
+  }
+  button_ = button;
+
+  // The glove's command: the contact force on the thumb and index actuators, the grasp on every
+  // finger, a vibration while cutting; never above the scene's limit for the device.
+  const double contact_N = std::min(glm::length(h.force_N), max_force_N_);
+  std::size_t k = 0, finger = 0;
+  for (const devices::ForceChannel& c : channels_) {
+    for (std::size_t i = 0; i < c.components; ++i, ++k) {
+      double f = 0.0;
+      if (c.unitless) {
+        f = cut_body_ >= 0 ? options_.cut_vibration : 0.0;
+      } else {
+        if (finger < 2) f += contact_N;
+        if (grasp_body_ >= 0) f += options_.grasp_force_N;
+        f = std::min(f, std::min(max_force_N_, c.max_force_N));
+      }
+      out_.command_N[k] = f;
+    }
+    if (!c.unitless) ++finger;
+  }
+  ++ticks_;
+  return out_;
+}
+
+std::uint64_t SessionSim::state_hash() {
+  std::uint64_t h = 1469598103934665603ull;
+  for (std::size_t b = 0; b < world_.body_count(); ++b) {
+    std::uint64_t v = world_.body(static_cast<std::uint32_t>(b)).state_hash();
+    for (int i = 0; i < 8; ++i) {
+      h ^= (v & 0xffu);
+      h *= 1099511628211ull;
+      v >>= 8;
+    }
+  }
+  return h;
+}
+
+}  // namespace bisturi::runtime

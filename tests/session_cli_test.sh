@@ -1,0 +1,68 @@
+#!/bin/sh
+# The headset session from the command line (issue 10), as CTest runs it:
+#   session_cli_test.sh BISTURI WORKDIR run|replay|corrupt|scene-error
+set -u
+bisturi="$1"
+work="$2"
+mode="$3"
+fail() { echo "FAIL: $*"; exit 1; }
+mkdir -p "$work"
+case "$mode" in
+  run)
+    # One second of the default scene: frames, report.json with every timing and count, plots.
+    rm -rf "$work/run"
+    "$bisturi" run --duration 1 --eye-width 256 --eye-height 256 --no-openxr \
+      --out "$work/run" --record "$work/run.btrace" > "$work/run.txt" 2>&1 ||
+      { cat "$work/run.txt"; fail "bisturi run exited with $?"; }
+    for f in report.json haptic_period.png step_time.png frame_time.png motion_to_photon.png \
+             force.png frames/frames.csv; do
+      [ -s "$work/run/$f" ] || fail "missing $f"
+    done
+    ls "$work/run/frames/"*.png > /dev/null 2>&1 || fail "no PNG frames"
+    for key in haptic_period_ms haptic_period_error_ms step_ms frame_ms motion_to_photon_ms \
+               action_to_response_ms '"p50"' '"p95"' '"p99"' '"max"' overruns missed_deadlines \
+               clamped_forces dropped_frames '"events"' final_state_hash render_fps; do
+      grep -q "$key" "$work/run/report.json" || fail "report.json has no $key"
+    done
+    grep -q '"kind": "contact"' "$work/run/report.json" || fail "no contact event in one second"
+    echo "run: ok"
+    ;;
+  replay)
+    [ -s "$work/run.btrace" ] || "$0" "$bisturi" "$work" run > /dev/null || fail "no recording"
+    out=$("$bisturi" replay "$work/run.btrace" --json) || { echo "$out"; fail "replay exited $?"; }
+    echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "replay did not pass"; }
+    echo "$out" | grep -q '"force_mismatches": 0' || fail "forces differ"
+    echo "replay: ok"
+    ;;
+  corrupt)
+    [ -s "$work/run.btrace" ] || "$0" "$bisturi" "$work" run > /dev/null || fail "no recording"
+    cp "$work/run.btrace" "$work/bad.btrace"
+    size=$(wc -c < "$work/bad.btrace")
+    # Flip bytes in the middle of the file (inside a chunk): its checksum no longer matches.
+    printf 'XXXXXXXX' | dd of="$work/bad.btrace" bs=1 seek=$((size / 2)) conv=notrunc 2> /dev/null
+    "$bisturi" replay "$work/bad.btrace" > "$work/bad.txt" 2>&1
+    status=$?
+    cat "$work/bad.txt"
+    [ "$status" -eq 2 ] || fail "exit status $status, expected 2"
+    grep -q "does NOT match" "$work/bad.txt" || fail "no mismatch reported"
+    grep -q "chunk" "$work/bad.txt" || fail "the bad chunk is not named"
+    echo "corrupt: ok"
+    ;;
+  scene-error)
+    cat > "$work/bad_scene.toml" << 'TOML'
+name = "broken"
+
+[rates]
+haptic_hz = 1000.0
+display_hz = "fast"
+TOML
+    "$bisturi" run "$work/bad_scene.toml" --duration 1 > "$work/scene.txt" 2>&1
+    status=$?
+    cat "$work/scene.txt"
+    [ "$status" -ne 0 ] || fail "a broken scene ran"
+    grep -q "bad_scene.toml: line 5: key 'rates.display_hz'" "$work/scene.txt" ||
+      fail "the error does not name file, line and key"
+    echo "scene-error: ok"
+    ;;
+  *) fail "unknown mode $mode" ;;
+esac

@@ -1,0 +1,279 @@
+#include "run_command.h"
+
+#include <CLI/CLI.hpp>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <iostream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "bisturi/devices/trace/trace_format.h"
+#include "bisturi/runtime/session/plots.h"
+#include "bisturi/runtime/session/scene_description.h"
+#include "bisturi/runtime/session/session.h"
+#include "bisturi/runtime/session/session_replay.h"
+#include "progress_line.h"
+
+namespace bisturi::cli {
+
+namespace {
+
+nlohmann::json summary_json(const runtime::TimingRecorder& r) {
+  const runtime::TimingSummary s = r.summary();
+  return {{"unit", r.unit()}, {"count", s.count}, {"mean", s.mean}, {"p50", s.p50},
+          {"p95", s.p95},     {"p99", s.p99},     {"max", s.max},   {"min", s.min}};
+}
+
+std::string hex(std::uint64_t v) {
+  std::ostringstream s;
+  s << "0x" << std::hex << std::setw(16) << std::setfill('0') << v;
+  return s.str();
+}
+
+}  // namespace
+
+void add_run_command(CLI::App& app, RunOptions& options, int (*&run)(const RunOptions&)) {
+  CLI::App* cmd = app.add_subcommand(
+      "run",
+      "run a headset session (the default scene without SCENE): haptics at the scene's rate, "
+      "stereo frames at the headset's, written with report.json and plots into --out");
+  cmd->add_option("SCENE", options.scene, "scene file (TOML, see config/default.toml)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--duration", options.duration_s, "seconds (default: the scene's duration_s)")
+      ->check(CLI::Range(0.05, 3600.0));
+  cmd->add_option("--record", options.record, "record the session's device trace into TRACE");
+  cmd->add_option("--out", options.out, "folder for frames, report.json and plots")
+      ->capture_default_str();
+  cmd->add_option("--eye-width", options.eye_width, "pixels per eye, across (default: the scene's)")
+      ->check(CLI::Range(16u, 8192u));
+  cmd->add_option("--eye-height", options.eye_height, "pixels per eye, down (default: the scene's)")
+      ->check(CLI::Range(16u, 8192u));
+  cmd->add_option("--image-every", options.image_every,
+                  "write every n-th frame as PNG (frames.csv lists every frame)")
+      ->capture_default_str()
+      ->check(CLI::Range(1u, 100000u));
+  cmd->add_flag("--no-openxr", options.no_openxr, "do not try an OpenXR headset");
+  cmd->add_flag("--cpu", options.cpu, "render on a CPU Vulkan device (lavapipe) even with a GPU");
+  cmd->add_flag("--print-default-scene", options.print_default_scene,
+                "print the embedded default scene (TOML) and exit");
+  cmd->add_flag("--json", options.json, "write the report as one JSON object on stdout");
+  cmd->callback([&run] { run = run_run; });
+}
+
+void add_replay_command(CLI::App& app, ReplayOptions& options, int (*&run)(const ReplayOptions&)) {
+  CLI::App* cmd = app.add_subcommand(
+      "replay",
+      "rerun a session recorded with `bisturi run --record` in virtual time and check that the "
+      "forces sent and the final state match the recording (exit status 2 when not)");
+  cmd->add_option("TRACE", options.trace, "trace file (.btrace)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_flag("--json", options.json, "write the result as one JSON object on stdout");
+  cmd->callback([&run] { run = run_replay; });
+}
+
+int run_run(const RunOptions& options) {
+  if (options.print_default_scene) {
+    std::cout << runtime::default_scene_toml();
+    return 0;
+  }
+  const runtime::SceneDescription scene =
+      options.scene.empty() ? runtime::default_scene() : runtime::read_scene_file(options.scene);
+  const std::filesystem::path out(options.out);
+  std::filesystem::create_directories(out);
+
+  runtime::SessionOptions so;
+  so.duration_s = options.duration_s;
+  so.frames_dir = out / "frames";
+  so.image_every = options.image_every;
+  so.record = options.record;
+  so.eye_width = options.eye_width;
+  so.eye_height = options.eye_height;
+  so.openxr = !options.no_openxr;
+  if (options.cpu) so.render_device = render::DevicePreference::Cpu;
+  ProgressLine line;
+  so.progress = [&line](const runtime::SessionProgress& p) {
+    if (p.stage != "run") {
+      line.show(p.stage == "build" ? "building the scene" : p.stage, 0, 1);
+      return;
+    }
+    char text[160];
+    std::snprintf(text, sizeof text,
+                  "session %.1f/%.1f s  haptic %llu ticks  %llu frames  %llu overruns  %zu events  "
+                  "force %.2f N",
+                  p.elapsed_s, p.duration_s, static_cast<unsigned long long>(p.ticks),
+                  static_cast<unsigned long long>(p.frames),
+                  static_cast<unsigned long long>(p.overruns), p.events, p.force_N);
+    line.show(text, static_cast<std::size_t>(p.elapsed_s * 1000.0),
+              static_cast<std::size_t>(p.duration_s * 1000.0));
+  };
+  runtime::SessionReport r = runtime::run_session(scene, so);
+  line.clear();
+
+  // Plots.
+  const auto hist = [&](const char* file, const char* title, const runtime::TimingRecorder& t) {
+    if (t.samples().empty()) return;
+    runtime::write_histogram_png(out / file, title, t.unit(), t.samples());
+  };
+  hist("haptic_period.png", "Haptic period", r.haptic_period_ms);
+  hist("step_time.png", "Simulation step (instruments + soft tissue)", r.step_ms);
+  hist("frame_time.png", "Frame time", r.frame_ms);
+  hist("motion_to_photon.png", "Motion-to-photon latency", r.motion_to_photon_ms);
+  if (!r.force.empty()) {
+    std::vector<double> t, proxy, command, output;
+    for (const runtime::ForceSample& f : r.force) {
+      t.push_back(f.t_s);
+      proxy.push_back(f.proxy_N);
+      command.push_back(f.command_N);
+      output.push_back(f.output_N);
+    }
+    const std::vector<runtime::Series> series = {
+        {"proxy force on the tip", proxy, 0.1, 0.3, 0.8},
+        {"thumb actuator command", command, 0.85, 0.45, 0.1},
+        {"thumb actuator after the force guard", output, 0.1, 0.6, 0.2}};
+    runtime::write_series_png(out / "force.png", "Force over time", "time (s)", "force (N)", t,
+                              series, r.max_force_N);
+  }
+
+  nlohmann::json events = nlohmann::json::array();
+  for (const runtime::EventReport& e : r.events)
+    events.push_back({{"kind", runtime::to_string(e.event.kind)},
+                      {"time_s", e.time_s},
+                      {"tick", e.event.tick},
+                      {"body", e.event.body},
+                      {"detail", e.event.detail},
+                      {"response_ms", e.response_ms < 0 ? nlohmann::json(nullptr)
+                                                        : nlohmann::json(e.response_ms)}});
+  nlohmann::json solids = nlohmann::json::array();
+  for (const runtime::SolidReport& s : r.solids)
+    solids.push_back(
+        {{"name", s.name}, {"vertices", s.vertices}, {"faces", s.faces}, {"build_ms", s.build_ms}});
+  const double nominal_ms = 1000.0 / r.haptic_hz;
+  const nlohmann::json report = {
+      {"scene", r.scene},
+      {"duration_s", r.duration_s},
+      {"haptic_hz", r.haptic_hz},
+      {"display_hz", r.display_hz},
+      {"eye_width", r.eye_width},
+      {"eye_height", r.eye_height},
+      {"render_device", r.render_device},
+      {"render_device_is_cpu", r.render_device_is_cpu},
+      {"sink", r.sink},
+      {"sink_note", r.sink_note},
+      {"realtime_priority", r.realtime_priority},
+      {"tissue_step_in_haptic_thread", r.tissue_in_haptic_thread},
+      {"devices", r.devices},
+      {"solids", solids},
+      {"ticks", r.ticks},
+      {"frames", r.frames},
+      {"images", r.images},
+      {"render_fps", r.render_fps},
+      {"timings",
+       {{"haptic_period_ms", summary_json(r.haptic_period_ms)},
+        {"haptic_period_error_ms", summary_json(r.haptic_period_error_ms)},
+        {"haptic_tick_ms", summary_json(r.tick_ms)},
+        {"step_ms", summary_json(r.step_ms)},
+        {"frame_ms", summary_json(r.frame_ms)},
+        {"render_ms", summary_json(r.render_ms)},
+        {"motion_to_photon_ms", summary_json(r.motion_to_photon_ms)},
+        {"action_to_response_ms", summary_json(r.action_to_response_ms)}}},
+      {"haptic_nominal_period_ms", nominal_ms},
+      {"counts",
+       {{"overruns", r.overruns},
+        {"missed_deadlines", r.missed_deadlines},
+        {"skipped_ticks", r.skipped_ticks},
+        {"clamped_forces", r.clamped_forces},
+        {"rate_limited_forces", r.rate_limited_forces},
+        {"guard_latches", r.guard_latches},
+        {"dropped_frames", r.dropped_frames},
+        {"malformed_reports", r.malformed_reports},
+        {"divergence_events", r.divergence_events},
+        {"events", r.events.size()}}},
+      {"events", events},
+      {"final_state_hash", hex(r.final_state_hash)},
+      {"trace", r.trace.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.trace.string())},
+      {"out", out.string()}};
+  std::ofstream(out / "report.json") << report.dump(2) << "\n";
+
+  if (options.json) {
+    std::cout << report.dump(2) << "\n";
+  } else {
+    const auto p = r.haptic_period_error_ms.summary();
+    const auto mtp = r.motion_to_photon_ms.summary();
+    const auto atr = r.action_to_response_ms.summary();
+    std::cout << "session '" << r.scene << "': " << r.duration_s << " s, " << r.ticks
+              << " haptic ticks, " << r.frames << " frames (" << r.render_fps << " frames/s, 2 x "
+              << r.eye_width << " x " << r.eye_height << " on " << r.render_device << ")\n"
+              << "  haptic period error p99 " << p.p99 << " ms, max " << p.max << " ms; "
+              << r.missed_deadlines << " missed deadlines, " << r.overruns << " overruns; step p99 "
+              << r.step_ms.summary().p99 << " ms\n"
+              << "  motion-to-photon p50 " << mtp.p50 << " ms, p99 " << mtp.p99
+              << " ms; action-to-response p50 " << atr.p50 << " ms, max " << atr.max << " ms ("
+              << atr.count << " events)\n"
+              << "  " << r.clamped_forces << " clamped forces, " << r.dropped_frames
+              << " dropped frames; sink " << r.sink
+              << (r.sink_note.empty() ? "" : " (" + r.sink_note + ")") << "\n"
+              << "  report, plots and frames in " << out.string() << "\n";
+  }
+  return 0;
+}
+
+int run_replay(const ReplayOptions& options) {
+  runtime::SessionReplayResult r;
+  std::string error;
+  try {
+    r = runtime::replay_session(options.trace);
+  } catch (const devices::TraceError& e) {
+    error = e.what();
+  }
+  nlohmann::json mismatch = nullptr;
+  if (r.first_mismatch)
+    mismatch = {{"tick", r.first_mismatch->tick},
+                {"time_ns", r.first_mismatch->time_ns},
+                {"expected_N", r.first_mismatch->expected_N},
+                {"actual_N", r.first_mismatch->actual_N}};
+  std::string trace_error = !error.empty()          ? error
+                            : r.trace_error         ? std::string(r.trace_error->what())
+                            : r.devices.trace_error ? std::string(r.devices.trace_error->what())
+                                                    : std::string();
+  const bool passed = error.empty() && r.passed();
+  const nlohmann::json j = {
+      {"trace", options.trace},
+      {"scene", r.scene},
+      {"ticks", r.ticks},
+      {"force_commands", r.force_commands},
+      {"force_mismatches", r.force_mismatches},
+      {"first_force_mismatch", mismatch},
+      {"state_hash", hex(r.state_hash)},
+      {"expected_state_hash", r.expected_state_hash ? nlohmann::json(hex(*r.expected_state_hash))
+                                                    : nlohmann::json(nullptr)},
+      {"device_output_mismatches", r.devices.mismatches},
+      {"trace_error", trace_error.empty() ? nlohmann::json(nullptr) : nlohmann::json(trace_error)},
+      {"seconds", r.seconds},
+      {"passed", passed}};
+  if (options.json) {
+    std::cout << j.dump(2) << "\n";
+  } else if (passed) {
+    std::cout << options.trace << ": replay matches: " << r.force_commands
+              << " force commands and the final state " << hex(r.state_hash) << " (" << r.ticks
+              << " ticks, " << r.seconds << " s)\n";
+  } else {
+    std::cout << options.trace << ": replay does NOT match\n";
+    if (!trace_error.empty()) std::cout << "  " << trace_error << "\n";
+    if (r.force_mismatches > 0)
+      std::cout << "  " << r.force_mismatches << " force commands differ, the first at tick "
+                << r.first_mismatch->tick << "\n";
+    if (!r.expected_state_hash)
+      std::cout << "  the trace holds no final state (the session did not end)\n";
+    else if (*r.expected_state_hash != r.state_hash)
+      std::cout << "  final state " << hex(r.state_hash) << ", recorded "
+                << hex(*r.expected_state_hash) << "\n";
+    if (r.devices.mismatches > 0)
+      std::cout << "  " << r.devices.mismatches << " device output reports differ\n";
+  }
+  return passed ? 0 : 2;
+}
+
+}  // namespace bisturi::cli

@@ -1,0 +1,43 @@
+#pragma once
+// `bisturi run [SCENE] [--duration S] [--record TRACE] [--out DIR] [--eye-width W --eye-height H]
+// [--json]`: runs a headset session (the default scene without SCENE) and writes its frames, a
+// report (report.json) and plots (timing histograms, force over time) into DIR.
+// `bisturi replay TRACE [--json]`: reruns a recorded session in virtual time and checks that the
+// forces and the final state match the recording (exit status 2 when they do not).
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace CLI {
+class App;
+}
+
+namespace bisturi::cli {
+
+struct RunOptions {
+  std::string scene;
+  std::optional<double> duration_s;
+  std::string record;
+  std::string out = "session";
+  std::optional<std::uint32_t> eye_width;
+  std::optional<std::uint32_t> eye_height;
+  std::uint32_t image_every = 10;
+  bool no_openxr = false;
+  bool cpu = false;
+  bool print_default_scene = false;
+  bool json = false;
+};
+
+struct ReplayOptions {
+  std::string trace;
+  bool json = false;
+};
+
+void add_run_command(CLI::App& app, RunOptions& options, int (*&run)(const RunOptions&));
+void add_replay_command(CLI::App& app, ReplayOptions& options, int (*&run)(const ReplayOptions&));
+
+int run_run(const RunOptions& options);
+int run_replay(const ReplayOptions& options);
+
+}  // namespace bisturi::cli
