@@ -12,11 +12,13 @@
 // tissue is pushed out of its plane, where the exact Hessian has no transverse stiffness at rest
 // and the linearised step overshoots. The same bound is used for the damping (c I per spring).
 // With both, the matrix is a constant weighted graph Laplacian (the same for x, y and z): it is
-// stored once per topology as a compressed row list of neighbours and applied by gathering.
-// Penalty contacts (SoftBody::add_contact) add their k n n^T blocks to it. a is the
-// mass-proportional drag. The volume term is explicit. Anchored and kinematic vertices are
-// constraints of the solve. Every loop runs in a fixed order on one thread: the same inputs give
-// bit-identical states.
+// stored once per topology (and set of free vertices) as compressed rows of neighbours grouped
+// by stiffness class and applied by gathering. Penalty contacts (SoftBody::add_contact) add
+// their k n n^T blocks to it. a is the mass-proportional drag. The volume term is explicit.
+// Anchored, kinematic and massless vertices are constraints: the solve runs over the free
+// vertices only, in a compact numbering with four lanes (x, y, z, pad) per vertex. Every loop
+// runs in a fixed order on one thread (reductions keep one partial sum per lane, combined in a
+// fixed order): the same inputs give bit-identical states.
 //
 // The guard: after a step, a state with a non-finite value, a vertex faster than max_speed, or
 // an energy rise larger than the work of the external forces plus a tolerance is a divergence.
@@ -73,33 +75,49 @@ class ImplicitIntegrator {
                  std::uint32_t body_index = 0, std::uint64_t step = 0);
 
  private:
-  /// The springs of one body generation as arrays, and the matrix's neighbour rows.
+  /// The springs of one body generation as arrays, and the matrix's neighbour rows restricted to
+  /// the free vertices (neither anchored, kinematic nor massless): the solve runs over those only,
+  /// in a compact numbering. The compact part is rebuilt when the set of free vertices changes.
   struct Structure {
     std::uint64_t generation = 0;
     std::vector<std::uint32_t> a, b;  ///< spring ends
     std::vector<double> rest, k;
-    std::vector<std::uint32_t> row;  ///< n + 1 offsets into col
-    std::vector<std::uint32_t> col;  ///< neighbour | stiffness class << 30
-    std::vector<double> k_sum;       ///< per vertex: sum of its springs' k
-    std::vector<double> degree;      ///< per vertex: number of springs
+    std::vector<std::uint8_t> spring_class;  ///< index into k_class
+    std::vector<double> k_sum;               ///< per vertex: sum of its springs' k
+    std::vector<double> degree;              ///< per vertex: number of springs
     double k_class[4] = {0.0, 0.0, 0.0, 0.0};
+    // The free vertices: mask per vertex (1 = free), compact -> vertex, vertex -> compact.
+    std::vector<std::uint8_t> free_mask;
+    std::vector<std::uint32_t> vertex, compact;
+    /// 4 (free count) + 1 offsets into col: row r's neighbours of stiffness class k are
+    /// col[row[4 r + k] .. row[4 r + k + 1]).
+    std::vector<std::uint32_t> row;
+    std::vector<std::uint32_t> col;  ///< free neighbours' compact indices
   };
-  const Structure& structure(const SoftBody& body);
+  Structure& structure(const SoftBody& body);
+  /// Rebuilds st's compact rows when free_ differs from the mask they were built for.
+  static void update_free_rows(Structure& st, const std::vector<std::uint8_t>& free_mask);
   /// One backward Euler substep of length h; kinematic targets are interpolated by fraction.
   /// When energy_out is given, it receives the total energy of the state the substep starts from.
-  void substep(SoftBody& body, const Structure& st, const IntegratorOptions& options, double h,
+  void substep(SoftBody& body, Structure& st, const IntegratorOptions& options, double h,
                double fraction, StepStats& stats, double* energy_out);
-  /// Kinetic + springs + volume + gravity (the same sum as SoftBody::total_energy).
-  double energy(const SoftBody& body, const Structure& st, const glm::dvec3& gravity) const;
+  /// Springs + volume term at the current positions.
+  static double elastic(const SoftBody& body, const Structure& st);
   /// Empty when the state is fine, else the reason.
   std::string check(const SoftBody& body, const Structure& st, const IntegratorOptions& options,
-                    double energy_before, double external_work, bool energy_check) const;
+                    double energy_before, bool energy_check) const;
 
   std::vector<Structure> structures_;
   std::vector<glm::dvec3> saved_x_, saved_v_;
-  std::vector<glm::dvec3> f_, rhs_, dv_, r_, p_, ap_, inv_diag_;
-  std::vector<double> diag_;
+  std::vector<glm::dvec3> f_, grad_;  ///< per vertex: spring forces, volume gradient (x 6)
   std::vector<std::uint8_t> free_;
+  // Solver vectors over the free vertices: x, y, z and a zero pad per free vertex.
+  std::vector<double> rhs_, dv_, r_, p_, ap_, diag_, inv_diag_;
+  struct Contact {
+    std::uint32_t c;  ///< compact index
+    double nx, ny, nz, k;
+  };
+  std::vector<Contact> contacts_;
 };
 
 }  // namespace bisturi::sim
