@@ -16,6 +16,7 @@
 
 #include "bisturi/runtime/render/errors.h"
 #include "bisturi/runtime/render/stereo_renderer.h"
+#include "bisturi/runtime/session/timing.h"
 #include "bisturi/scene/oriented_builder.h"
 #include "bisturi/scene/shapes.h"
 
@@ -51,12 +52,6 @@ std::vector<Dlfl> make_scene(std::size_t triangles) {
 struct Result {
   double fps = 0, p50 = 0, p99 = 0, draw_calls = 0, triangles = 0, culled_chunks = 0;
 };
-
-double percentile(std::vector<double> v, double p) {
-  std::sort(v.begin(), v.end());
-  const auto i = static_cast<std::size_t>(std::ceil(p * static_cast<double>(v.size()))) - 1;
-  return v[std::min(i, v.size() - 1)];
-}
 
 Result run(const std::vector<Dlfl>& scene, std::uint32_t w, std::uint32_t h, bool optimised,
            int frames) {
@@ -96,8 +91,8 @@ Result run(const std::vector<Dlfl>& scene, std::uint32_t w, std::uint32_t h, boo
   renderer.flush();
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   r.fps = frames / seconds;
-  r.p50 = percentile(ms, 0.5);
-  r.p99 = percentile(ms, 0.99);
+  r.p50 = runtime::percentile(ms, 50.0);
+  r.p99 = runtime::percentile(ms, 99.0);
   r.draw_calls /= frames;
   r.triangles /= frames;
   r.culled_chunks /= frames;

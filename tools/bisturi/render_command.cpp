@@ -11,6 +11,7 @@
 
 #include "bisturi/runtime/render/png_sink.h"
 #include "bisturi/runtime/render/stereo_renderer.h"
+#include "bisturi/runtime/session/timing.h"
 #include "bisturi/scene/errors.h"
 #include "bisturi/scene/io/mesh_file.h"
 #include "bisturi/scene/polygon_import.h"
@@ -23,13 +24,6 @@ namespace bisturi::cli {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double percentile(std::vector<double> values, double p) {
-  if (values.empty()) return 0.0;
-  std::sort(values.begin(), values.end());
-  const auto i = static_cast<std::size_t>(std::ceil(p * static_cast<double>(values.size()))) - 1;
-  return values[std::min(i, values.size() - 1)];
-}
 
 Dlfl load_solid(const RenderOptions& options, ProgressLine& line) {
   if (!options.phantom.empty()) {
@@ -155,10 +149,10 @@ int run_render(const RenderOptions& options) {
       {"frames", options.frames},
       {"images", sink.images_written()},
       {"fps", n / total_s},
-      {"frame_ms_p50", percentile(frame_ms, 0.5)},
-      {"frame_ms_p99", percentile(frame_ms, 0.99)},
-      {"motion_to_photon_ms_p50", percentile(sink.latencies_ms(), 0.5)},
-      {"motion_to_photon_ms_p99", percentile(sink.latencies_ms(), 0.99)},
+      {"frame_ms_p50", runtime::percentile(frame_ms, 50.0)},
+      {"frame_ms_p99", runtime::percentile(frame_ms, 99.0)},
+      {"motion_to_photon_ms_p50", runtime::percentile(sink.latencies_ms(), 50.0)},
+      {"motion_to_photon_ms_p99", runtime::percentile(sink.latencies_ms(), 99.0)},
       {"draw_calls_per_frame", static_cast<double>(draw_calls) / n},
       {"chunks_drawn_per_frame", static_cast<double>(chunks_drawn) / n},
       {"chunks_culled_per_frame", static_cast<double>(chunks_culled) / n},
