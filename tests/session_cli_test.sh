@@ -1,6 +1,6 @@
 #!/bin/sh
 # The headset session from the command line (issue 10), as CTest runs it:
-#   session_cli_test.sh BISTURI WORKDIR run|replay|corrupt|scene-error
+#   session_cli_test.sh BISTURI WORKDIR run|replay|corrupt|scene-error|real-missing|stored TRACE
 set -u
 bisturi="$1"
 work="$2"
@@ -63,6 +63,28 @@ TOML
     grep -q "bad_scene.toml: line 5: key 'rates.display_hz'" "$work/scene.txt" ||
       fail "the error does not name file, line and key"
     echo "scene-error: ok"
+    ;;
+  real-missing)
+    # The default scene with real hardware asked for: nothing is plugged in here, so the session
+    # refuses to start and names the device it looked for.
+    sed 's/simulated = true/simulated = false/' "$(dirname "$0")/../config/default.toml" \
+      > "$work/real.toml"
+    "$bisturi" run "$work/real.toml" --duration 1 --no-openxr --out "$work/real" \
+      > "$work/real.txt" 2>&1
+    status=$?
+    cat "$work/real.txt"
+    [ "$status" -ne 0 ] || fail "a session without its hardware ran"
+    grep -q "real.toml: device 'glove' (driver hid-glove): not connected" "$work/real.txt" ||
+      fail "the missing device is not named"
+    echo "real-missing: ok"
+    ;;
+  stored)
+    # A session recorded earlier and kept in the repository (tests/data/traces): replaying it
+    # with this build must give the same forces, tick for tick, and the same final state.
+    out=$("$bisturi" replay "$4" --json) || { echo "$out"; fail "replay of $4 exited $?"; }
+    echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "replay did not pass"; }
+    echo "$out" | grep -q '"force_mismatches": 0' || { echo "$out"; fail "forces differ"; }
+    echo "stored: ok"
     ;;
   *) fail "unknown mode $mode" ;;
 esac

@@ -32,6 +32,7 @@
 #include "bisturi/runtime/render/png_sink.h"
 #include "bisturi/runtime/session/procedure.h"
 #include "bisturi/runtime/session/scene_builder.h"
+#include "bisturi/runtime/session/session_devices.h"
 #include "bisturi/runtime/session/triple_buffer.h"
 #include "bisturi/runtime/version.h"
 #include "bisturi/scene/polygon_export.h"
@@ -214,18 +215,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   };
 
   // ---- The scene's solids and devices ----
-  const DeviceDescription* glove_desc = nullptr;
-  const DeviceDescription* head_desc = nullptr;
-  for (const DeviceDescription& d : scene.devices) {
-    if (d.role == DeviceDescription::Role::Haptic && glove_desc == nullptr) glove_desc = &d;
-    if (d.role == DeviceDescription::Role::HeadTracker && head_desc == nullptr) head_desc = &d;
-  }
-  if (glove_desc == nullptr || !glove_desc->simulated || glove_desc->driver != "hid-glove")
-    throw SceneFileError(scene.name +
-                         ": the session needs a simulated haptic device with driver \"hid-glove\"");
-  if (head_desc == nullptr || !head_desc->simulated || head_desc->driver != "hid-tracker")
-    throw SceneFileError(
-        scene.name + ": the session needs a simulated head tracker with driver \"hid-tracker\"");
+  const DeviceChoice choice = choose_session_devices(scene);
   stage("build");
   std::vector<BuiltSolid> solids = build_solids(scene);
   for (const BuiltSolid& s : solids)
@@ -234,19 +224,11 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   const auto duration =
       Nanoseconds{static_cast<std::int64_t>(std::llround(report.duration_s * 1e9))};
   const Procedure procedure =
-      make_procedure(glove_desc->script, solids, duration, devices::SimulatedGlove::kJoints);
-
-  devices::SimulatedGlove glove_twin(procedure.glove, "GLOVE-0001", scene.rates.haptic_hz);
-  devices::SimulatedHeadTracker head_twin(procedure.head);
-  devices::VirtualPair glove_link = devices::make_virtual_pair(glove_twin.descriptor());
-  devices::VirtualPair head_link = devices::make_virtual_pair(head_twin.descriptor());
-  glove_twin.attach(std::move(glove_link.device));
-  head_twin.attach(std::move(head_link.device));
+      make_procedure(choice.haptic->simulated ? choice.haptic->script : std::string("default"),
+                     solids, duration, devices::SimulatedGlove::kJoints);
   const devices::Registry registry = devices::builtin_registry();
 
   std::unique_ptr<devices::TraceWriter> writer;
-  std::unique_ptr<devices::Device> glove_device, head_device;
-  std::uint16_t glove_index = 0;
   if (!options.record.empty()) {
     const std::string toml =
         scene.file.empty() ? std::string(default_scene_toml()) : read_text(scene.file);
@@ -256,32 +238,23 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
         std::chrono::duration_cast<Nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
             .count();
     header.producer = std::string("bisturi ") + kVersion;
+    // The haptic device is opened first, so it is device 0 of the trace.
     header.config = session_trace_config(
         toml, scene.file.empty() ? std::filesystem::path() : scene.file.parent_path(),
         scene.rates.haptic_hz, 0);
     writer = std::make_unique<devices::TraceWriter>(options.record, header);
-    devices::RecordedDevice g =
-        devices::open_recorded(registry, std::move(glove_link.host), *writer, clock);
-    glove_index = g.index;
-    glove_device = std::move(g.device);
-    head_device =
-        devices::open_recorded(registry, std::move(head_link.host), *writer, clock).device;
     report.trace = options.record;
-  } else {
-    glove_device = registry.open(std::move(glove_link.host), clock);
-    head_device = registry.open(std::move(head_link.host), clock);
   }
-  devices::HapticDevice* glove = devices::as_haptic(glove_device.get());
-  devices::Tracker* head = devices::as_tracker(head_device.get());
-  if (glove == nullptr || head == nullptr)
-    throw SceneFileError(scene.name + ": the drivers opened are not a glove and a tracker");
-  report.devices = {glove_desc->name + ": " + glove->driver_name() + " (simulated)",
-                    head_desc->name + ": " + head->driver_name() + " (simulated)"};
+  SessionDevices session_devices(scene, procedure, registry, clock, writer.get());
+  devices::HapticDevice* glove = &session_devices.haptic();
+  devices::Tracker* head = &session_devices.head();
+  const std::uint16_t glove_index = session_devices.haptic_trace_index();
+  report.devices = session_devices.summary();
   devices::ForceGuardConfig guard_config =
       devices::force_guard_config_from_json(session_trace_config("", {}, scene.rates.haptic_hz, 0));
   devices::ForceGuard guard(glove->capabilities().force_channels, guard_config);
   devices::GuardedHaptic guarded(*glove, guard, clock, writer.get(), glove_index);
-  report.max_force_N = glove_desc->max_force_N;
+  report.max_force_N = choice.haptic->max_force_N;
 
   SessionSim sim(scene, std::move(solids), glove->capabilities().force_channels);
 
@@ -490,8 +463,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
         previous_start = start;
 
         // Device input: the twins send (as hardware would), the drivers read.
-        glove_twin.step(t);
-        head_twin.step(t);
+        session_devices.step_twins(t);
         try {
           if (!lost) guarded.poll(std::chrono::microseconds(0));
         } catch (const devices::DeviceDisconnected&) {
@@ -626,8 +598,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                                   {"events", report.events.size()}}}};
     writer->note(clock.now().count(), end.dump());
   }
-  glove_device->close();
-  head_device->close();
+  session_devices.close();
   if (writer) writer->close();
   if (render_error) std::rethrow_exception(render_error);
   if (haptic_error) std::rethrow_exception(haptic_error);

@@ -1,8 +1,8 @@
 #pragma once
 // The headset session (the seed's figure 33 as threads):
-//  - haptic thread, at the scene's haptic rate: the simulated devices send their reports (they
-//    stand in for hardware that sends on its own), the glove's and tracker's real drivers read
-//    them over the virtual transport -> SessionSim::tick (instruments, collision, proxy force and
+//  - haptic thread, at the scene's haptic rate: simulated twins send their reports (they stand in
+//    for hardware that sends on its own), the drivers read them over the virtual transport, or
+//    over hidapi/libusb for real devices (SessionDevices) -> SessionSim::tick (instruments, collision, proxy force and
 //    the soft-tissue step) -> GuardedHaptic (force guard) -> the glove's driver -> the trace;
 //    then it publishes a snapshot (positions per solid, topology, head pose with its sample time,
 //    instrument poses, events) into a TripleBuffer;

@@ -1,0 +1,194 @@
+// The session's devices, simulated or real (see session_devices.h).
+
+#include "bisturi/runtime/session/session_devices.h"
+
+#include <cstdio>
+#include <utility>
+
+#include "bisturi/devices/host_transports.h"
+#include "bisturi/devices/trace/guarded_haptic.h"
+#include "bisturi/devices/virtual_transport.h"
+
+namespace bisturi::runtime {
+
+namespace {
+
+std::string hex4(std::uint16_t v) {
+  char text[8];
+  std::snprintf(text, sizeof text, "%04x", v);
+  return text;
+}
+
+/// "device 'glove' (driver hid-glove, 1234:5678, serial S)": how errors name a scene device.
+std::string describe(const DeviceDescription& d) {
+  std::string s = "device '" + d.name + "' (";
+  s += d.driver.empty() ? std::string("any driver") : "driver " + d.driver;
+  if (d.vendor_id != 0 || d.product_id != 0)
+    s += ", " + hex4(d.vendor_id) + ":" + hex4(d.product_id);
+  if (!d.serial.empty()) s += ", serial " + d.serial;
+  return s + ")";
+}
+
+const devices::DriverInfo* driver_for(const DeviceDescription& d,
+                                      const devices::Registry& registry) {
+  const devices::DriverInfo* driver = d.driver.empty()
+                                          ? registry.find_by_usb_id({d.vendor_id, d.product_id})
+                                          : registry.find_by_name(d.driver);
+  if (driver == nullptr) {
+    std::string known;
+    for (const devices::DriverInfo& i : registry.drivers())
+      known += (known.empty() ? "" : ", ") + i.name;
+    throw SceneFileError(
+        describe(d) + ": no registered driver " +
+        (d.driver.empty() ? "claims that vendor/product id" : "is named '" + d.driver + "'") +
+        " (drivers: " + known + ")");
+  }
+  return driver;
+}
+
+}  // namespace
+
+DeviceChoice choose_session_devices(const SceneDescription& scene) {
+  DeviceChoice c;
+  const auto by_name = [&](const std::string& name) -> const DeviceDescription* {
+    for (const DeviceDescription& d : scene.devices)
+      if (d.name == name) return &d;
+    return nullptr;
+  };
+  for (const InstrumentDescription& in : scene.instruments) {
+    if (in.device.empty()) continue;
+    const DeviceDescription* d = by_name(in.device);
+    if (d == nullptr || d->role != DeviceDescription::Role::Haptic)
+      throw SceneFileError(scene.name + ": instrument '" + in.name + "' names device '" +
+                           in.device + "', which is not a haptic device of the scene");
+    if (c.haptic != nullptr && c.haptic != d)
+      throw SceneFileError(scene.name + ": instrument '" + in.name + "' follows device '" +
+                           d->name + "' but another instrument follows '" + c.haptic->name +
+                           "'; the session drives every instrument from one haptic device");
+    c.haptic = d;
+  }
+  for (const DeviceDescription& d : scene.devices) {
+    if (d.role == DeviceDescription::Role::Haptic && c.haptic == nullptr) c.haptic = &d;
+    if (d.role == DeviceDescription::Role::HeadTracker && c.head == nullptr) c.head = &d;
+  }
+  if (c.haptic == nullptr)
+    throw SceneFileError(scene.name + ": the session needs a device with role = \"haptic\"");
+  if (c.head == nullptr)
+    throw SceneFileError(scene.name + ": the session needs a device with role = \"head-tracker\"");
+  return c;
+}
+
+devices::DeviceDescriptor find_real_device(const DeviceDescription& d,
+                                           const devices::Registry& registry,
+                                           const std::vector<devices::DeviceDescriptor>& listed) {
+  const devices::DriverInfo* driver = driver_for(d, registry);
+  for (const devices::DeviceDescriptor& candidate : listed) {
+    if (d.vendor_id != 0 && candidate.vendor_id != d.vendor_id) continue;
+    if (d.product_id != 0 && candidate.product_id != d.product_id) continue;
+    if (!d.serial.empty() && candidate.serial != d.serial) continue;
+    // The driver must recognise the device (its USB id, or its HID descriptor), unless the scene
+    // names the device by id too: then the named driver is used as asked.
+    const bool named_by_id = d.vendor_id != 0 && d.product_id != 0;
+    bool claimed = named_by_id;
+    for (const devices::UsbId& id : driver->usb_ids)
+      claimed = claimed || (id == devices::UsbId{candidate.vendor_id, candidate.product_id});
+    claimed = claimed || (driver->matches && driver->matches(candidate));
+    if (!claimed) continue;
+    devices::DeviceDescriptor chosen = candidate;
+    chosen.driver = driver->name;
+    return chosen;
+  }
+  std::string seen;
+  for (const devices::DeviceDescriptor& candidate : listed)
+    seen += (seen.empty() ? "" : "; ") + devices::describe(candidate);
+  throw devices::DeviceError(
+      describe(d) + ": not connected (" +
+      (listed.empty() ? std::string("no device of that kind is connected") : "connected: " + seen) +
+      "); set simulated = true to use its simulated twin");
+}
+
+SessionDevices::SessionDevices(const SceneDescription& scene, const Procedure& procedure,
+                               const devices::Registry& registry, devices::Clock& clock,
+                               devices::TraceWriter* writer)
+    : choice_(choose_session_devices(scene)), haptic_hz_(scene.rates.haptic_hz) {
+  const std::string where = scene.file.empty() ? scene.name + " scene" : scene.file.string();
+  try {
+    haptic_device_ =
+        open_one(*choice_.haptic, procedure.glove, registry, clock, writer, &haptic_index_);
+    head_device_ = open_one(*choice_.head, procedure.head, registry, clock, writer, nullptr);
+  } catch (const SceneFileError& e) {
+    throw SceneFileError(where + ": " + e.what());
+  } catch (const devices::DeviceError& e) {
+    throw devices::DeviceError(where + ": " + e.what());
+  }
+  haptic_ = devices::as_haptic(haptic_device_.get());
+  head_ = devices::as_tracker(head_device_.get());
+  if (haptic_ == nullptr)
+    throw SceneFileError(describe(*choice_.haptic) + ": its driver '" +
+                         haptic_device_->driver_name() + "' is not a haptic device");
+  if (head_ == nullptr)
+    throw SceneFileError(describe(*choice_.head) + ": its driver '" + head_device_->driver_name() +
+                         "' is not a head tracker");
+}
+
+SessionDevices::~SessionDevices() = default;
+
+std::unique_ptr<devices::Device> SessionDevices::open_one(const DeviceDescription& d,
+                                                          const devices::DeviceScript& script,
+                                                          const devices::Registry& registry,
+                                                          devices::Clock& clock,
+                                                          devices::TraceWriter* writer,
+                                                          std::uint16_t* trace_index) {
+  const devices::DriverInfo* driver = driver_for(d, registry);
+  std::unique_ptr<devices::Transport> transport;
+  if (d.simulated) {
+    // The twin speaks the real device's bytes; the driver on the host side cannot tell.
+    std::unique_ptr<devices::SimulatedDevice> twin;
+    if (driver->name == "hid-glove")
+      twin = std::make_unique<devices::SimulatedGlove>(script, "GLOVE-0001", haptic_hz_);
+    else if (driver->name == "vendor-arm")
+      twin = std::make_unique<devices::SimulatedArm>(script, "ARM-0001", haptic_hz_);
+    else if (driver->name == "hid-tracker")
+      twin = std::make_unique<devices::SimulatedHeadTracker>(script);
+    else
+      throw SceneFileError(describe(d) + ": no simulated twin for driver '" + driver->name +
+                           "' (twins: hid-glove, vendor-arm, hid-tracker)");
+    devices::VirtualPair pair = devices::make_virtual_pair(twin->descriptor());
+    twin->attach(std::move(pair.device));
+    transport = std::move(pair.host);
+    twins_.push_back(std::move(twin));
+    summary_.push_back(d.name + ": " + driver->name + " (simulated)");
+  } else {
+    std::unique_ptr<devices::DeviceSource> source;
+    if (driver->name == "vendor-arm")
+      source = std::make_unique<devices::UsbSource>(devices::usb_ids(registry));
+    else
+      source = std::make_unique<devices::HidSource>(d.vendor_id, d.product_id);
+    const devices::DeviceDescriptor found = find_real_device(d, registry, source->enumerate());
+    transport = source->open(found);
+    summary_.push_back(d.name + ": " + driver->name + " (" + devices::describe(found) + ")");
+  }
+  if (writer != nullptr) {
+    devices::RecordedDevice r =
+        devices::open_recorded(registry, std::move(transport), *writer, clock);
+    if (trace_index != nullptr) *trace_index = r.index;
+    return std::move(r.device);
+  }
+  return registry.open(std::move(transport), clock);
+}
+
+void SessionDevices::step_twins(devices::Nanoseconds t) {
+  for (const auto& twin : twins_)
+    twin->step(t);
+}
+
+std::vector<std::string> SessionDevices::summary() const {
+  return summary_;
+}
+
+void SessionDevices::close() {
+  if (haptic_device_) haptic_device_->close();
+  if (head_device_) head_device_->close();
+}
+
+}  // namespace bisturi::runtime

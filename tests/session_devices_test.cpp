@@ -1,0 +1,162 @@
+// The session's devices (issue 10): which scene device drives the instruments, how real hardware
+// is found among the devices a source lists (by driver, vendor/product id and serial), and that a
+// simulated haptic arm drives a session through the same registry as a glove.
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "bisturi/devices/registry.h"
+#include "bisturi/devices/simulated.h"
+#include "bisturi/devices/transport.h"
+#include "bisturi/runtime/session/session_devices.h"
+
+namespace bisturi::runtime {
+namespace {
+
+const char* kDevices = R"(
+[[devices]]
+name = "left"
+driver = "hid-glove"
+role = "haptic"
+
+[[devices]]
+name = "right"
+driver = "vendor-arm"
+role = "haptic"
+
+[[devices]]
+name = "head"
+driver = "hid-tracker"
+role = "head-tracker"
+)";
+
+std::string error_of(const std::string& toml) {
+  try {
+    (void)choose_session_devices(parse_scene(toml, "scene.toml"));
+  } catch (const SceneFileError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+TEST(SessionDevices, InstrumentsChooseTheHapticDevice) {
+  const SceneDescription scene = parse_scene(std::string(kDevices) + R"(
+[[instruments]]
+name = "probe"
+kind = "probe"
+device = "right"
+)",
+                                             "scene.toml");
+  const DeviceChoice c = choose_session_devices(scene);
+  ASSERT_NE(c.haptic, nullptr);
+  EXPECT_EQ(c.haptic->name, "right");
+  EXPECT_EQ(c.head->name, "head");
+  // Without a binding the first haptic device drives the instruments.
+  EXPECT_EQ(choose_session_devices(parse_scene(kDevices, "scene.toml")).haptic->name, "left");
+}
+
+TEST(SessionDevices, TwoHandsAndMissingRolesAreRefusedClearly) {
+  const std::string two_hands = error_of(std::string(kDevices) + R"(
+[[instruments]]
+name = "probe"
+kind = "probe"
+device = "left"
+
+[[instruments]]
+name = "scalpel"
+kind = "scalpel"
+device = "right"
+)");
+  EXPECT_NE(two_hands.find("instrument 'scalpel' follows device 'right'"), std::string::npos)
+      << two_hands;
+  EXPECT_NE(two_hands.find("one haptic device"), std::string::npos) << two_hands;
+  const std::string no_head = error_of(R"(
+[[devices]]
+name = "left"
+driver = "hid-glove"
+role = "haptic"
+)");
+  EXPECT_NE(no_head.find("head-tracker"), std::string::npos) << no_head;
+}
+
+/// What a HID source would list on a machine with a glove and a tracker plugged in: the twins'
+/// descriptors are byte for byte those of the hardware (report descriptors included).
+std::vector<devices::DeviceDescriptor> plugged_in() {
+  devices::SimulatedGlove glove(devices::DeviceScript{}, "GLOVE-7");
+  devices::SimulatedHeadTracker head(devices::DeviceScript{}, "HEAD-3");
+  std::vector<devices::DeviceDescriptor> listed{head.descriptor(), glove.descriptor()};
+  for (devices::DeviceDescriptor& d : listed)
+    d.kind = devices::TransportKind::Hid;
+  return listed;
+}
+
+TEST(SessionDevices, RealDevicesAreFoundByDriverIdAndSerial) {
+  const devices::Registry registry = devices::builtin_registry();
+  const std::vector<devices::DeviceDescriptor> listed = plugged_in();
+  DeviceDescription glove;
+  glove.name = "glove";
+  glove.driver = "hid-glove";
+  glove.simulated = false;
+  EXPECT_EQ(find_real_device(glove, registry, listed).serial, "GLOVE-7");
+  glove.serial = "GLOVE-7";
+  EXPECT_EQ(find_real_device(glove, registry, listed).driver, "hid-glove");
+  // The tracker is picked for the tracker's driver, not the glove listed after it.
+  DeviceDescription head = glove;
+  head.name = "head";
+  head.driver = "hid-tracker";
+  head.serial.clear();
+  EXPECT_EQ(find_real_device(head, registry, listed).serial, "HEAD-3");
+}
+
+TEST(SessionDevices, AMissingDeviceIsNamedWithWhatIsConnected) {
+  const devices::Registry registry = devices::builtin_registry();
+  DeviceDescription glove;
+  glove.name = "glove";
+  glove.driver = "hid-glove";
+  glove.serial = "GLOVE-9";
+  glove.simulated = false;
+  try {
+    (void)find_real_device(glove, registry, plugged_in());
+    FAIL() << "a glove with another serial was accepted";
+  } catch (const devices::DeviceError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("device 'glove' (driver hid-glove, serial GLOVE-9): not connected"),
+              std::string::npos)
+        << what;
+    EXPECT_NE(what.find("GLOVE-7"), std::string::npos) << what;  // what is there instead
+  }
+  glove.driver = "no-such-driver";
+  EXPECT_THROW((void)find_real_device(glove, registry, plugged_in()), SceneFileError);
+}
+
+TEST(SessionDevices, SimulatedArmAndTrackerOpenThroughTheRegistry) {
+  const SceneDescription scene = parse_scene(R"(
+[[devices]]
+name = "arm"
+driver = "vendor-arm"
+role = "haptic"
+
+[[devices]]
+name = "head"
+driver = "hid-tracker"
+role = "head-tracker"
+)",
+                                             "scene.toml");
+  Procedure procedure;
+  procedure.glove.motion.push_back({devices::Nanoseconds{0}, devices::Pose{}, {}});
+  procedure.head.motion.push_back({devices::Nanoseconds{0}, devices::Pose{}, {}});
+  devices::VirtualClock clock(devices::Nanoseconds{0});
+  const devices::Registry registry = devices::builtin_registry();
+  SessionDevices d(scene, procedure, registry, clock, nullptr);
+  EXPECT_EQ(d.haptic().driver_name(), "vendor-arm");
+  EXPECT_EQ(d.head().driver_name(), "hid-tracker");
+  EXPECT_EQ(d.summary().at(0), "arm: vendor-arm (simulated)");
+  // The arm's twin sends its report; the driver reads it.
+  d.step_twins(devices::Nanoseconds{1'000'000});
+  EXPECT_GT(d.haptic().poll(std::chrono::microseconds(0)), 0u);
+  d.close();
+}
+
+}  // namespace
+}  // namespace bisturi::runtime
