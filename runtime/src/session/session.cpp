@@ -305,7 +305,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
       render::PngSink* png = nullptr;
       if (options.openxr) {
         try {
-          sink = std::make_unique<render::OpenXrSink>();
+          sink = std::make_unique<render::OpenXrSink>(
+              render::OpenXrSinkOptions{.rendered = ro.headset});  // views carry its fov and IPD
           report.sink = "openxr";
         } catch (const render::XrUnavailable& e) {
           report.sink_note =
