@@ -322,6 +322,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
         report.sink = "png";
       }
       if (!sink) report.sink = "none";
+      const bool runtime_paces = report.sink == "openxr";
       MeasuringSink measuring(sink.get(), report, event_response, event_times);
       renderer.set_sink(&measuring);
 
@@ -403,8 +404,10 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
         previous = begin;
         frames.fetch_add(1, std::memory_order_relaxed);
         next += std::chrono::duration_cast<std::chrono::steady_clock::duration>(period);
-        if (next < end) {
-          next = end;  // behind: the next frame starts at once (no catch-up burst)
+        if (next < end || runtime_paces) {
+          // Behind: the next frame starts at once (no catch-up burst). With OpenXR the runtime's
+          // xrWaitFrame paces the frames to the headset's display; sleeping too would halve it.
+          next = end;
         } else {
           std::this_thread::sleep_until(next);
         }
