@@ -1,5 +1,7 @@
 // Isosurface extraction throughput (million voxels per second): marching cubes into an indexed
-// triangle mesh, and the full DLFL build, on a 256^3 sphere, a 256^3 gyroid and a 512^3 sphere.
+// triangle mesh, and the full DLFL build (written directly from the cell tables; for comparison
+// also through the mesh and build_oriented_manifold, and through import_polygons), on a 256^3
+// sphere, a 256^3 gyroid and a 512^3 sphere.
 // With BISTURI_BENCH_VTK, vtkFlyingEdges3D and vtkMarchingCubes run on the same float arrays in
 // the same binary (one thread and two threads through vtkSMPTools); a summary with the ratios
 // follows the table. Run by hand (build/bin/extract_bench); not registered with CTest.
@@ -17,6 +19,7 @@
 #include "collecting_reporter.h"
 
 #include "bisturi/scene/dlfl.h"
+#include "bisturi/scene/oriented_builder.h"
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/scene/volume/marching_cubes.h"
 
@@ -106,8 +109,19 @@ void BM_Dlfl(benchmark::State& state, Shape shape, std::int64_t n) {
   state.counters["build_s"] = stats.build_seconds;
 }
 
-// For comparison: the same triangles through import_polygons' linear bulk assembly instead of
-// build_oriented_manifold's operator insertions.
+// For comparison: the triangle mesh, then build_oriented_manifold (the rotation system and the
+// bulk assembler: the way extract_isosurface built the DLFL before it wrote it directly).
+void BM_DlflViaMesh(benchmark::State& state, Shape shape, std::int64_t n) {
+  const Grid<float>& g = volume(shape, n);
+  for (auto _ : state) {
+    const bisturi::PolygonMesh mesh = bisturi::extract_isosurface_mesh(g);
+    bisturi::Dlfl dlfl = bisturi::build_oriented_manifold(mesh);
+    benchmark::DoNotOptimize(dlfl.num_faces());
+  }
+  set_rate(state, g);
+}
+
+// For comparison: the same triangles through import_polygons (weld, orientation, edge groups).
 void BM_DlflBulk(benchmark::State& state, Shape shape, std::int64_t n) {
   const Grid<float>& g = volume(shape, n);
   for (auto _ : state) {
@@ -151,6 +165,9 @@ void register_all() {
     benchmark::RegisterBenchmark(("dlfl" + suffix).c_str(), BM_Dlfl, v.shape, v.n)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
+    benchmark::RegisterBenchmark(("dlfl_via_mesh" + suffix).c_str(), BM_DlflViaMesh, v.shape, v.n)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
     benchmark::RegisterBenchmark(("dlfl_bulk_import" + suffix).c_str(), BM_DlflBulk, v.shape, v.n)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
@@ -187,11 +204,11 @@ int main(int argc, char** argv) {
   };
   for (const std::string v : {"sphere256", "gyroid256", "sphere512"}) {
     char line[256];
-    std::snprintf(
-        line, sizeof line,
-        "  %-10s mesh %7.1f  mesh+octree build %7.1f  dlfl %7.1f  dlfl (bulk import) %7.1f",
-        v.c_str(), rate("mesh/" + v), rate("mesh_octree/" + v), rate("dlfl/" + v),
-        rate("dlfl_bulk_import/" + v));
+    std::snprintf(line, sizeof line,
+                  "  %-10s mesh %7.1f  mesh+octree build %7.1f  dlfl %7.1f  dlfl (via mesh) %7.1f"
+                  "  dlfl (bulk import) %7.1f",
+                  v.c_str(), rate("mesh/" + v), rate("mesh_octree/" + v), rate("dlfl/" + v),
+                  rate("dlfl_via_mesh/" + v), rate("dlfl_bulk_import/" + v));
     out << line;
 #ifdef BISTURI_BENCH_VTK
     const double fe1 = rate("vtk_flying_edges/" + v + "/threads:1");
@@ -199,9 +216,10 @@ int main(int argc, char** argv) {
     const double mc1 = rate("vtk_marching_cubes/" + v + "/threads:1");
     std::snprintf(line, sizeof line,
                   "\n             vtkFlyingEdges3D 1t %7.1f 2t %7.1f  vtkMarchingCubes 1t %7.1f"
-                  "  mesh/FE1 %.2f  dlfl/FE1 %.2f  mesh/MC %.2f",
+                  "  mesh/FE1 %.2f  dlfl/FE1 %.2f  dlfl/FE2 %.2f  mesh/MC %.2f",
                   fe1, fe2, mc1, fe1 > 0 ? rate("mesh/" + v) / fe1 : 0.0,
-                  fe1 > 0 ? rate("dlfl/" + v) / fe1 : 0.0, mc1 > 0 ? rate("mesh/" + v) / mc1 : 0.0);
+                  fe1 > 0 ? rate("dlfl/" + v) / fe1 : 0.0, fe2 > 0 ? rate("dlfl/" + v) / fe2 : 0.0,
+                  mc1 > 0 ? rate("mesh/" + v) / mc1 : 0.0);
     out << line;
 #endif
     out << "\n";

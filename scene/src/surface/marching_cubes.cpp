@@ -5,13 +5,16 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <limits>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "bisturi/scene/errors.h"
 #include "bisturi/scene/volume/bono_octree.h"
+#include "construction/raw_arrays.h"
 #include "surface/cube_cases.h"
 
 // The extraction runs slab by slab (cells between sample planes k and k+1), in the manner of
@@ -24,6 +27,14 @@
 //    each emits the triangles of its case, looking vertices up by cube edge.
 // With an octree, only the cell rows (and x-ranges) covered by leaves whose range contains the
 // iso value are visited, and only the sample words those cells touch are classified.
+//
+// The DLFL is written directly, in two passes over the slabs. The first classifies every plane
+// (the bits are kept: one bit per sample), places the vertices and counts triangles and border
+// sides; the Dlfl's arrays are then sized exactly and the second pass writes every record once
+// from the kept bits: triangle t is face t with corners 3t..3t+2, and each side finds its twin
+// from the cell tables, inside its cell or in a slot left by the neighbour across the cube face
+// (see DlflSink). No rotation-system sort, no triangle mesh in between; the result is the
+// structure build_oriented_manifold makes from extract_isosurface_mesh's triangles.
 
 namespace bisturi {
 namespace {
@@ -95,15 +106,348 @@ void check_input(const Grid<float>& volume, const IsoSurfaceOptions& options) {
   }
 }
 
+/// The octree that restricts the visited cells: the caller's, or one built into `own`.
+const BonoOctree* octree_for(const Grid<float>& volume, const IsoSurfaceOptions& options,
+                             ExtractionStats& st, std::optional<BonoOctree>& own) {
+  const BonoOctree* octree = options.octree;
+  if (octree == nullptr && options.build_octree) {
+    const auto start = Clock::now();
+    own = BonoOctree::build(volume, BonoOptions{8});
+    octree = &*own;
+    st.octree_seconds = seconds_since(start);
+  }
+  if (octree != nullptr && octree->dims() != volume.geometry.dims) {
+    throw InputError("extract_isosurface: the octree was built for other dimensions");
+  }
+  return octree;
+}
+
+/// For the direct DLFL build: where each triangle side of a case entry finds its twin. A side
+/// whose reverse is in the same entry pairs inside the cell; every other side is a segment on one
+/// cube face, shared with the cell across that face (which decides the face alike).
+struct CellTopology {
+  static constexpr std::uint8_t kInterior = 8;
+  /// Per side (3 per triangle, parallel to CubeCases::triangle_codes), for the emitted winding
+  /// [flip]: the cube face (0..5) it lies on, or kInterior + the entry-local side of its twin.
+  std::array<std::vector<std::uint8_t>, 2> side_class;
+  /// Per entry: the number of sides on cube face f in bits 2f..2f+1.
+  std::vector<std::uint16_t> face_sides;
+};
+
+CellTopology build_topology(const surface::CubeCases& cases) {
+  CellTopology topo;
+  topo.face_sides.assign(cases.entries.size(), 0);
+  for (auto& c : topo.side_class)
+    c.assign(cases.triangle_codes.size(), 0);
+  std::vector<std::array<std::uint8_t, 2>> sides;
+  for (std::size_t e = 0; e < cases.entries.size(); ++e) {
+    const surface::CaseEntry& entry = cases.entries[e];
+    const std::size_t base = 3 * std::size_t{entry.first_triangle};
+    const std::size_t n = 3 * std::size_t{entry.triangle_count};
+    if (n + CellTopology::kInterior > 256) throw std::logic_error("cube cases: entry too large");
+    for (int flip = 0; flip < 2; ++flip) {
+      sides.clear();
+      for (std::size_t t = base; t < base + n; t += 3) {
+        const std::uint8_t* c = cases.triangle_codes.data() + t;
+        const std::array<std::uint8_t, 3> v =
+            flip != 0 ? std::array{c[0], c[2], c[1]} : std::array{c[0], c[1], c[2]};
+        for (std::size_t k = 0; k < 3; ++k)
+          sides.push_back({v[k], v[(k + 1) % 3]});
+      }
+      for (std::size_t s = 0; s < n; ++s) {
+        const auto [a, b] = sides[s];
+        std::size_t twin = n;
+        for (std::size_t r = 0; r < n && twin == n; ++r) {
+          if (sides[r][0] == b && sides[r][1] == a) twin = r;
+        }
+        std::uint8_t cls = 0;
+        if (twin < n) {
+          cls = static_cast<std::uint8_t>(CellTopology::kInterior + twin);
+        } else {
+          std::size_t face = 6;
+          for (std::size_t f = 0; f < 6 && a < 12 && b < 12; ++f) {
+            const auto& fe = cases.faces[f].edges;
+            if (std::find(fe.begin(), fe.end(), a) != fe.end() &&
+                std::find(fe.begin(), fe.end(), b) != fe.end()) {
+              face = f;
+            }
+          }
+          if (face == 6) throw std::logic_error("cube cases: an open side off the cube faces");
+          cls = static_cast<std::uint8_t>(face);
+          if (flip == 0)
+            topo.face_sides[e] =
+                static_cast<std::uint16_t>(topo.face_sides[e] + (1u << (2 * face)));
+        }
+        topo.side_class[static_cast<std::size_t>(flip)][base + s] = cls;
+      }
+    }
+  }
+  return topo;
+}
+
+const CellTopology& cell_topology() {
+  static const CellTopology topo = build_topology(surface::cube_cases());
+  return topo;
+}
+
+/// Vertex ids of the 12 cube edges, then of the entry's extra (centroid) vertices.
+using CellIds = std::array<std::uint32_t, 12 + 6>;
+
+/// Output of the single-pass extraction: an indexed triangle mesh.
+class MeshSink {
+ public:
+  static constexpr bool kPlaces = true;  // computes vertex positions
+  static constexpr bool kStats = true;   // counts cells for ExtractionStats
+
+  MeshSink(PolygonMesh& mesh, bool flip) : mesh_(mesh), flip_(flip) {}
+
+  std::uint32_t vertex(const glm::dvec3& world) {
+    const std::size_t n = mesh_.positions.size();
+    if (n >= kNoVertex) throw InputError("extract_isosurface: more than 2^32 - 1 vertices");
+    mesh_.positions.push_back(world);
+    return static_cast<std::uint32_t>(n);
+  }
+  [[nodiscard]] const glm::dvec3& position(std::uint32_t v) const { return mesh_.positions[v]; }
+
+  void triangles(const surface::CubeCases& cases, const surface::CaseEntry& entry,
+                 const CellIds& ids, std::int64_t /*i*/, std::int64_t /*j*/, std::int64_t /*k*/) {
+    const std::uint8_t* codes = cases.triangle_codes.data() + 3 * std::size_t{entry.first_triangle};
+    auto& indices = mesh_.indices;
+    auto& offsets = mesh_.offsets;
+    if (indices.size() + 3 * std::size_t{entry.triangle_count} > kNoVertex) {
+      throw InputError("extract_isosurface: more than 2^32 - 1 indices");
+    }
+    for (std::uint32_t t = 0; t < entry.triangle_count; ++t, codes += 3) {
+      const std::uint32_t a = ids[codes[0]], b = ids[codes[1]], c = ids[codes[2]];
+      if (flip_) {
+        indices.insert(indices.end(), {a, c, b});
+      } else {
+        indices.insert(indices.end(), {a, b, c});
+      }
+      offsets.push_back(static_cast<std::uint32_t>(indices.size()));
+    }
+  }
+
+ private:
+  PolygonMesh& mesh_;
+  bool flip_;
+};
+
+/// First pass of the DLFL build: the vertex positions (in their final order) and the counts that
+/// size the arrays. It reads the volume, so the second pass need not (but for the decider).
+class CountSink {
+ public:
+  static constexpr bool kPlaces = true;
+  static constexpr bool kStats = true;
+
+  CountSink(const surface::CubeCases& cases, std::int64_t ncx, std::int64_t ncy, std::int64_t ncz)
+      : cases_(cases), topo_(cell_topology()), last_{ncx - 1, ncy - 1, ncz - 1} {}
+
+  std::uint32_t vertex(const glm::dvec3& world) {
+    const std::size_t n = positions_.size();
+    if (n >= kNoVertex) throw InputError("extract_isosurface: more than 2^32 - 1 vertices");
+    positions_.push_back(world);
+    return static_cast<std::uint32_t>(n);
+  }
+  [[nodiscard]] const glm::dvec3& position(std::uint32_t v) const { return positions_[v]; }
+
+  void triangles(const surface::CubeCases& /*cases*/, const surface::CaseEntry& entry,
+                 const CellIds& /*ids*/, std::int64_t i, std::int64_t j, std::int64_t k) {
+    triangles_ += entry.triangle_count;
+    const std::array<std::int64_t, 3> cell{i, j, k};
+    if (cell[0] != 0 && cell[1] != 0 && cell[2] != 0 && cell[0] != last_[0] &&
+        cell[1] != last_[1] && cell[2] != last_[2]) {
+      return;
+    }
+    // Sides on the outer faces of the volume (lower faces at index 0, upper at the last) get
+    // hole twins.
+    const unsigned fs = topo_.face_sides[static_cast<std::size_t>(&entry - cases_.entries.data())];
+    for (std::size_t a = 0; a < 3; ++a) {
+      if (cell[a] == 0) border_sides_ += (fs >> (4 * a)) & 3;
+      if (cell[a] == last_[a]) border_sides_ += (fs >> (4 * a + 2)) & 3;
+    }
+  }
+
+  BigVector<Dlfl::Vec3>& positions() { return positions_; }
+  [[nodiscard]] std::size_t triangle_count() const { return triangles_; }
+  [[nodiscard]] std::size_t border_sides() const { return border_sides_; }
+
+ private:
+  const surface::CubeCases& cases_;
+  const CellTopology& topo_;
+  std::array<std::int64_t, 3> last_;
+  BigVector<Dlfl::Vec3> positions_;
+  std::size_t triangles_ = 0, border_sides_ = 0;
+};
+
+/// Second pass of the DLFL build: the records of a Dlfl sized exactly by the counting pass.
+/// Triangle t is face t with corners 3t, 3t+1, 3t+2; vertex v has rotation v. A triangle side
+/// finds its twin in its own cell (table) or in the slot its neighbour across the cube face left
+/// (cells run in x, then y, then z order, so lower faces are read, upper faces written). Sides
+/// on the volume's border get a hole twin at the end; hole loops become labelled faces.
+class DlflSink {
+ public:
+  static constexpr bool kPlaces = false;  // the first pass placed every vertex
+  static constexpr bool kStats = false;
+
+  /// The sides on one cube face (at most two segments: an ambiguous face), 8 bytes so that a
+  /// plane of them stays in cache.
+  struct Slot {
+    std::array<std::uint32_t, 2> side;
+  };
+  struct Border {
+    std::uint32_t side, from, to;
+  };
+
+  DlflSink(construction::RawArrays::View out, bool flip, std::int64_t ncx, std::int64_t ncy,
+           std::int64_t ncz)
+      : out_(out),
+        flip_(flip),
+        topo_(cell_topology()),
+        last_{ncx - 1, ncy - 1, ncz - 1},
+        ncx_(ncx) {
+    xslot_.resize(static_cast<std::size_t>(ncx));
+    yslot_.resize(static_cast<std::size_t>(ncx));
+    zslot_.resize(static_cast<std::size_t>(ncx * ncy));
+  }
+
+  std::uint32_t vertex() {
+    const std::uint32_t v = vertex_++;
+    out_.vertices[v].first = RotationId(v);
+    return v;
+  }
+
+  void triangles(const surface::CubeCases& cases, const surface::CaseEntry& entry,
+                 const CellIds& ids, std::int64_t i, std::int64_t j, std::int64_t k) {
+    const std::size_t first = 3 * std::size_t{entry.first_triangle};
+    const std::uint8_t* codes = cases.triangle_codes.data() + first;
+    const std::uint8_t* cls = topo_.side_class[flip_ ? 1 : 0].data() + first;
+    const unsigned face_sides =
+        topo_.face_sides[static_cast<std::size_t>(&entry - cases.entries.data())];
+    const std::array<std::int64_t, 3> cell{i, j, k};
+    const std::size_t zs = static_cast<std::size_t>(j * ncx_ + i);
+    // The y and z slots are shared by the lower and the upper face: the lower ones are read from
+    // copies, so the upper ones can be written in place.
+    const std::array<Slot, 2> lower_yz{yslot_[static_cast<std::size_t>(i)], zslot_[zs]};
+    const std::array<const Slot*, 3> lower{
+        i > 0 ? &xslot_[static_cast<std::size_t>(i - 1)] : nullptr, &lower_yz[0], &lower_yz[1]};
+    const std::array<Slot*, 3> upper{&xslot_[static_cast<std::size_t>(i)],
+                                     &yslot_[static_cast<std::size_t>(i)], &zslot_[zs]};
+    std::array<std::uint32_t, 3> upper_count{};
+    const std::uint32_t h0 = 3 * tri_;
+    for (std::uint32_t t = 0; t < entry.triangle_count; ++t, codes += 3, cls += 3) {
+      const std::uint32_t face = tri_ + t;
+      const std::uint32_t c0 = h0 + 3 * t;
+      const std::array<std::uint32_t, 3> v{ids[codes[0]], ids[codes[flip_ ? 2 : 1]],
+                                           ids[codes[flip_ ? 1 : 2]]};
+      for (std::uint32_t s = 0; s < 3; ++s) {
+        const std::uint32_t h = c0 + s;
+        const std::uint32_t from = v[s], to = v[s == 2 ? 0 : s + 1];
+        const std::uint8_t c = cls[s];
+        EdgeId e;
+        if (c >= CellTopology::kInterior) {
+          const std::uint32_t twin = h0 + (c - CellTopology::kInterior);
+          if (twin < h) e = pair(twin, h);
+        } else {
+          const std::size_t axis = c >> 1;
+          const bool up = (c & 1) != 0;
+          if (cell[axis] == (up ? last_[axis] : 0)) {
+            border_.push_back({h, from, to});
+          } else if (up) {
+            upper[axis]->side[upper_count[axis]++] = h;
+          } else {
+            const Slot& l = *lower[axis];
+            std::uint32_t twin = l.side[0];
+            // Two segments on the face: the twin is the one that ends where h starts.
+            if (((face_sides >> (4 * axis)) & 3) == 2 && end_vertex(twin) != from) twin = l.side[1];
+            e = pair(twin, h);
+          }
+        }
+        out_.corners[h] = {VertexId(from), FaceId(face), CornerId(s == 2 ? c0 : h + 1),
+                           CornerId(s == 0 ? c0 + 2 : h - 1), e};
+        out_.rotations[from].corner = CornerId(h);
+      }
+      out_.faces[face].first = CornerId(c0);
+    }
+    tri_ += entry.triangle_count;
+  }
+
+  /// Hole twins for the border sides, linked into loops (each a labelled face). The hole of side
+  /// a -> b runs b -> a and is followed by the hole of the border side that enters a.
+  void close_holes(Dlfl& d) {
+    const auto nb = static_cast<std::uint32_t>(border_.size());
+    const std::uint32_t base = 3 * tri_;
+    std::vector<std::uint32_t> entering(nb);
+    for (std::uint32_t q = 0; q < nb; ++q)
+      entering[q] = q;
+    std::sort(entering.begin(), entering.end(),
+              [&](std::uint32_t a, std::uint32_t b) { return border_[a].to < border_[b].to; });
+    auto entering_side = [&](std::uint32_t v) {
+      const auto it = std::lower_bound(
+          entering.begin(), entering.end(), v,
+          [&](std::uint32_t q, std::uint32_t value) { return border_[q].to < value; });
+      if (it == entering.end() || border_[*it].to != v) {
+        throw std::logic_error("marching cubes: a border loop does not close");
+      }
+      return *it;
+    };
+    for (std::uint32_t q = 0; q < nb; ++q) {
+      const Border& b = border_[q];
+      const std::uint32_t hole = base + q;
+      const std::uint32_t next = base + entering_side(b.from);
+      Dlfl::CornerRecord& c = out_.corners[hole];
+      c.vertex = VertexId(b.to);
+      c.next = CornerId(next);
+      out_.corners[next].prev = CornerId(hole);
+      c.edge = pair(b.side, hole);
+    }
+    for (std::uint32_t q = 0; q < nb; ++q) {
+      const std::uint32_t hole = base + q;
+      if (out_.corners[hole].face.valid()) continue;
+      const FaceId f = construction::RawArrays::push_face(d, CornerId(hole), true);
+      std::uint32_t x = hole;
+      do {
+        out_.corners[x].face = f;
+        x = out_.corners[x].next.idx;
+      } while (x != hole);
+    }
+  }
+
+  [[nodiscard]] std::uint32_t vertex_count() const { return vertex_; }
+  [[nodiscard]] std::uint32_t triangle_count() const { return tri_; }
+  [[nodiscard]] std::uint32_t edge_count() const { return edge_; }
+  [[nodiscard]] std::size_t border_sides() const { return border_.size(); }
+
+ private:
+  /// The vertex a written triangle side ends at.
+  [[nodiscard]] std::uint32_t end_vertex(std::uint32_t side) const {
+    return out_.corners[side % 3 == 2 ? side - 2 : side + 1].vertex.idx;
+  }
+
+  EdgeId pair(std::uint32_t first, std::uint32_t second) {
+    const EdgeId e(edge_++);
+    out_.edges[e.idx] = {CornerId(first), CornerId(second)};
+    out_.corners[first].edge = e;
+    return e;
+  }
+
+  construction::RawArrays::View out_;
+  bool flip_;
+  const CellTopology& topo_;
+  std::array<std::int64_t, 3> last_;  ///< the last cell index along each axis
+  std::int64_t ncx_;
+  std::uint32_t vertex_ = 0, tri_ = 0, edge_ = 0;
+  ScratchVector<Slot> xslot_, yslot_, zslot_;  // upper-face sides of the cells before
+  std::vector<Border> border_;
+};
+
 class Extractor {
  public:
-  Extractor(const Grid<float>& volume, const IsoSurfaceOptions& options, PolygonMesh& mesh,
-            ExtractionStats& stats)
+  Extractor(const Grid<float>& volume, const IsoSurfaceOptions& options, ExtractionStats& stats)
       : values_(volume.values.data()),
         geometry_(volume.geometry),
         iso_(options.iso),
         options_(options),
-        mesh_(mesh),
         stats_(stats),
         cases_(surface::cube_cases()) {
     nx_ = geometry_.dims[0];
@@ -122,91 +466,145 @@ class Extractor {
     }
   }
 
-  void run(const BonoOctree* octree) {
-    const auto ncells_x = static_cast<std::int32_t>(nx_ - 1);
-    if (octree != nullptr) {
-      cell_rows_.assign(static_cast<std::size_t>((ny_ - 1) * (nz_ - 1)), Span{});
-      std::size_t visited = 0;
-      octree->for_each_leaf_in_range(iso_, iso_, [&](const BonoOctree::Node& n) {
-        ++visited;
-        const auto& o = n.box.origin;
-        const auto& s = n.box.size;
-        const Span xs{static_cast<std::int32_t>(o[0]),
-                      static_cast<std::int32_t>(std::min(o[0] + s[0], nx_ - 1))};
-        if (xs.empty()) return;
-        const std::int64_t j1 = std::min(o[1] + s[1], ny_ - 1);
-        const std::int64_t k1 = std::min(o[2] + s[2], nz_ - 1);
-        for (std::int64_t k = o[2]; k < k1; ++k) {
-          for (std::int64_t j = o[1]; j < j1; ++j) {
-            cell_rows_[static_cast<std::size_t>(k * (ny_ - 1) + j)].unite(xs);
-          }
+  /// Restricts the visited cells to the leaves of `octree` whose range holds the iso value.
+  void skip_with(const BonoOctree* octree) {
+    if (octree == nullptr) return;
+    cell_rows_.assign(static_cast<std::size_t>((ny_ - 1) * (nz_ - 1)), Span{});
+    std::size_t visited = 0;
+    octree->for_each_leaf_in_range(iso_, iso_, [&](const BonoOctree::Node& n) {
+      ++visited;
+      const auto& o = n.box.origin;
+      const auto& s = n.box.size;
+      const Span xs{static_cast<std::int32_t>(o[0]),
+                    static_cast<std::int32_t>(std::min(o[0] + s[0], nx_ - 1))};
+      if (xs.empty()) return;
+      const std::int64_t j1 = std::min(o[1] + s[1], ny_ - 1);
+      const std::int64_t k1 = std::min(o[2] + s[2], nz_ - 1);
+      for (std::int64_t k = o[2]; k < k1; ++k) {
+        for (std::int64_t j = o[1]; j < j1; ++j) {
+          cell_rows_[static_cast<std::size_t>(k * (ny_ - 1) + j)].unite(xs);
         }
-      });
-      stats_.leaves_visited = visited;
-      stats_.leaves_skipped = octree->leaf_count() - visited;
-    }
-    auto cell_row = [&](std::int64_t j, std::int64_t k) -> Span {
-      if (j < 0 || k < 0 || j >= ny_ - 1 || k >= nz_ - 1) return {};
-      if (cell_rows_.empty()) return {0, ncells_x};
-      return cell_rows_[static_cast<std::size_t>(k * (ny_ - 1) + j)];
-    };
+      }
+    });
+    stats_.leaves_visited = visited;
+    stats_.leaves_skipped = octree->leaf_count() - visited;
+  }
 
-    for (auto& b : bits_)
-      b.assign(static_cast<std::size_t>(ny_ * row_stride_), 0);
-    for (auto& f : fresh_)
-      f.assign(static_cast<std::size_t>(ny_), Span{});
+  /// One pass: planes are classified as the slabs advance (two kept at a time).
+  void mesh(PolygonMesh& mesh) {
+    allocate_planes(2);
+    MeshSink sink(mesh, flip_);
+    classify_plane(0);
+    write_slabs(sink, true, options_.progress);
+  }
+
+  /// Two passes. The first classifies every plane (kept, one bit per sample), places the vertices
+  /// and counts; the second writes the records into arrays of the exact final sizes, from the
+  /// kept bits (the volume is read again only by the decider).
+  void dlfl(Dlfl& d) {
+    allocate_planes(nz_);
+    CountSink counter(cases_, nx_ - 1, ny_ - 1, nz_ - 1);
+    classify_plane(0);
+    write_slabs(counter, true, options_.progress);
+    const std::size_t corners = 3 * counter.triangle_count() + counter.border_sides();
+    if (corners >= kNoVertex) throw InputError("extract_isosurface: more than 2^32 - 1 corners");
+    const auto build_start = Clock::now();
+    const std::size_t nv = counter.positions().size();
+    const std::size_t nt = counter.triangle_count();
+    const construction::RawArrays::View out =
+        construction::RawArrays::size_empty(d, std::move(counter.positions()), corners, nt,
+                                            nt + counter.border_sides() / 2, corners / 2);
+    DlflSink sink(out, flip_, nx_ - 1, ny_ - 1, nz_ - 1);
+    const std::size_t edges = corners / 2;
+    std::function<void(std::size_t, std::size_t)> progress;
+    if (options_.build_progress) {
+      progress = [&](std::size_t done, std::size_t slabs) {
+        options_.build_progress(edges * done / slabs, edges);
+      };
+    }
+    write_slabs(sink, false, progress);
+    sink.close_holes(d);
+    if (sink.vertex_count() != nv || sink.triangle_count() != nt ||
+        sink.border_sides() != counter.border_sides() || sink.edge_count() != edges) {
+      throw std::logic_error("extract_isosurface: the counting and writing passes disagree");
+    }
+    construction::RawArrays::finish(d);
+    stats_.vertices = nv;
+    stats_.triangles = nt;
+    stats_.build_seconds = seconds_since(build_start);
+  }
+
+ private:
+  [[nodiscard]] Span cell_row(std::int64_t j, std::int64_t k) const {
+    if (j < 0 || k < 0 || j >= ny_ - 1 || k >= nz_ - 1) return {};
+    if (cell_rows_.empty()) return {0, static_cast<std::int32_t>(nx_ - 1)};
+    return cell_rows_[static_cast<std::size_t>(k * (ny_ - 1) + j)];
+  }
+
+  /// Samples a sample row must have classified: those of the cell rows around it (+1 in x).
+  [[nodiscard]] Span sample_row(std::int64_t j, std::int64_t z) const {
+    Span s;
+    for (std::int64_t dj = -1; dj <= 0; ++dj) {
+      for (std::int64_t dz = -1; dz <= 0; ++dz)
+        s.unite(cell_row(j + dj, z + dz));
+    }
+    if (!s.empty()) s.hi += 1;
+    return s;
+  }
+
+  void allocate_planes(std::int64_t kept) {
+    planes_kept_ = kept;
+    bits_.assign(static_cast<std::size_t>(kept * ny_ * row_stride_), 0);
+    fresh_.assign(static_cast<std::size_t>(kept * ny_), Span{});
     for (auto& v : xid_)
       v.assign(static_cast<std::size_t>(plane_), kNoVertex);
     for (auto& v : yid_)
       v.assign(static_cast<std::size_t>(plane_), kNoVertex);
     zid_.assign(static_cast<std::size_t>(plane_), kNoVertex);
+  }
 
-    // Samples a sample row must have classified: those of the cell rows around it (+1 in x).
-    auto sample_row = [&](std::int64_t j, std::int64_t z) {
-      Span s;
-      for (std::int64_t dj = -1; dj <= 0; ++dj) {
-        for (std::int64_t dz = -1; dz <= 0; ++dz)
-          s.unite(cell_row(j + dj, z + dz));
-      }
-      if (!s.empty()) s.hi += 1;
-      return s;
-    };
+  [[nodiscard]] std::uint64_t* bits(std::int64_t z) {
+    return bits_.data() + (z % planes_kept_) * ny_ * row_stride_;
+  }
+  [[nodiscard]] Span* fresh(std::int64_t z) { return fresh_.data() + (z % planes_kept_) * ny_; }
 
+  /// The slabs in order: vertices of each new plane and slab, then the cells' triangles.
+  template <class Sink>
+  void write_slabs(Sink& sink, bool classify,
+                   const std::function<void(std::size_t, std::size_t)>& progress) {
     const std::size_t slabs = static_cast<std::size_t>(nz_ - 1);
     const std::size_t step = std::max<std::size_t>(1, slabs / 100);
-    classify_plane(0, 0, sample_row);
-    plane_vertices(0, 0);
+    plane_vertices(0, sink);
     for (std::int64_t k = 0; k + 1 < nz_; ++k) {
-      const int p0 = static_cast<int>(k & 1), p1 = 1 - p0;
-      classify_plane(k + 1, p1, sample_row);
-      plane_vertices(k + 1, p1);
-      slab_vertices(k, p0, p1);
+      if (classify) classify_plane(k + 1);
+      plane_vertices(k + 1, sink);
+      slab_vertices(k, sink);
       for (std::int64_t j = 0; j + 1 < ny_; ++j) {
         const Span cells = cell_row(j, k);
-        if (!cells.empty()) cell_row_triangles(j, k, p0, p1, cells);
+        if (cells.empty()) continue;
+        for_each_mixed_cell(j, k, cells, [&](unsigned config, std::int64_t i) {
+          if constexpr (Sink::kStats) ++stats_.cells_visited;
+          emit_cell(config, i, j, k, sink);
+        });
       }
       const auto done = static_cast<std::size_t>(k + 1);
-      if (options_.progress && (done % step == 0 || done == slabs)) {
-        options_.progress(done, slabs);
-      }
+      if (progress && (done % step == 0 || done == slabs)) progress(done, slabs);
     }
   }
 
- private:
-  template <class SampleRow>
-  void classify_plane(std::int64_t z, int p, SampleRow& sample_row) {
-    std::uint64_t* bits = bits_[static_cast<std::size_t>(p)].data();
-    Span* fresh = fresh_[static_cast<std::size_t>(p)].data();
+  void classify_plane(std::int64_t z) {
+    std::uint64_t* plane_bits = bits(z);
+    Span* plane_fresh = fresh(z);
     for (std::int64_t j = 0; j < ny_; ++j) {
       const Span s = sample_row(j, z);
-      std::uint64_t* row = bits + j * row_stride_;
+      std::uint64_t* row = plane_bits + j * row_stride_;
       if (s.empty()) {
-        fresh[j] = {};
+        plane_fresh[j] = {};
         continue;
       }
       const std::int64_t w0 = s.lo / 64, w1 = (std::min<std::int64_t>(s.hi, nx_) + 63) / 64;
-      fresh[j] = {static_cast<std::int32_t>(64 * w0),
-                  static_cast<std::int32_t>(std::min<std::int64_t>(64 * w1, nx_))};
+      plane_fresh[j] = {static_cast<std::int32_t>(64 * w0),
+                        static_cast<std::int32_t>(std::min<std::int64_t>(64 * w1, nx_))};
       const float* v = values_ + z * plane_ + j * nx_;
       for (std::int64_t w = w0; w < w1; ++w) {
         const std::int64_t i0 = 64 * w;
@@ -239,12 +637,8 @@ class Extractor {
     return word;
   }
 
-  std::uint32_t add_vertex(const glm::dvec3& ijk) {
-    const std::size_t n = mesh_.positions.size();
-    if (n >= kNoVertex) throw InputError("extract_isosurface: more than 2^32 - 1 vertices");
-    mesh_.positions.push_back(geometry_.origin + axes_[0] * ijk.x + axes_[1] * ijk.y +
-                              axes_[2] * ijk.z);
-    return static_cast<std::uint32_t>(n);
+  [[nodiscard]] glm::dvec3 world(double i, double j, double k) const {
+    return geometry_.origin + axes_[0] * i + axes_[1] * j + axes_[2] * k;
   }
 
   [[nodiscard]] double edge_parameter(float a, float b) const {
@@ -307,83 +701,102 @@ class Extractor {
     return std::clamp(t, kEdgeEps, 1.0 - kEdgeEps);
   }
 
-  /// Vertices of the crossed x- and y-edges of sample plane z.
-  void plane_vertices(std::int64_t z, int p) {
-    const std::uint64_t* bits = bits_[static_cast<std::size_t>(p)].data();
-    const Span* fresh = fresh_[static_cast<std::size_t>(p)].data();
-    std::uint32_t* xid = xid_[static_cast<std::size_t>(p)].data();
-    std::uint32_t* yid = yid_[static_cast<std::size_t>(p)].data();
-    const float* vz = values_ + z * plane_;
+  /// Calls fn(axis, j, w, crossed) for each word of crossed x-edges (axis 0, samples (i, i+1) of
+  /// row j) and y-edges (axis 1, rows j and j+1) of sample plane z.
+  template <class Fn>
+  void plane_crossings(std::int64_t z, Fn&& fn) {
+    const std::uint64_t* plane_bits = bits(z);
+    const Span* plane_fresh = fresh(z);
     for (std::int64_t j = 0; j < ny_; ++j) {
-      const std::uint64_t* row = bits + j * row_stride_;
-      const float* v = vz + j * nx_;
+      const std::uint64_t* row = plane_bits + j * row_stride_;
       // x-edges (i, i+1): both samples classified.
-      const Span xs{fresh[j].lo, fresh[j].hi - 1};
+      const Span xs{plane_fresh[j].lo, plane_fresh[j].hi - 1};
       if (!xs.empty()) {
         for (std::int64_t w = xs.lo / 64; w * 64 < xs.hi; ++w) {
-          std::uint64_t cross =
-              (row[w] ^ ((row[w] >> 1) | (row[w + 1] << 63))) & range_mask(w, xs.lo, xs.hi);
-          while (cross != 0) {
-            const std::int64_t i = 64 * w + __builtin_ctzll(cross);
-            cross &= cross - 1;
-            const double t = edge_parameter(v + i, 1, i, nx_);
-            xid[j * nx_ + i] = add_vertex({double(i) + t, double(j), double(z)});
-          }
+          fn(0, j, w,
+             (row[w] ^ ((row[w] >> 1) | (row[w + 1] << 63))) & range_mask(w, xs.lo, xs.hi));
         }
       }
       if (j + 1 >= ny_) continue;
-      const Span ys = fresh[j].intersect(fresh[j + 1]);
+      const Span ys = plane_fresh[j].intersect(plane_fresh[j + 1]);
       if (ys.empty()) continue;
       const std::uint64_t* up = row + row_stride_;
       for (std::int64_t w = ys.lo / 64; w * 64 < ys.hi; ++w) {
-        std::uint64_t cross = (row[w] ^ up[w]) & range_mask(w, ys.lo, ys.hi);
-        while (cross != 0) {
-          const std::int64_t i = 64 * w + __builtin_ctzll(cross);
-          cross &= cross - 1;
-          const double t = edge_parameter(v + i, nx_, j, ny_);
-          yid[j * nx_ + i] = add_vertex({double(i), double(j) + t, double(z)});
-        }
+        fn(1, j, w, (row[w] ^ up[w]) & range_mask(w, ys.lo, ys.hi));
       }
     }
   }
 
-  /// Vertices of the crossed z-edges between planes k (p0) and k + 1 (p1).
-  void slab_vertices(std::int64_t k, int p0, int p1) {
-    const std::uint64_t* b0 = bits_[static_cast<std::size_t>(p0)].data();
-    const std::uint64_t* b1 = bits_[static_cast<std::size_t>(p1)].data();
-    const Span* f0 = fresh_[static_cast<std::size_t>(p0)].data();
-    const Span* f1 = fresh_[static_cast<std::size_t>(p1)].data();
-    const float* vk = values_ + k * plane_;
+  /// Calls fn(j, w, crossed) for each word of crossed z-edges between planes k and k + 1.
+  template <class Fn>
+  void slab_crossings(std::int64_t k, Fn&& fn) {
+    const std::uint64_t* b0 = bits(k);
+    const std::uint64_t* b1 = bits(k + 1);
+    const Span* f0 = fresh(k);
+    const Span* f1 = fresh(k + 1);
     for (std::int64_t j = 0; j < ny_; ++j) {
       const Span zs = f0[j].intersect(f1[j]);
       if (zs.empty()) continue;
       const std::uint64_t* r0 = b0 + j * row_stride_;
       const std::uint64_t* r1 = b1 + j * row_stride_;
-      const float* v = vk + j * nx_;
       for (std::int64_t w = zs.lo / 64; w * 64 < zs.hi; ++w) {
-        std::uint64_t cross = (r0[w] ^ r1[w]) & range_mask(w, zs.lo, zs.hi);
-        while (cross != 0) {
-          const std::int64_t i = 64 * w + __builtin_ctzll(cross);
-          cross &= cross - 1;
-          const double t = edge_parameter(v + i, plane_, k, nz_);
-          zid_[static_cast<std::size_t>(j * nx_ + i)] =
-              add_vertex({double(i), double(j), double(k) + t});
-        }
+        fn(j, w, (r0[w] ^ r1[w]) & range_mask(w, zs.lo, zs.hi));
       }
     }
   }
 
-  /// Triangles of the mixed cells [cells.lo, cells.hi) of cell row (j, k).
-  void cell_row_triangles(std::int64_t j, std::int64_t k, int p0, int p1, Span cells) {
-    const std::uint64_t* r00 = bits_[static_cast<std::size_t>(p0)].data() + j * row_stride_;
+  /// Vertices of the crossed x- and y-edges of sample plane z.
+  template <class Sink>
+  void plane_vertices(std::int64_t z, Sink& sink) {
+    std::uint32_t* xid = xid_[static_cast<std::size_t>(z & 1)].data();
+    std::uint32_t* yid = yid_[static_cast<std::size_t>(z & 1)].data();
+    const float* vz = values_ + z * plane_;
+    plane_crossings(z, [&](int axis, std::int64_t j, std::int64_t w, std::uint64_t cross) {
+      const float* v = vz + j * nx_;
+      while (cross != 0) {
+        const std::int64_t i = 64 * w + __builtin_ctzll(cross);
+        cross &= cross - 1;
+        if constexpr (!Sink::kPlaces) {
+          (axis == 0 ? xid : yid)[j * nx_ + i] = sink.vertex();
+        } else if (axis == 0) {
+          const double t = edge_parameter(v + i, 1, i, nx_);
+          xid[j * nx_ + i] = sink.vertex(world(double(i) + t, double(j), double(z)));
+        } else {
+          const double t = edge_parameter(v + i, nx_, j, ny_);
+          yid[j * nx_ + i] = sink.vertex(world(double(i), double(j) + t, double(z)));
+        }
+      }
+    });
+  }
+
+  /// Vertices of the crossed z-edges between planes k and k + 1.
+  template <class Sink>
+  void slab_vertices(std::int64_t k, Sink& sink) {
+    const float* vk = values_ + k * plane_;
+    slab_crossings(k, [&](std::int64_t j, std::int64_t w, std::uint64_t cross) {
+      const float* v = vk + j * nx_;
+      while (cross != 0) {
+        const std::int64_t i = 64 * w + __builtin_ctzll(cross);
+        cross &= cross - 1;
+        std::uint32_t& id = zid_[static_cast<std::size_t>(j * nx_ + i)];
+        if constexpr (Sink::kPlaces) {
+          const double t = edge_parameter(v + i, plane_, k, nz_);
+          id = sink.vertex(world(double(i), double(j), double(k) + t));
+        } else {
+          (void)v;
+          id = sink.vertex();
+        }
+      }
+    });
+  }
+
+  /// Calls fn(config, i) for the mixed cells [cells.lo, cells.hi) of cell row (j, k), in order.
+  template <class Fn>
+  void for_each_mixed_cell(std::int64_t j, std::int64_t k, Span cells, Fn&& fn) {
+    const std::uint64_t* r00 = bits(k) + j * row_stride_;
     const std::uint64_t* r10 = r00 + row_stride_;
-    const std::uint64_t* r01 = bits_[static_cast<std::size_t>(p1)].data() + j * row_stride_;
+    const std::uint64_t* r01 = bits(k + 1) + j * row_stride_;
     const std::uint64_t* r11 = r01 + row_stride_;
-    const std::uint32_t* x0 = xid_[static_cast<std::size_t>(p0)].data() + j * nx_;
-    const std::uint32_t* x1 = xid_[static_cast<std::size_t>(p1)].data() + j * nx_;
-    const std::uint32_t* y0 = yid_[static_cast<std::size_t>(p0)].data() + j * nx_;
-    const std::uint32_t* y1 = yid_[static_cast<std::size_t>(p1)].data() + j * nx_;
-    const std::uint32_t* zz = zid_.data() + j * nx_;
     for (std::int64_t w = cells.lo / 64; w * 64 < cells.hi; ++w) {
       const std::uint64_t a00 = r00[w], a10 = r10[w], a01 = r01[w], a11 = r11[w];
       const std::uint64_t s00 = (a00 >> 1) | (r00[w + 1] << 63);
@@ -400,28 +813,14 @@ class Extractor {
             ((a00 >> b) & 1) | (((s00 >> b) & 1) << 1) | (((a10 >> b) & 1) << 2) |
             (((s10 >> b) & 1) << 3) | (((a01 >> b) & 1) << 4) | (((s01 >> b) & 1) << 5) |
             (((a11 >> b) & 1) << 6) | (((s11 >> b) & 1) << 7));
-        const std::int64_t i = 64 * w + b;
-        std::array<std::uint32_t, 12 + 6> ids;
-        ids[0] = x0[i];
-        ids[1] = x0[i + nx_];
-        ids[2] = x1[i];
-        ids[3] = x1[i + nx_];
-        ids[4] = y0[i];
-        ids[5] = y0[i + 1];
-        ids[6] = y1[i];
-        ids[7] = y1[i + 1];
-        ids[8] = zz[i];
-        ids[9] = zz[i + 1];
-        ids[10] = zz[i + nx_];
-        ids[11] = zz[i + nx_ + 1];
-        emit_cell(config, i, j, k, ids);
+        fn(config, 64 * w + b);
       }
     }
   }
 
-  void emit_cell(unsigned config, std::int64_t i, std::int64_t j, std::int64_t k,
-                 std::array<std::uint32_t, 18>& ids) {
-    ++stats_.cells_visited;
+  /// The case entry of cell (i, j, k): the asymptotic decider settles its ambiguous faces.
+  std::uint32_t entry_index(unsigned config, std::int64_t i, std::int64_t j, std::int64_t k,
+                            std::size_t* ambiguous) const {
     const surface::CubeCase& cc = cases_.cases[config];
     unsigned outcome = 0;
     if (cc.ambiguous_count != 0) {
@@ -442,56 +841,70 @@ class Extractor {
         if (inside_product > outside_product) outcome |= 1u << bit;
         ++bit;
       }
-      stats_.ambiguous_faces += bit;
+      if (ambiguous != nullptr) *ambiguous += bit;
     }
-    const surface::CaseEntry& entry = cases_.entries[cc.first_entry + outcome];
-    for (std::uint32_t e = 0; e < entry.extra_count; ++e) {
-      const surface::ExtraVertex& ev = cases_.extras[entry.first_extra + e];
-      glm::dvec3 sum(0.0);
-      for (std::uint32_t c = 0; c < ev.code_count; ++c) {
-        sum += mesh_.positions[ids[cases_.extra_codes[ev.first_code + c]]];
-      }
-      // The centroid, in world coordinates already: append directly.
-      const std::size_t n = mesh_.positions.size();
-      if (n >= kNoVertex) throw InputError("extract_isosurface: more than 2^32 - 1 vertices");
-      mesh_.positions.push_back(sum / double(ev.code_count));
-      ids[12 + e] = static_cast<std::uint32_t>(n);
-      ++stats_.centroid_vertices;
-    }
-    const std::uint8_t* codes =
-        cases_.triangle_codes.data() + 3 * std::size_t{entry.first_triangle};
-    auto& indices = mesh_.indices;
-    auto& offsets = mesh_.offsets;
-    if (indices.size() + 3 * std::size_t{entry.triangle_count} > kNoVertex) {
-      throw InputError("extract_isosurface: more than 2^32 - 1 indices");
-    }
-    for (std::uint32_t t = 0; t < entry.triangle_count; ++t, codes += 3) {
-      const std::uint32_t a = ids[codes[0]], b = ids[codes[1]], c = ids[codes[2]];
-      if (flip_) {
-        indices.insert(indices.end(), {a, c, b});
+    return cc.first_entry + outcome;
+  }
+
+  template <class Sink>
+  void emit_cell(unsigned config, std::int64_t i, std::int64_t j, std::int64_t k, Sink& sink) {
+    const std::int64_t x = nx_;
+    const std::size_t p0 = static_cast<std::size_t>(k & 1), p1 = 1 - p0;
+    const std::uint32_t* x0 = xid_[p0].data() + j * x;
+    const std::uint32_t* x1 = xid_[p1].data() + j * x;
+    const std::uint32_t* y0 = yid_[p0].data() + j * x;
+    const std::uint32_t* y1 = yid_[p1].data() + j * x;
+    const std::uint32_t* zz = zid_.data() + j * x;
+    CellIds ids;
+    ids[0] = x0[i];
+    ids[1] = x0[i + x];
+    ids[2] = x1[i];
+    ids[3] = x1[i + x];
+    ids[4] = y0[i];
+    ids[5] = y0[i + 1];
+    ids[6] = y1[i];
+    ids[7] = y1[i + 1];
+    ids[8] = zz[i];
+    ids[9] = zz[i + 1];
+    ids[10] = zz[i + x];
+    ids[11] = zz[i + x + 1];
+    const std::uint32_t e =
+        entry_index(config, i, j, k, Sink::kStats ? &stats_.ambiguous_faces : nullptr);
+    const surface::CaseEntry& entry = cases_.entries[e];
+    for (std::uint32_t n = 0; n < entry.extra_count; ++n) {
+      if constexpr (Sink::kPlaces) {
+        const surface::ExtraVertex& ev = cases_.extras[entry.first_extra + n];
+        glm::dvec3 sum(0.0);
+        for (std::uint32_t c = 0; c < ev.code_count; ++c) {
+          sum += sink.position(ids[cases_.extra_codes[ev.first_code + c]]);
+        }
+        // The centroid, in world coordinates already.
+        ids[12 + n] = sink.vertex(sum / double(ev.code_count));
       } else {
-        indices.insert(indices.end(), {a, b, c});
+        ids[12 + n] = sink.vertex();
       }
-      offsets.push_back(static_cast<std::uint32_t>(indices.size()));
+      if constexpr (Sink::kStats) ++stats_.centroid_vertices;
     }
+    sink.triangles(cases_, entry, ids, i, j, k);
   }
 
   const float* values_;
   const VolumeGeometry& geometry_;
   float iso_;
   const IsoSurfaceOptions& options_;
-  PolygonMesh& mesh_;
   ExtractionStats& stats_;
   const surface::CubeCases& cases_;
   std::int64_t nx_ = 0, ny_ = 0, nz_ = 0, words_ = 0, row_stride_ = 0, plane_ = 0;
+  std::int64_t planes_kept_ = 2;
   std::array<glm::dvec3, 3> axes_{};
   bool flip_ = false;
   std::array<std::int64_t, 8> corner_offset_{};
-  std::vector<Span> cell_rows_;  // empty: every cell row is visited whole
-  std::array<std::vector<std::uint64_t>, 2> bits_;
-  std::array<std::vector<Span>, 2> fresh_;  // per sample row: the classified samples
-  std::array<std::vector<std::uint32_t>, 2> xid_, yid_;
-  std::vector<std::uint32_t> zid_;
+  std::vector<Span> cell_rows_;        // empty: every cell row is visited whole
+  ScratchVector<std::uint64_t> bits_;  // per kept plane: rows of classification bits
+  ScratchVector<Span> fresh_;          // per kept plane and sample row: the classified samples
+  // Vertex ids of the crossed edges by lower sample: x and y of two planes, z of one slab.
+  std::array<ScratchVector<std::uint32_t>, 2> xid_, yid_;
+  ScratchVector<std::uint32_t> zid_;
 };
 
 }  // namespace
@@ -506,20 +919,12 @@ PolygonMesh extract_isosurface_mesh(const Grid<float>& volume, const IsoSurfaceO
   const auto& d = volume.geometry.dims;
   if (d[0] < 2 || d[1] < 2 || d[2] < 2) return mesh;
   st.cells = static_cast<std::size_t>((d[0] - 1) * (d[1] - 1) * (d[2] - 1));
-
-  const BonoOctree* octree = options.octree;
   std::optional<BonoOctree> own;
-  if (octree == nullptr && options.build_octree) {
-    const auto start = Clock::now();
-    own = BonoOctree::build(volume, BonoOptions{8});
-    octree = &*own;
-    st.octree_seconds = seconds_since(start);
-  }
-  if (octree != nullptr && octree->dims() != d) {
-    throw InputError("extract_isosurface: the octree was built for other dimensions");
-  }
+  const BonoOctree* octree = octree_for(volume, options, st, own);
   const auto start = Clock::now();
-  Extractor(volume, options, mesh, st).run(octree);
+  Extractor extractor(volume, options, st);
+  extractor.skip_with(octree);
+  extractor.mesh(mesh);
   st.extract_seconds = seconds_since(start);
   st.vertices = mesh.positions.size();
   st.triangles = mesh.face_count();
@@ -528,14 +933,21 @@ PolygonMesh extract_isosurface_mesh(const Grid<float>& volume, const IsoSurfaceO
 
 Dlfl extract_isosurface(const Grid<float>& volume, const IsoSurfaceOptions& options,
                         ExtractionStats* stats) {
+  check_input(volume, options);
   ExtractionStats local;
   ExtractionStats& st = stats != nullptr ? *stats : local;
-  const PolygonMesh mesh = extract_isosurface_mesh(volume, options, &st);
+  st = ExtractionStats{};
+  Dlfl dlfl;
+  const auto& d = volume.geometry.dims;
+  if (d[0] < 2 || d[1] < 2 || d[2] < 2) return dlfl;
+  st.cells = static_cast<std::size_t>((d[0] - 1) * (d[1] - 1) * (d[2] - 1));
+  std::optional<BonoOctree> own;
+  const BonoOctree* octree = octree_for(volume, options, st, own);
   const auto start = Clock::now();
-  BuildOptions build;
-  build.progress = options.build_progress;
-  Dlfl dlfl = build_oriented_manifold(mesh, build);
-  st.build_seconds = seconds_since(start);
+  Extractor extractor(volume, options, st);
+  extractor.skip_with(octree);
+  extractor.dlfl(dlfl);
+  st.extract_seconds = seconds_since(start) - st.build_seconds;
   return dlfl;
 }
 

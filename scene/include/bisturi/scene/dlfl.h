@@ -70,7 +70,8 @@ struct CornerPair {
 
 namespace construction {
 class BulkAssembler;
-}
+class RawArrays;
+}  // namespace construction
 
 class Dlfl {
  public:
@@ -232,6 +233,8 @@ class Dlfl {
   // Builds a whole rotation system in one pass (the fast path of mesh construction); it writes
   // the arrays directly and is checked against the operator path in the tests.
   friend class construction::BulkAssembler;
+  // Marching cubes writes the records of its triangles directly (twins from the cell tables).
+  friend class construction::RawArrays;
 
   // Element allocation (reuses free slots) and release.
   VertexId new_vertex();

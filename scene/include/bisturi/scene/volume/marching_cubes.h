@@ -60,7 +60,7 @@ struct IsoSurfaceOptions {
   float iso = 0.0f;
   /// Called with (done, total) slabs of cells during extraction, about every 1% of the slabs.
   std::function<void(std::size_t, std::size_t)> progress;
-  /// Called with (done, total) edge insertions during the DLFL build (extract_isosurface only).
+  /// Called with (done, total) edges written during the DLFL build (extract_isosurface only).
   std::function<void(std::size_t, std::size_t)> build_progress;
   /// Empty-space skipping: only cells of leaves whose value range contains iso are visited.
   /// Must be built from the same grid. When null, one is built if build_octree is set.
@@ -83,8 +83,8 @@ struct ExtractionStats {
   std::size_t centroid_vertices = 0;  ///< extra vertices (polygons without admissible diagonals)
   std::size_t triangles = 0;
   double octree_seconds = 0.0;
-  double extract_seconds = 0.0;
-  double build_seconds = 0.0;  ///< DLFL construction (extract_isosurface only)
+  double extract_seconds = 0.0;  ///< classification and vertex placement (and the mesh's triangles)
+  double build_seconds = 0.0;    ///< writing the DLFL records (extract_isosurface only)
 };
 
 /// The isosurface as indexed triangles (world millimetres), vertices shared through the grid
@@ -96,8 +96,11 @@ PolygonMesh extract_isosurface_mesh(const Grid<float>& volume,
                                     const IsoSurfaceOptions& options = {},
                                     ExtractionStats* stats = nullptr);
 
-/// The isosurface as a Dlfl, built by build_oriented_manifold: every part that reaches the
-/// volume's border is open, and each of its boundary loops is a labelled (bounding) face.
+/// The isosurface as a Dlfl: the structure build_oriented_manifold makes from the triangles of
+/// extract_isosurface_mesh (vertex v and triangle t keep their indices, as vertex v and face t),
+/// written directly from the cell tables in a second pass over the kept classification, with
+/// every array sized exactly. Every part that reaches the volume's border is open, and each of
+/// its boundary loops is a labelled (bounding) face, after the triangles.
 Dlfl extract_isosurface(const Grid<float>& volume, const IsoSurfaceOptions& options = {},
                         ExtractionStats* stats = nullptr);
 
