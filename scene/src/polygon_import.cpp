@@ -7,7 +7,9 @@
 #include <string>
 
 #include "bisturi/scene/errors.h"
+#include "construction/closed_manifold_writer.h"
 #include "construction/edge_groups.h"
+#include "construction/import_paths.h"
 #include "construction/import_report.h"
 #include "construction/orient.h"
 #include "construction/rotation_system.h"
@@ -73,7 +75,7 @@ std::optional<DropReason> degenerate(std::span<const std::uint32_t> face,
   // Twice the vector area (Newell), against the squared perimeter: exact zero for collinear
   // corners up to rounding.
   Dlfl::Vec3 normal(0.0);
-  double perimeter = 0.0;
+  double squared_sides = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     const Dlfl::Vec3& p = positions[face[i]];
     const Dlfl::Vec3& q = positions[face[i + 1 == n ? 0 : i + 1]];
@@ -81,17 +83,32 @@ std::optional<DropReason> degenerate(std::span<const std::uint32_t> face,
     normal.y += (p.z - q.z) * (p.x + q.x);
     normal.z += (p.x - q.x) * (p.y + q.y);
     const Dlfl::Vec3 d = q - p;
+    squared_sides += d.x * d.x + d.y * d.y + d.z * d.z;
+  }
+  const double area2_squared = normal.x * normal.x + normal.y * normal.y + normal.z * normal.z;
+  // Most faces pass without square roots: perimeter^2 <= n * (sum of squared sides), so an area
+  // above the bound (a factor 4 over it for rounding) is above the exact test's too. Only at
+  // normal magnitudes, where rounding errors stay relative; the rest takes the exact test.
+  const double bound = static_cast<double>(n) * squared_sides;
+  if (bound > 1e-140 && bound < 1e140 && area2_squared > 4e-24 * bound * bound) {
+    return std::nullopt;
+  }
+  double perimeter = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Dlfl::Vec3 d = positions[face[i + 1 == n ? 0 : i + 1]] - positions[face[i]];
     perimeter += std::sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
   }
-  const double area2 = std::sqrt(normal.x * normal.x + normal.y * normal.y + normal.z * normal.z);
+  const double area2 = std::sqrt(area2_squared);
   if (!(area2 > 1e-12 * perimeter * perimeter)) return DropReason::ZeroArea;
   return std::nullopt;
 }
 
 }  // namespace
 
-ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
-                             const ImportOptions& options) {
+std::optional<ImportResult> construction::import_polygons_via(const PolygonMesh& in,
+                                                              bool has_vertex_list,
+                                                              const ImportOptions& options,
+                                                              construction::ImportPath path) {
   check_input(in);
   ImportResult result;
   ImportReport& report = result.report;
@@ -109,38 +126,115 @@ ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
     welded = options.weld_tolerance > 0.0
                  ? construction::weld_within(in.positions, options.weld_tolerance)
                  : construction::weld_exact(in.positions);
-  } else {
-    welded.welded_index.resize(in.positions.size());
-    for (std::uint32_t v = 0; v < in.positions.size(); ++v)
-      welded.welded_index[v] = v;
   }
-  // Without welding the input positions serve as they are (no copy).
-  const std::span<const Dlfl::Vec3> positions = weld ? std::span<const Dlfl::Vec3>(welded.positions)
-                                                     : std::span<const Dlfl::Vec3>(in.positions);
-  report.welded_vertices = in.positions.size() - positions.size();
+  // Without welding the input positions and indices serve as they are (no copy).
+  const std::span<const Dlfl::Vec3> input_positions(in.positions);
+  const std::span<const std::uint32_t> welded_index(welded.welded_index);
+  auto vertex_at = [&](std::uint32_t input_vertex) {
+    return weld ? welded_index[input_vertex] : input_vertex;
+  };
+  const std::size_t vertex_count = weld ? welded.positions.size() : in.positions.size();
+  report.welded_vertices = in.positions.size() - vertex_count;
 
-  // Degenerate faces are dropped and listed; the rest keep their corners.
-  ScratchVector<std::uint32_t> offsets{0};
-  ScratchVector<std::uint32_t> from;
-  ScratchVector<std::uint32_t> kept_input_face;
-  from.reserve(in.indices.size());
-  offsets.reserve(in.face_count() + 1);
-  kept_input_face.reserve(in.face_count());
-  ScratchVector<std::uint32_t> face;
-  for (std::uint32_t f = 0; f < in.face_count(); ++f) {
-    face.clear();
-    for (std::uint32_t i : in.face(f))
-      face.push_back(welded.welded_index[i]);
-    if (const auto reason = degenerate(face, positions)) {
-      report.dropped.push_back({f, *reason});
-      continue;
+  // Degenerate faces are dropped and listed; the rest keep their corners. Found first, so that
+  // the common input (nothing dropped) needs no copy of its polygons.
+  {
+    const std::span<const Dlfl::Vec3> positions =
+        weld ? std::span<const Dlfl::Vec3>(welded.positions) : input_positions;
+    std::vector<std::uint32_t> face;
+    for (std::uint32_t f = 0; f < in.face_count(); ++f) {
+      face.clear();
+      for (std::uint32_t i : in.face(f))
+        face.push_back(vertex_at(i));
+      if (const auto reason = degenerate(face, positions)) report.dropped.push_back({f, *reason});
     }
-    from.insert(from.end(), face.begin(), face.end());
-    offsets.push_back(static_cast<std::uint32_t>(from.size()));
-    kept_input_face.push_back(f);
   }
-  const std::size_t nh = from.size();
+  const bool all_kept = report.dropped.empty();
+  ScratchVector<std::uint32_t> kept_offsets, kept_from, kept_input_face;
+  if (!all_kept) {
+    kept_offsets.reserve(in.face_count() - report.dropped.size() + 1);
+    kept_offsets.push_back(0);
+    kept_from.reserve(in.indices.size());
+    kept_input_face.reserve(in.face_count() - report.dropped.size());
+    std::size_t next_dropped = 0;
+    for (std::uint32_t f = 0; f < in.face_count(); ++f) {
+      if (next_dropped < report.dropped.size() && report.dropped[next_dropped].face == f) {
+        ++next_dropped;
+        continue;
+      }
+      for (std::uint32_t i : in.face(f))
+        kept_from.push_back(vertex_at(i));
+      kept_offsets.push_back(static_cast<std::uint32_t>(kept_from.size()));
+      kept_input_face.push_back(f);
+    }
+  }
+  const std::span<const std::uint32_t> offsets =
+      all_kept ? std::span<const std::uint32_t>(in.offsets) : std::span(kept_offsets);
   const std::size_t nf = offsets.size() - 1;
+  auto input_face = [&](std::uint32_t f) { return all_kept ? f : kept_input_face[f]; };
+
+  // The fast path: closed, consistently oriented manifold surfaces written straight into the
+  // DLFL. It gives up on anything else (the general path below then builds the same mesh).
+  const bool tried_fast = path != construction::ImportPath::kGeneral && !options.use_operators;
+  if (path == construction::ImportPath::kFast && !tried_fast) return std::nullopt;
+  if (tried_fast) {
+    progress("orient", 0, nf);
+    BigVector<Dlfl::Vec3> dlfl_positions;
+    if (weld) {
+      dlfl_positions = std::move(welded.positions);
+    } else {
+      dlfl_positions.assign(in.positions.begin(), in.positions.end());
+    }
+    bool written = false;
+    const std::span<const std::uint32_t> indices(in.indices);
+    if (!all_kept) {
+      written = construction::write_closed_manifold(
+          result.mesh, [&](std::uint32_t h) { return kept_from[h]; }, offsets, dlfl_positions,
+          report);
+    } else if (weld) {
+      written = construction::write_closed_manifold(
+          result.mesh, [&](std::uint32_t h) { return welded_index[indices[h]]; }, offsets,
+          dlfl_positions, report);
+    } else {
+      written = construction::write_closed_manifold(
+          result.mesh, [&](std::uint32_t h) { return indices[h]; }, offsets, dlfl_positions,
+          report);
+    }
+    if (written) {
+      if (options.progress)
+        options.progress("insert", in.indices.size() / 2, in.indices.size() / 2);
+      const std::uint32_t spheres = static_cast<std::uint32_t>(report.isolated_vertices);
+      result.vertex_of_input.resize(in.positions.size());
+      for (std::uint32_t v = 0; v < in.positions.size(); ++v)
+        result.vertex_of_input[v] = VertexId(vertex_at(v));
+      result.flipped.assign(in.face_count(), 0);
+      if (all_kept) {
+        result.face_of_input.resize(in.face_count());
+        for (std::uint32_t f = 0; f < nf; ++f)
+          result.face_of_input[f] = FaceId(spheres + f);
+      } else {
+        result.face_of_input.assign(in.face_count(), FaceId{});
+        for (std::uint32_t f = 0; f < nf; ++f)
+          result.face_of_input[kept_input_face[f]] = FaceId(spheres + f);
+      }
+      return result;
+    }
+    if (path == construction::ImportPath::kFast) return std::nullopt;
+    if (weld) welded.positions = std::move(dlfl_positions);
+  }
+
+  // The general path works on copies of the kept polygons.
+  ScratchVector<std::uint32_t> from;
+  if (all_kept) {
+    from.resize(in.indices.size());
+    for (std::size_t h = 0; h < in.indices.size(); ++h)
+      from[h] = vertex_at(in.indices[h]);
+  } else {
+    from = std::move(kept_from);
+  }
+  const std::span<const Dlfl::Vec3> positions =
+      weld ? std::span<const Dlfl::Vec3>(welded.positions) : input_positions;
+  const std::size_t nh = from.size();
   ScratchVector<std::uint32_t> to(nh), face_of(nh);
   for (std::uint32_t f = 0; f < nf; ++f) {
     for (std::uint32_t h = offsets[f]; h < offsets[f + 1]; ++h) {
@@ -150,7 +244,7 @@ ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
   }
 
   // Procedure 4: orientation, parts, seams; procedure 5: fans and the report.
-  progress("orient", 0, nf);
+  if (!tried_fast) progress("orient", 0, nf);
   const construction::EdgeGroups groups = construction::group_edges(from, to, positions.size());
   const construction::Orientation orientation =
       construction::orient_faces(offsets, from, face_of, groups);
@@ -203,16 +297,22 @@ ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
                                                                      insert_options, &corner_of);
 
   result.vertex_of_input.resize(in.positions.size());
-  for (std::size_t v = 0; v < in.positions.size(); ++v) {
-    result.vertex_of_input[v] = vertices[welded.welded_index[v]];
+  for (std::uint32_t v = 0; v < in.positions.size(); ++v) {
+    result.vertex_of_input[v] = vertices[vertex_at(v)];
   }
   result.face_of_input.assign(in.face_count(), FaceId{});
   result.flipped.assign(in.face_count(), 0);
   for (std::uint32_t f = 0; f < nf; ++f) {
-    result.face_of_input[kept_input_face[f]] = result.mesh.face(corner_of[offsets[f]]);
-    result.flipped[kept_input_face[f]] = orientation.flip[f];
+    result.face_of_input[input_face(f)] = result.mesh.face(corner_of[offsets[f]]);
+    result.flipped[input_face(f)] = orientation.flip[f];
   }
   return result;
+}
+
+ImportResult import_polygons(const PolygonMesh& in, bool has_vertex_list,
+                             const ImportOptions& options) {
+  return *construction::import_polygons_via(in, has_vertex_list, options,
+                                            construction::ImportPath::kAuto);
 }
 
 }  // namespace bisturi

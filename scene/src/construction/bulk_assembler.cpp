@@ -25,6 +25,26 @@ class BulkAssembler {
     ScratchVector<std::uint32_t> fan_count(nv, 0);
     for (std::uint32_t vertex : rs.fan_vertex)
       ++fan_count[vertex];
+
+    // Exact room for what is appended (one face per polygon and hole loop, one rotation per fan,
+    // a point sphere per vertex without fans), so no array grows by doubling.
+    {
+      std::size_t lone = 0;
+      for (std::size_t v = 0; v < nv; ++v) {
+        const bool joined = !options.join_vertices.empty() && options.join_vertices[v].valid();
+        lone += !joined && fan_count[v] == 0 ? 1 : 0;
+      }
+      std::size_t polygons = 0;
+      for (std::uint32_t h = 0; h < rs.face_half_edges; ++h)
+        polygons += rs.next[h] < h ? 1 : 0;
+      const std::size_t faces = d.faces_.size() + lone + polygons + rs.hole_loops.size();
+      d.vertices_.reserve(d.vertices_.size() + nv);
+      d.positions_.reserve(d.positions_.size() + nv);
+      d.corners_.reserve(d.corners_.size() + lone + nh);
+      d.faces_.reserve(faces);
+      d.bounding_.reserve(faces);
+      d.rotations_.reserve(d.rotations_.size() + lone + nfans);
+    }
     for (std::size_t v = 0; v < nv; ++v) {
       const VertexId join = options.join_vertices.empty() ? VertexId{} : options.join_vertices[v];
       if (join.valid()) {
@@ -75,7 +95,7 @@ class BulkAssembler {
     for (std::uint32_t h = 0; h < nh; ++h) {
       if (fan_anchor[rs.fan[h]] == kNone) fan_anchor[rs.fan[h]] = h;
     }
-    std::vector<RotationId> rotation_of_fan(nfans);
+    ScratchVector<RotationId> rotation_of_fan(nfans);
     for (std::uint32_t f = 0; f < nfans; ++f) {
       const RotationId r(static_cast<std::uint32_t>(d.rotations_.size()));
       d.rotations_.push_back({corner(fan_anchor[f])});

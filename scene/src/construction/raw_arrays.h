@@ -55,13 +55,14 @@ class RawArrays {
     return f;
   }
 
-  /// After the records are written: attribute arrays follow the sizes, caches see a new topology.
-  static void finish(Dlfl& d) {
+  /// After the records are written: attribute arrays follow the sizes, caches see a new topology
+  /// (`topology_changes`: the version steps of the operator calls the writer stands for).
+  static void finish(Dlfl& d, std::uint64_t topology_changes = 1) {
     d.vertex_props_.resize(d.vertices_.size());
     d.corner_props_.resize(d.corners_.size());
     d.face_props_.resize(d.faces_.size());
     d.edge_props_.resize(d.edges_.size());
-    ++d.topology_version_;
+    d.topology_version_ += topology_changes;
   }
 };
 

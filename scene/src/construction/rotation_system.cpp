@@ -31,8 +31,15 @@ void close_boundaries(RotationSystem& rs) {
   for (std::uint32_t h = 0; h < nh; ++h)
     prev[rs.next[h]] = h;
   ScratchVector<char> boundary(nh);
-  for (std::uint32_t h = 0; h < nh; ++h)
+  std::size_t holes = 0;
+  for (std::uint32_t h = 0; h < nh; ++h) {
     boundary[h] = rs.twin[h] == kNone ? 1 : 0;
+    holes += boundary[h];
+  }
+  // One hole half-edge per boundary side: exact room, so appending them never regrows.
+  for (auto* array : {&rs.from, &rs.to, &rs.next, &rs.twin})
+    array->reserve(nh + holes);
+  rs.fan.reserve(nh + holes);
 
   ScratchVector<std::uint32_t> hole_of(nh, kNone);
   auto hole = [&](std::uint32_t b) {

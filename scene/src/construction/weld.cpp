@@ -4,6 +4,7 @@
 #include <bit>
 #include <cmath>
 #include <string>
+#include <vector>
 
 #include "bisturi/scene/errors.h"
 
@@ -42,27 +43,81 @@ std::size_t table_size_for(std::size_t n) {
 
 WeldResult weld_exact(std::span<const Dlfl::Vec3> positions) {
   WeldResult out;
-  out.welded_index.resize(positions.size());
-  const std::size_t size = table_size_for(positions.size());
-  const std::size_t mask = size - 1;
-  ScratchVector<std::uint32_t> table(size, kEmpty);  // open addressing, linear probing
-  for (std::size_t i = 0; i < positions.size(); ++i) {
+  const std::size_t n = positions.size();
+  out.welded_index.resize(n);
+  // Open addressing, linear probing, at most 3/4 full. Fresh memory is slow here and a soup
+  // keeps about one vertex in six, so the table starts small and doubles when it fills.
+  std::size_t size = 16;
+  while (3 * size < n)
+    size *= 2;
+  std::size_t mask = size - 1;
+  auto slot_of = [](const Dlfl::Vec3& p) { return hash_bits(p.x, p.y, p.z); };
+  // Pass 1: the table holds the first input vertex of every place; each vertex notes its first.
+  ScratchVector<std::uint32_t> table(size, kEmpty);
+  std::size_t kept = 0;
+  // Places recur close together in a soup (the faces around a vertex are near in the file): a
+  // small cache of recent places, holding their coordinates, answers most repeats from L2
+  // instead of a table probe plus a random read of the first vertex's coordinates.
+  struct Recent {
+    Dlfl::Vec3 p;
+    std::uint32_t first = kEmpty;
+  };
+  constexpr std::size_t kRecent = std::size_t{1} << 14;
+  std::vector<Recent> recent(n >= 4 * kRecent ? kRecent : 0);
+  for (std::size_t i = 0; i < n; ++i) {
     const Dlfl::Vec3& p = positions[i];
-    std::size_t slot = hash_bits(p.x, p.y, p.z) & mask;
+    const std::uint64_t hash = slot_of(p);
+    Recent* cached = nullptr;
+    if (!recent.empty()) {
+      cached = &recent[(hash >> 40) & (kRecent - 1)];
+      if (cached->first != kEmpty && cached->p.x == p.x && cached->p.y == p.y &&
+          cached->p.z == p.z) {
+        out.welded_index[i] = cached->first;
+        continue;
+      }
+    }
+    std::size_t slot = hash & mask;
     while (true) {
-      const std::uint32_t kept = table[slot];
-      if (kept == kEmpty) {
-        table[slot] = static_cast<std::uint32_t>(out.positions.size());
-        out.welded_index[i] = table[slot];
-        out.positions.push_back(p);
+      const std::uint32_t first = table[slot];
+      if (first == kEmpty) {
+        table[slot] = static_cast<std::uint32_t>(i);
+        out.welded_index[i] = static_cast<std::uint32_t>(i);
+        ++kept;
         break;
       }
-      const Dlfl::Vec3& q = out.positions[kept];
+      const Dlfl::Vec3& q = positions[first];
       if (p.x == q.x && p.y == q.y && p.z == q.z) {
-        out.welded_index[i] = kept;
+        out.welded_index[i] = first;
         break;
       }
       slot = (slot + 1) & mask;
+    }
+    if (cached != nullptr) *cached = {p, out.welded_index[i]};
+    if (4 * kept > 3 * size) {
+      ScratchVector<std::uint32_t> bigger(2 * size, kEmpty);
+      const std::size_t bigger_mask = 2 * size - 1;
+      for (const std::uint32_t first : table) {
+        if (first == kEmpty) continue;
+        std::size_t s = slot_of(positions[first]) & bigger_mask;
+        while (bigger[s] != kEmpty)
+          s = (s + 1) & bigger_mask;
+        bigger[s] = first;
+      }
+      table = std::move(bigger);
+      size *= 2;
+      mask = bigger_mask;
+    }
+  }
+  // Pass 2: kept vertices numbered in order of first appearance, into an exactly sized array.
+  // A repeat's first vertex comes earlier, so it is already renumbered.
+  out.positions.reserve(kept);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t first = out.welded_index[i];
+    if (first == i) {
+      out.welded_index[i] = static_cast<std::uint32_t>(out.positions.size());
+      out.positions.push_back(positions[i]);
+    } else {
+      out.welded_index[i] = out.welded_index[first];
     }
   }
   return out;
@@ -92,7 +147,7 @@ WeldResult weld_within(std::span<const Dlfl::Vec3> positions, double tolerance) 
   const std::size_t size = table_size_for(positions.size());
   const std::size_t mask = size - 1;
   ScratchVector<std::uint32_t> table(size, kEmpty);
-  std::vector<std::array<std::int64_t, 3>> cell_of_slot(size);
+  ScratchVector<std::array<std::int64_t, 3>> cell_of_slot(size);
   ScratchVector<std::uint32_t> next_in_cell;
   const double tol2 = tolerance * tolerance;
   auto find_slot = [&](const std::array<std::int64_t, 3>& c) {

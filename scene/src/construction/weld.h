@@ -12,7 +12,8 @@ namespace bisturi::construction {
 
 struct WeldResult {
   ScratchVector<std::uint32_t> welded_index;  ///< per input vertex: its index among the kept ones
-  ScratchVector<Dlfl::Vec3> positions;        ///< kept vertices, in order of first appearance
+  BigVector<Dlfl::Vec3> positions;  ///< kept vertices, in order of first appearance (sized exactly,
+                                    ///< so the DLFL can take them as they are)
 };
 
 /// Merges vertices with bit-identical coordinates (-0 and +0 are equal).
