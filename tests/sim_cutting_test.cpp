@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <glm/geometric.hpp>
 
 #include "bisturi/scene/dlfl_queries.h"
@@ -120,6 +122,66 @@ TEST(SimCutting, ScalpelSweepCutsWhereTheBladeCrossesTheSurface) {
   sweep.finish(world.body(0));
   ASSERT_TRUE(validate(world.body(0).mesh()).ok());
   EXPECT_EQ(boundary_loops(world.body(0).mesh()).size(), 2u);
+}
+
+TEST(SimCutting, LocalUpdateGivesTheFullRebuildsSpringsAndMasses) {
+  // A cut updates springs and masses only around the incision: the result must be what a full
+  // rebuild from the new mesh gives (springs exactly, masses to rounding).
+  SoftBody body(testing::sphere(24, 8.0), Material{});
+  const double c = 0.0115, r = 0.008;
+  std::vector<glm::dvec3> blade;
+  for (int i = 0; i <= 6; ++i) {
+    const double a = -0.5 + i / 6.0;
+    blade.emplace_back(c + r * std::sin(a), c, c + r * std::cos(a));
+  }
+  const CutResult cut = cut_surface(body, blade);
+  ASSERT_GT(cut.new_vertices.size(), 0u);
+  ASSERT_TRUE(validate(body.mesh()).ok());
+  const Dlfl& mesh = body.mesh();
+  std::vector<glm::dvec3> rest(mesh.vertex_capacity(), glm::dvec3(0.0));
+  for (std::uint32_t i = 0; i < mesh.vertex_capacity(); ++i) {
+    if (mesh.alive(VertexId(i))) rest[i] = body.rest_position(VertexId(i));
+  }
+  const std::vector<Spring> full = build_springs(mesh, rest, Material{});
+  ASSERT_EQ(body.springs().size(), full.size());
+  std::size_t on_copies = 0;  // the far lip's copies carry springs of their own
+  for (const Spring& s : body.springs()) {
+    for (VertexId q : cut.new_vertices)
+      on_copies += (s.a == q.idx || s.b == q.idx) ? 1 : 0;
+  }
+  EXPECT_GE(on_copies, 2 * cut.new_vertices.size());
+  for (std::size_t i = 0; i < full.size(); ++i) {
+    const Spring& s = body.springs()[i];
+    ASSERT_EQ(s.a, full[i].a) << i;
+    ASSERT_EQ(s.b, full[i].b) << i;
+    EXPECT_EQ(s.kind, full[i].kind) << i;
+    EXPECT_EQ(s.rest_m, full[i].rest_m) << i;
+    EXPECT_EQ(s.k_N_per_m, full[i].k_N_per_m) << i;
+  }
+  // Masses: each real face's area shared equally by its corners.
+  const Material mat;
+  std::vector<double> mass(mesh.vertex_capacity(), 0.0);
+  for (std::uint32_t fi = 0; fi < mesh.face_capacity(); ++fi) {
+    const FaceId f(fi);
+    if (!mesh.alive(f) || mesh.is_bounding(f) || mesh.is_point_sphere(mesh.first_corner(f)))
+      continue;
+    std::vector<std::uint32_t> ring;
+    CornerId k = mesh.first_corner(f);
+    do {
+      ring.push_back(mesh.vertex(k).idx);
+      k = mesh.next(k);
+    } while (k != mesh.first_corner(f));
+    glm::dvec3 twice_area(0.0);
+    for (std::size_t i = 0; i < ring.size(); ++i)
+      twice_area += glm::cross(rest[ring[i]], rest[ring[(i + 1) % ring.size()]]);
+    for (std::uint32_t v : ring)
+      mass[v] += 0.5 * glm::length(twice_area) * mat.density_kg_per_m3 * mat.thickness_m /
+                 double(ring.size());
+  }
+  ASSERT_EQ(body.masses().size(), mass.size());
+  for (std::size_t i = 0; i < mass.size(); ++i)
+    EXPECT_NEAR(body.masses()[i], mass[i], 1e-12 * mass[i]) << i;
+  EXPECT_FALSE(body.closed());  // the incision opened it
 }
 
 TEST(SimCutting, TooShortCutIsRefusedUnchanged) {

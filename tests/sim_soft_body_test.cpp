@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "bisturi/sim/integrator.h"
@@ -63,6 +64,28 @@ TEST(SimSoftBody, HangingStripReachesPredictedSag) {
     EXPECT_NEAR(measured, sag, 0.01 * sag) << "vertex " << i;
   }
   EXPECT_GT(sag, 1e-3);  // a visible sag, not a rounding effect
+}
+
+TEST(SimSoftBody, BodyAtRestCostsAtMostTwoIterations) {
+  // A sphere resting on its anchored lower half, settled with the default options: its residual
+  // force is a small fraction of its weight, and the absolute criterion ends the solve at once
+  // (the relative one alone ran to the iteration cap on a right-hand side of rounding noise).
+  Material mat;
+  mat.drag_per_s = 20.0;  // settles in a fraction of a second
+  SoftBody body(testing::sphere(20, 6.0), mat);
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+    if (body.position(VertexId(i)).z < 0.0095) body.set_anchored(VertexId(i), true);
+  }
+  const IntegratorOptions defaults;
+  ImplicitIntegrator integrator;
+  std::vector<SimEvent> events;
+  for (int s = 0; s < 3000; ++s)
+    integrator.step(body, defaults, events);
+  int most = 0;
+  for (int s = 0; s < 50; ++s)
+    most = std::max(most, integrator.step(body, defaults, events).cg_iterations);
+  EXPECT_LE(most, 2);
+  EXPECT_TRUE(events.empty());
 }
 
 TEST(SimSoftBody, EnergyDoesNotGrowWithoutInput) {

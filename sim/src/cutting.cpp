@@ -266,7 +266,10 @@ CutResult cut_surface(SoftBody& body, std::span<const glm::dvec3> points,
       if (r.valid()) mesh.set_bounding(mesh.face(r), true);
     }
   }
-  body.refresh_topology();
+  // Only the faces around the path and its copies changed: springs and masses update there.
+  std::vector<VertexId> touched(path.begin(), path.end());
+  touched.insert(touched.end(), result.new_vertices.begin(), result.new_vertices.end());
+  body.refresh_topology_local(touched);
   result.path = std::move(path);
   return result;
 }

@@ -1,5 +1,6 @@
 #include "bisturi/sim/soft_body.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstring>
@@ -96,15 +97,94 @@ void SoftBody::rebuild_masses() {
 bool SoftBody::refresh_topology() {
   if (mesh_.topology_version() == topology_version_) return false;
   resize_arrays();
-  triangles_ = triangulate_surface(mesh_);
   springs_ = build_springs(mesh_, rest_->raw(), material_);
   rebuild_masses();
+  finish_refresh();
+  return true;
+}
+
+void SoftBody::finish_refresh() {
+  triangles_ = triangulate_surface(mesh_);
   closed_ = material_.bulk_modulus_Pa > 0.0;
   for (std::uint32_t f = 0; f < mesh_.face_capacity() && closed_; ++f) {
     if (mesh_.alive(FaceId(f)) && mesh_.is_bounding(FaceId(f))) closed_ = false;
   }
   topology_version_ = mesh_.topology_version();
   derived_generation_ = ++g_generation;
+}
+
+bool SoftBody::refresh_topology_local(std::span<const VertexId> touched) {
+  if (mesh_.topology_version() == topology_version_) return false;
+  ensure_capacity();
+  const std::size_t n = mesh_.vertex_capacity();
+  // The region: every vertex of a face around a touched vertex. Springs and masses outside it
+  // do not depend on any face the edit changed (docs/sim/integrator.md, "Cuts").
+  std::vector<std::uint8_t> region(n, 0);
+  std::vector<std::uint32_t> verts;
+  auto corners = [&](VertexId v, auto&& f) {
+    for (RotationId r = mesh_.first_rotation(v); r.valid(); r = mesh_.next_rotation(r)) {
+      const CornerId start = mesh_.rotation_corner(r);
+      CornerId c = start;
+      do {
+        f(c);
+        c = mesh_.rot_next(c);
+      } while (c != start);
+    }
+  };
+  for (VertexId t : touched) {
+    if (!mesh_.alive(t)) continue;
+    corners(t, [&](CornerId c) {
+      const CornerId first = mesh_.first_corner(mesh_.face(c));
+      CornerId k = first;
+      do {
+        const std::uint32_t v = mesh_.vertex(k).idx;
+        if (!region[v]) {
+          region[v] = 1;
+          verts.push_back(v);
+        }
+        k = mesh_.next(k);
+      } while (k != first);
+    });
+  }
+  std::sort(verts.begin(), verts.end());
+  // Springs: those with no end in the region are kept; the others come from the new faces.
+  std::vector<Spring> near = build_springs_near(mesh_, rest_->raw(), material_, region, verts);
+  // In place (no new multi-megabyte array: fresh pages cost more than the merge): drop the
+  // region's springs, then merge the new ones in from the back.
+  auto less = [](const Spring& x, const Spring& y) { return x.a != y.a ? x.a < y.a : x.b < y.b; };
+  std::erase_if(springs_, [&](const Spring& s) { return region[s.a] || region[s.b]; });
+  std::size_t i = springs_.size(), j = near.size();
+  springs_.resize(i + j);
+  for (std::size_t out = i + j; j > 0;) {
+    if (i > 0 && less(near[j - 1], springs_[i - 1])) {
+      springs_[--out] = springs_[--i];
+    } else {
+      springs_[--out] = near[--j];
+    }
+  }
+  // Masses: each region vertex sums its corners' shares again (faces outside the region kept
+  // their area and corner count, so the other vertices keep their masses).
+  const double area_density = material_.density_kg_per_m3 * material_.thickness_m;
+  const auto& rest = rest_->raw();
+  for (std::uint32_t v : verts) {
+    double m = 0.0;
+    corners(VertexId(v), [&](CornerId c) {
+      const FaceId f = mesh_.face(c);
+      if (mesh_.is_bounding(f) || mesh_.is_point_sphere(c)) return;
+      glm::dvec3 twice_area(0.0);
+      std::size_t count = 0;
+      const CornerId first = mesh_.first_corner(f);
+      CornerId k = first;
+      do {
+        twice_area += glm::cross(rest[mesh_.vertex(k).idx], rest[mesh_.vertex(mesh_.next(k)).idx]);
+        ++count;
+        k = mesh_.next(k);
+      } while (k != first);
+      m += 0.5 * glm::length(twice_area) * area_density / double(count);
+    });
+    mass_[v] = m;
+  }
+  finish_refresh();
   return true;
 }
 

@@ -24,48 +24,45 @@ bool real_face(const Dlfl& mesh, FaceId f) {
   return !mesh.is_bounding(f) && !mesh.is_point_sphere(mesh.first_corner(f));
 }
 
-}  // namespace
-
-std::vector<Spring> build_springs(const Dlfl& mesh, const std::vector<glm::dvec3>& rest,
-                                  const Material& material) {
-  std::vector<Key> keys;
-  keys.reserve(mesh.num_edges() * 3);
-  std::vector<std::uint32_t> ring;
-  for (std::uint32_t fi = 0; fi < mesh.face_capacity(); ++fi) {
-    const FaceId f(fi);
-    if (!mesh.alive(f) || !real_face(mesh, f)) continue;
-    ring.clear();
-    const CornerId first = mesh.first_corner(f);
-    CornerId c = first;
-    do {
-      ring.push_back(mesh.vertex(c).idx);
-      c = mesh.next(c);
-    } while (c != first);
-    const std::size_t n = ring.size();
-    for (std::size_t i = 0; i < n; ++i) {
-      // Structural: every side (the edge's other face adds it again; duplicates go below).
-      add_pair(keys, ring[i], ring[(i + 1) % n], SpringKind::Structural);
-      // Shear: diagonals of faces with more than three corners.
-      for (std::size_t j = i + 2; j < n; ++j) {
-        if (i == 0 && j == n - 1) continue;
-        add_pair(keys, ring[i], ring[j], SpringKind::Shear);
-      }
+/// Structural springs on the sides of a real face and shear springs across its diagonals.
+void add_face_keys(const Dlfl& mesh, FaceId f, std::vector<std::uint32_t>& ring,
+                   std::vector<Key>& keys) {
+  ring.clear();
+  const CornerId first = mesh.first_corner(f);
+  CornerId c = first;
+  do {
+    ring.push_back(mesh.vertex(c).idx);
+    c = mesh.next(c);
+  } while (c != first);
+  const std::size_t n = ring.size();
+  for (std::size_t i = 0; i < n; ++i) {
+    // Structural: every side (the edge's other face adds it again; duplicates go below).
+    add_pair(keys, ring[i], ring[(i + 1) % n], SpringKind::Structural);
+    // Shear: diagonals of faces with more than three corners.
+    for (std::size_t j = i + 2; j < n; ++j) {
+      if (i == 0 && j == n - 1) continue;
+      add_pair(keys, ring[i], ring[j], SpringKind::Shear);
     }
   }
-  // Structural springs on edges with no real face (wires) and bending springs across edges.
-  for (std::uint32_t ei = 0; ei < mesh.edge_capacity(); ++ei) {
-    const EdgeId e(ei);
-    if (!mesh.alive(e)) continue;
-    const CornerPair p = mesh.primary_pair(e);
-    add_pair(keys, mesh.vertex(p.a).idx, mesh.vertex(p.b).idx, SpringKind::Structural);
-    if (!real_face(mesh, mesh.face(p.a)) || !real_face(mesh, mesh.face(p.b))) continue;
-    // The vertex after the edge's far end in each face: the opposite vertex of a triangle.
-    const VertexId u = mesh.vertex(mesh.next(mesh.next(p.a)));
-    const VertexId w = mesh.vertex(mesh.next(mesh.next(p.b)));
-    add_pair(keys, u.idx, w.idx, SpringKind::Bending);
-  }
+}
+
+/// A structural spring on the edge (for wires with no real face) and the bending spring across
+/// it.
+void add_edge_keys(const Dlfl& mesh, EdgeId e, std::vector<Key>& keys) {
+  const CornerPair p = mesh.primary_pair(e);
+  add_pair(keys, mesh.vertex(p.a).idx, mesh.vertex(p.b).idx, SpringKind::Structural);
+  if (!real_face(mesh, mesh.face(p.a)) || !real_face(mesh, mesh.face(p.b))) return;
+  // The vertex after the edge's far end in each face: the opposite vertex of a triangle.
+  const VertexId u = mesh.vertex(mesh.next(mesh.next(p.a)));
+  const VertexId w = mesh.vertex(mesh.next(mesh.next(p.b)));
+  add_pair(keys, u.idx, w.idx, SpringKind::Bending);
+}
+
+/// Sorted keys to springs: one per vertex pair, a structural spring winning over shear and
+/// bending on the same pair.
+std::vector<Spring> springs_from_keys(std::vector<Key>& keys, const std::vector<glm::dvec3>& rest,
+                                      const Material& material) {
   std::sort(keys.begin(), keys.end());
-  // One spring per vertex pair: a structural spring wins over shear and bending on the same pair.
   std::vector<Spring> springs;
   springs.reserve(keys.size());
   for (std::size_t i = 0; i < keys.size(); ++i) {
@@ -89,6 +86,70 @@ std::vector<Spring> build_springs(const Dlfl& mesh, const std::vector<glm::dvec3
     if (s.k_N_per_m > 0.0) springs.push_back(s);
   }
   return springs;
+}
+
+/// Every corner of v, over all its rotations.
+template <class F>
+void for_each_corner(const Dlfl& mesh, VertexId v, F&& f) {
+  for (RotationId r = mesh.first_rotation(v); r.valid(); r = mesh.next_rotation(r)) {
+    const CornerId start = mesh.rotation_corner(r);
+    CornerId c = start;
+    do {
+      f(c);
+      c = mesh.rot_next(c);
+    } while (c != start);
+  }
+}
+
+}  // namespace
+
+std::vector<Spring> build_springs(const Dlfl& mesh, const std::vector<glm::dvec3>& rest,
+                                  const Material& material) {
+  std::vector<Key> keys;
+  keys.reserve(mesh.num_edges() * 3);
+  std::vector<std::uint32_t> ring;
+  for (std::uint32_t fi = 0; fi < mesh.face_capacity(); ++fi) {
+    const FaceId f(fi);
+    if (mesh.alive(f) && real_face(mesh, f)) add_face_keys(mesh, f, ring, keys);
+  }
+  // Structural springs on edges with no real face (wires) and bending springs across edges.
+  for (std::uint32_t ei = 0; ei < mesh.edge_capacity(); ++ei) {
+    if (mesh.alive(EdgeId(ei))) add_edge_keys(mesh, EdgeId(ei), keys);
+  }
+  return springs_from_keys(keys, rest, material);
+}
+
+std::vector<Spring> build_springs_near(const Dlfl& mesh, const std::vector<glm::dvec3>& rest,
+                                       const Material& material,
+                                       const std::vector<std::uint8_t>& region,
+                                       std::span<const std::uint32_t> region_vertices) {
+  // A spring with an end v in the region comes from a face around v (structural, shear), or
+  // from an edge of such a face (a bending spring's ends are corners of the edge's two faces).
+  std::vector<FaceId> faces;
+  for (std::uint32_t v : region_vertices)
+    for_each_corner(mesh, VertexId(v), [&](CornerId c) { faces.push_back(mesh.face(c)); });
+  std::sort(faces.begin(), faces.end());
+  faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
+  std::vector<Key> keys;
+  std::vector<EdgeId> edges;
+  std::vector<std::uint32_t> ring;
+  for (FaceId f : faces) {
+    if (!mesh.alive(f)) continue;
+    if (real_face(mesh, f)) add_face_keys(mesh, f, ring, keys);
+    const CornerId first = mesh.first_corner(f);
+    CornerId c = first;
+    do {
+      const EdgeId e = mesh.edge(c);
+      if (e.valid() && mesh.alive(e)) edges.push_back(e);
+      c = mesh.next(c);
+    } while (c != first);
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  for (EdgeId e : edges)
+    add_edge_keys(mesh, e, keys);
+  std::erase_if(keys, [&](const Key& k) { return !region[k.a] && !region[k.b]; });
+  return springs_from_keys(keys, rest, material);
 }
 
 SurfaceTriangles triangulate_surface(const Dlfl& mesh) {

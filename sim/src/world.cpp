@@ -16,7 +16,25 @@ std::uint32_t SimWorld::add_body(SoftBody body) {
   bodies_.push_back(std::move(body));
   bvhs_.emplace_back(*device_, bodies_.back());
   stats_.emplace_back();
+  integrator_.prepare(bodies_.back(), options_.integrator);
   return static_cast<std::uint32_t>(bodies_.size() - 1);
+}
+
+void SimWorld::prepare() {
+  for (std::uint32_t i = 0; i < bodies_.size(); ++i)
+    prepare_body(i);
+}
+
+void SimWorld::prepare_body(std::uint32_t i) {
+  integrator_.prepare(bodies_[i], options_.integrator);
+  bvhs_[i].update(bodies_[i]);  // the first refit after a build costs more than later ones
+  if (!options_.contact.enabled) return;
+  // The user-geometry copies rtcCollide works on, built by a query whose result is not used.
+  for (std::uint32_t j = 0; j < bodies_.size(); ++j) {
+    if (j == i) continue;
+    (void)bvhs_[i].overlapping_triangles(bodies_[i], bvhs_[j], bodies_[j],
+                                         options_.contact.margin_m);
+  }
 }
 
 HapticOutput SimWorld::step(const glm::dvec3& device_m) {
@@ -114,7 +132,7 @@ void SimWorld::tissue_contacts() {
 CutResult SimWorld::cut(std::uint32_t i, std::span<const glm::dvec3> points_m,
                         const CutOptions& options) {
   CutResult r = cut_surface(bodies_[i], points_m, options);
-  bvhs_[i].update(bodies_[i]);
+  prepare_body(i);  // the solver structure and BVH copies now, not in the next step
   return r;
 }
 

@@ -3,7 +3,9 @@
 // 2k, 20k and 100k vertices (phantom + marching cubes, 1 mm voxels), single thread (Embree with
 // threads=1); p50 and p99 of the step time come out as counters, with the mean number of CG
 // iterations and the last relative residual. And the time to apply one 5 cm cut (blade points
-// along an arc over the top of the 20k-vertex sphere), BVH rebuild included.
+// along an arc over the top of the 20k-vertex sphere), BVH rebuild included. BM_TwoBodies: the
+// headset session's shape of work (first step with and without SimWorld::prepare(), steady
+// step, a cut tick and the step after it).
 // Run by hand: build/bin/sim_bench [--benchmark_filter=...]. Goal: p99 <= 1 ms at 20k.
 
 #include <benchmark/benchmark.h>
@@ -95,7 +97,8 @@ void BM_FullStep(benchmark::State& state) {
     world.step(device());  // settle the warm start
   std::vector<double> samples;
   double cg = 0.0;
-  double residual = 0.0;
+  int cg_max = 0;
+  double residual = 0.0, residual_sum = 0.0;
   for (auto _ : state) {
     const glm::dvec3 d = device();
     const auto t0 = std::chrono::steady_clock::now();
@@ -106,7 +109,9 @@ void BM_FullStep(benchmark::State& state) {
     state.SetIterationTime(sec);
     samples.push_back(sec * 1e6);
     cg += world.last_stats(id).cg_iterations;
+    cg_max = std::max(cg_max, world.last_stats(id).cg_iterations);
     residual = world.last_stats(id).relative_residual;
+    residual_sum += residual;
     ++s;
   }
   state.counters["vertices"] = double(body.mesh().num_vertices());
@@ -114,7 +119,8 @@ void BM_FullStep(benchmark::State& state) {
   state.counters["p50_us"] = percentile(samples, 0.50);
   state.counters["p99_us"] = percentile(samples, 0.99);
   state.counters["cg_iters"] = cg / double(std::max<std::size_t>(samples.size(), 1));
-  state.counters["last_residual"] = residual;
+  state.counters["cg_max"] = cg_max;
+  state.counters["mean_residual"] = residual_sum / double(std::max<std::size_t>(samples.size(), 1));
   state.counters["events"] = double(world.take_events().size());
 }
 BENCHMARK(BM_FullStep)
@@ -124,6 +130,82 @@ BENCHMARK(BM_FullStep)
     ->UseManualTime()
     ->Unit(benchmark::kMicrosecond)
     ->Iterations(3000);
+
+// The headset session's shape of work: two small bodies (an organ of about 800 vertices under
+// the probe, a second body of about 800 vertices beside it), lower thirds anchored. Reports the
+// first step after set-up (with SimWorld::prepare() when the argument is 1, without it when 0),
+// the steady step while the probe presses (p50/p99), the tick of a 1 cm cut over the organ and
+// the step after it.
+void BM_TwoBodies(benchmark::State& state) {
+  const bool prepare = state.range(0) != 0;
+  const Shape& organ = sphere(7.0);
+  const Shape& vessel = sphere(6.5);
+  std::vector<double> first, second, samples, cut, after;
+  int first_cg = 0;
+  for (auto _ : state) {
+    WorldOptions options;
+    options.embree_threads = 1;
+    SimWorld world(options);
+    world.add_body(SoftBody(build_oriented_manifold(organ.polygons), Material{}));
+    world.add_body(SoftBody(build_oriented_manifold(vessel.polygons), Material{}));
+    const double c = organ.centre_mm * 1e-3;
+    const double r = organ.radius_mm * 1e-3;
+    // The second body 7 mm beside the first along x (as in the default scene).
+    for (auto& p : world.body(1).positions())
+      p.x += (organ.radius_mm + vessel.radius_mm + 7.0) * 1e-3;
+    for (std::uint32_t b = 0; b < 2; ++b) {
+      SoftBody& body = world.body(b);
+      for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+        const VertexId v(i);
+        if (body.mesh().alive(v) && body.position(v).z < c - r / 3.0) body.set_anchored(v, true);
+      }
+    }
+    if (prepare) world.prepare();
+    std::uint64_t s = 0;
+    auto device = [&] {
+      const double depth =
+          0.0015 * (1.0 - std::cos(2.0 * 3.141592653589793 * 2.0 * double(s) * 1e-3));
+      return glm::dvec3(c, c, c + r + 0.001 - depth);
+    };
+    auto timed_step = [&] {
+      const glm::dvec3 d = device();
+      const auto t0 = std::chrono::steady_clock::now();
+      benchmark::DoNotOptimize(world.step(d));
+      ++s;
+      return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e6;
+    };
+    first.push_back(timed_step());
+    first_cg = world.last_stats(0).cg_iterations + world.last_stats(1).cg_iterations;
+    second.push_back(timed_step());
+    for (int i = 0; i < 1000; ++i)
+      samples.push_back(timed_step());
+    const double half_angle = 0.005 / r;  // arc length 1 cm
+    std::vector<glm::dvec3> points;
+    for (int i = 0; i <= 4; ++i) {
+      const double a = -half_angle + 2.0 * half_angle * i / 4.0;
+      points.emplace_back(c + r * std::sin(a), c, c + r * std::cos(a));
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    benchmark::DoNotOptimize(world.cut(0, points));
+    cut.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() *
+                  1e6);
+    after.push_back(timed_step());
+    state.SetIterationTime(1e-6 * first.back());
+  }
+  state.counters["first_us"] = percentile(first, 0.5);
+  state.counters["second_us"] = percentile(second, 0.5);
+  state.counters["first_cg"] = first_cg;
+  state.counters["p50_us"] = percentile(samples, 0.50);
+  state.counters["p99_us"] = percentile(samples, 0.99);
+  state.counters["cut_us"] = percentile(cut, 0.5);
+  state.counters["after_cut_us"] = percentile(after, 0.5);
+}
+BENCHMARK(BM_TwoBodies)
+    ->Arg(0)
+    ->Arg(1)
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond)
+    ->Iterations(5);
 
 // One 5 cm cut over the top of the 20k-vertex sphere (path, face splits, vertex splits, springs,
 // masses, triangles and the BVH rebuilt), on a fresh body each time.

@@ -89,6 +89,9 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
     names_.push_back(d.name);
     world_.add_body(std::move(body));
   }
+  // Everything the first step would build lazily (solver structure, BVHs, scratch) is built now,
+  // before the haptic clock starts: tick 1 costs what tick 2 costs.
+  world_.prepare();
   out_.command_N.assign(
       [&] {
         std::size_t n = 0;

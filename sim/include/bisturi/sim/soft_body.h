@@ -94,6 +94,11 @@ class SoftBody {
   /// Rebuilds springs, masses and triangles when mesh().topology_version() moved; returns true
   /// when it did. New vertices must already carry positions (cutting copies them).
   bool refresh_topology();
+  /// refresh_topology() after an edit that changed only the faces around `touched` (a cut's
+  /// path vertices and their copies): springs and masses are updated in the faces around them
+  /// (the rest is kept), triangles are rebuilt. Gives the springs and (to rounding) the masses
+  /// of a full rebuild.
+  bool refresh_topology_local(std::span<const VertexId> touched);
   [[nodiscard]] std::uint64_t topology_version() const { return topology_version_; }
   /// Unique over every body of the process and every rebuild of the derived data: a cache key
   /// for data derived from springs and masses (the integrator's solver structure).
@@ -122,6 +127,8 @@ class SoftBody {
  private:
   void resize_arrays();
   void rebuild_masses();
+  /// Triangles, the closed flag, the version and generation after springs and masses.
+  void finish_refresh();
 
   Dlfl mesh_;
   Material material_;

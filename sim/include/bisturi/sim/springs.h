@@ -6,6 +6,7 @@
 // Springs are sorted and unique, so the list (and every sum over it) has one deterministic order.
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -28,6 +29,15 @@ struct Spring {
 /// Springs of `mesh` with rest lengths from `rest_positions_m` (indexed by vertex index).
 std::vector<Spring> build_springs(const Dlfl& mesh, const std::vector<glm::dvec3>& rest_positions_m,
                                   const Material& material);
+
+/// The springs build_springs gives that have at least one end in the region (region[v] != 0 for
+/// the vertex indices in region_vertices), found from the faces and edges around those vertices
+/// only: the local update after an edit (a cut) that changed nothing outside the region.
+std::vector<Spring> build_springs_near(const Dlfl& mesh,
+                                       const std::vector<glm::dvec3>& rest_positions_m,
+                                       const Material& material,
+                                       const std::vector<std::uint8_t>& region,
+                                       std::span<const std::uint32_t> region_vertices);
 
 /// The unlabelled faces fan-triangulated (vertex indices, counter-clockwise seen from outside),
 /// with the face each triangle came from: the surface the BVH, the haptic proxy and the volume

@@ -38,8 +38,13 @@ class SimWorld {
  public:
   explicit SimWorld(const WorldOptions& options = {});
 
-  /// Adds a body (and builds its BVH); returns its index.
+  /// Adds a body (and builds its BVH and solver structure); returns its index.
   std::uint32_t add_body(SoftBody body);
+  /// Builds everything the first step would build lazily (solver structures for the current
+  /// anchors, scratch, BVH refit state, the tissue-contact BVHs), so that the first step costs
+  /// what later ones do. Call after the bodies are set up (anchors included); cut() does it for
+  /// the body it cut. Optional: without it the first step does the same work.
+  void prepare();
   [[nodiscard]] std::size_t body_count() const { return bodies_.size(); }
   SoftBody& body(std::uint32_t i) { return bodies_[i]; }
   [[nodiscard]] const SurfaceBvh& bvh(std::uint32_t i) const { return bvhs_[i]; }
@@ -60,6 +65,7 @@ class SimWorld {
 
  private:
   void tissue_contacts();
+  void prepare_body(std::uint32_t i);
 
   WorldOptions options_;
   std::unique_ptr<CollisionDevice> device_;  // heap: the world stays movable
