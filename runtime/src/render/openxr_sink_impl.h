@@ -27,7 +27,6 @@
 namespace bisturi::render::xr_detail {
 
 inline constexpr const char* kVulkanExtension = XR_KHR_VULKAN_ENABLE2_EXTENSION_NAME;
-inline constexpr const char* kValidationLayer = "VK_LAYER_KHRONOS_validation";
 inline const std::string kFallback = "; frames can go to the headless (PNG) sink instead";
 
 /// An XrResult as text (the runtime's name for it when an instance exists).
@@ -51,7 +50,6 @@ VKAPI_ATTR VkBool32 VKAPI_CALL on_validation(VkDebugUtilsMessageSeverityFlagBits
 namespace bisturi::render {
 
 using xr_detail::kFallback;
-using xr_detail::kValidationLayer;
 using xr_detail::kVulkanExtension;
 using xr_detail::on_validation;
 using xr_detail::ValidationLog;

@@ -2,6 +2,7 @@
 // the staging upload of each frame and the teardown (see openxr_sink_impl.h).
 
 #include "openxr_sink_impl.h"
+#include "vulkan_validation.h"
 
 namespace bisturi::render {
 
@@ -27,17 +28,6 @@ namespace {
 
 std::uint32_t vulkan_version(XrVersion v) {
   return VK_MAKE_API_VERSION(0, XR_VERSION_MAJOR(v), XR_VERSION_MINOR(v), 0);
-}
-
-bool has_layer(const char* name) {
-  std::uint32_t count = 0;
-  if (vkEnumerateInstanceLayerProperties(&count, nullptr) != VK_SUCCESS) return false;
-  std::vector<VkLayerProperties> layers(count);
-  vkEnumerateInstanceLayerProperties(&count, layers.data());
-  for (const VkLayerProperties& l : layers) {
-    if (std::strcmp(l.layerName, name) == 0) return true;
-  }
-  return false;
 }
 
 void image_barrier(VkCommandBuffer commands, VkImage image, VkImageLayout from, VkImageLayout to,
@@ -72,24 +62,9 @@ void OpenXrSink::Impl::create_vulkan() {
   app.pEngineName = "bisturi";
   app.apiVersion = api;
   std::vector<const char*> layers, extensions;
-  VkDebugUtilsMessengerCreateInfoEXT messenger_info{};
-  messenger_info.sType = VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT;
-  messenger_info.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
-                                   VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
-  messenger_info.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT |
-                               VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
-                               VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
-  messenger_info.pfnUserCallback = on_validation;
-  messenger_info.pUserData = &validation;
-  if (options.validation) {
-    if (!has_layer(kValidationLayer)) {
-      throw RenderError(
-          "Vulkan validation was asked for but VK_LAYER_KHRONOS_validation is not installed "
-          "(Debian: vulkan-validationlayers)");
-    }
-    layers.push_back(kValidationLayer);
-    extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
-  }
+  VkDebugUtilsMessengerCreateInfoEXT messenger_info =
+      validation_messenger(on_validation, &validation);
+  if (options.validation) add_validation(layers, extensions);
   VkInstanceCreateInfo vk_info{};
   vk_info.sType = VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO;
   vk_info.pApplicationInfo = &app;

@@ -1,5 +1,7 @@
 #include "vulkan_context.h"
 
+#include "vulkan_validation.h"
+
 #include <algorithm>
 #include <cstring>
 
@@ -8,8 +10,6 @@
 namespace bisturi::render::vk {
 
 namespace {
-
-constexpr const char* kValidationLayer = "VK_LAYER_KHRONOS_validation";
 
 VKAPI_ATTR VkBool32 VKAPI_CALL on_message(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
                                           VkDebugUtilsMessageTypeFlagsEXT /*types*/,
@@ -22,16 +22,6 @@ VKAPI_ATTR VkBool32 VKAPI_CALL on_message(VkDebugUtilsMessageSeverityFlagBitsEXT
   text += data != nullptr && data->pMessage != nullptr ? data->pMessage : "(no message)";
   static_cast<Context*>(user)->record_message(std::move(text));
   return VK_FALSE;
-}
-
-bool has_layer(const char* name) {
-  std::uint32_t count = 0;
-  if (vkEnumerateInstanceLayerProperties(&count, nullptr) != VK_SUCCESS) return false;
-  std::vector<VkLayerProperties> layers(count);
-  vkEnumerateInstanceLayerProperties(&count, layers.data());
-  return std::any_of(layers.begin(), layers.end(), [&](const VkLayerProperties& l) {
-    return std::strcmp(l.layerName, name) == 0;
-  });
 }
 
 int device_rank(VkPhysicalDeviceType type, DevicePreference preference) {
@@ -144,24 +134,8 @@ void Context::create_instance(bool validation) {
 
   std::vector<const char*> layers;
   std::vector<const char*> extensions;
-  VkDebugUtilsMessengerCreateInfoEXT messenger{};
-  messenger.sType = VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT;
-  messenger.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
-                              VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
-  messenger.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT |
-                          VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
-                          VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
-  messenger.pfnUserCallback = on_message;
-  messenger.pUserData = this;
-  if (validation) {
-    if (!has_layer(kValidationLayer)) {
-      throw RenderError(
-          "Vulkan validation was asked for but VK_LAYER_KHRONOS_validation is not installed "
-          "(Debian: vulkan-validationlayers)");
-    }
-    layers.push_back(kValidationLayer);
-    extensions.push_back(VK_EXT_DEBUG_UTILS_EXTENSION_NAME);
-  }
+  VkDebugUtilsMessengerCreateInfoEXT messenger = validation_messenger(on_message, this);
+  if (validation) add_validation(layers, extensions);
 
   VkInstanceCreateInfo info{};
   info.sType = VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO;
