@@ -2,9 +2,12 @@
 // acquire and release, as XR_KHR_vulkan_enable2 specifies), the acquire/wait/release cycle, and
 // the read-back of a released image into host memory, which stands in for the compositor.
 
+#include "../src/render/colour_image_barrier.h"
 #include "api.h"
 
 namespace bisturi::xrsim {
+
+using render::colour_image_barrier;
 
 namespace {
 
@@ -30,28 +33,13 @@ VkImageUsageFlags vulkan_usage(XrSwapchainUsageFlags usage) {
   return flags;
 }
 
-void barrier(VkCommandBuffer commands, VkImage image, VkImageLayout from, VkImageLayout to,
-             VkAccessFlags src_access, VkAccessFlags dst_access, VkPipelineStageFlags src_stage,
-             VkPipelineStageFlags dst_stage) {
-  VkImageMemoryBarrier b{};
-  b.sType = VK_STRUCTURE_TYPE_IMAGE_MEMORY_BARRIER;
-  b.srcAccessMask = src_access;
-  b.dstAccessMask = dst_access;
-  b.oldLayout = from;
-  b.newLayout = to;
-  b.srcQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-  b.dstQueueFamilyIndex = VK_QUEUE_FAMILY_IGNORED;
-  b.image = image;
-  b.subresourceRange = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 1, 0, 1};
-  vkCmdPipelineBarrier(commands, src_stage, dst_stage, 0, 0, nullptr, 0, nullptr, 1, &b);
-}
-
 void record_initial_layouts(VkCommandBuffer commands, void* user) {
   const auto& chain = *static_cast<const Swapchain*>(user);
   for (const VkImage image : chain.images) {
-    barrier(commands, image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, 0,
-            VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
-            VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT);
+    colour_image_barrier(commands, image, VK_IMAGE_LAYOUT_UNDEFINED,
+                         VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, 0,
+                         VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
+                         VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT);
   }
 }
 
@@ -62,19 +50,19 @@ struct ReadBack {
 
 void record_read_back(VkCommandBuffer commands, void* user) {
   const auto& r = *static_cast<const ReadBack*>(user);
-  barrier(commands, r.image, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
-          VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-          VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
-          VK_ACCESS_TRANSFER_READ_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-          VK_PIPELINE_STAGE_TRANSFER_BIT);
+  colour_image_barrier(commands, r.image, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
+                       VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                       VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
+                       VK_ACCESS_TRANSFER_READ_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
+                       VK_PIPELINE_STAGE_TRANSFER_BIT);
   VkBufferImageCopy region{};
   region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
   region.imageExtent = {r.chain->width, r.chain->height, 1};
   vkCmdCopyImageToBuffer(commands, r.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, r.chain->readback,
                          1, &region);
-  barrier(commands, r.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
-          VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_ACCESS_TRANSFER_READ_BIT, 0,
-          VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
+  colour_image_barrier(commands, r.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
+                       VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_ACCESS_TRANSFER_READ_BIT, 0,
+                       VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
   VkBufferMemoryBarrier host{};
   host.sType = VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER;
   host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
