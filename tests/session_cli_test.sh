@@ -1,6 +1,6 @@
 #!/bin/sh
 # The headset session from the command line (issue 10), as CTest runs it:
-#   session_cli_test.sh BISTURI WORKDIR run|replay|corrupt|scene-error|real-missing|stored TRACE
+#   session_cli_test.sh BISTURI WORKDIR run|replay|corrupt|scene-error|real-missing|stored|lockstep TRACE
 set -u
 bisturi="$1"
 work="$2"
@@ -85,6 +85,25 @@ TOML
     echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "replay did not pass"; }
     echo "$out" | grep -q '"force_mismatches": 0' || { echo "$out"; fail "forces differ"; }
     echo "stored: ok"
+    ;;
+  lockstep)
+    # The tissue step inside the haptic tick (for comparison), and on its own thread with a lag
+    # of one tick (steps often finish late, so late-tick notes get written): both replay exactly.
+    for variant in "--tissue-in-haptic-thread" "--tissue-lag 1"; do
+      name=$(echo "$variant" | tr -d ' -')
+      # shellcheck disable=SC2086
+      "$bisturi" run --duration 1 --eye-width 128 --eye-height 128 --no-openxr $variant \
+        --out "$work/$name" --record "$work/$name.btrace" > "$work/$name.txt" 2>&1 ||
+        { cat "$work/$name.txt"; fail "bisturi run $variant exited with $?"; }
+      for key in late_ticks max_tissue_backlog missed_by_late_wakeup tissue_lag_ticks; do
+        grep -q "\"$key\"" "$work/$name/report.json" || fail "report.json has no $key"
+      done
+      out=$("$bisturi" replay "$work/$name.btrace" --json) || { echo "$out"; fail "replay $name"; }
+      echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "$name did not replay"; }
+    done
+    grep -q '"tissue_step_in_haptic_thread": true' "$work/tissueinhapticthread/report.json" ||
+      fail "the inline run does not say so"
+    echo "lockstep: ok"
     ;;
   *) fail "unknown mode $mode" ;;
 esac

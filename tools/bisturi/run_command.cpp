@@ -56,6 +56,13 @@ void add_run_command(CLI::App& app, RunOptions& options, int (*&run)(const RunOp
       ->check(CLI::Range(1u, 100000u));
   cmd->add_flag("--no-openxr", options.no_openxr, "do not try an OpenXR headset");
   cmd->add_flag("--cpu", options.cpu, "render on a CPU Vulkan device (lavapipe) even with a GPU");
+  cmd->add_flag("--tissue-in-haptic-thread", options.tissue_in_haptic_thread,
+                "run the soft-tissue step inside the haptic tick instead of on its own thread "
+                "(for comparison)");
+  cmd->add_option("--tissue-lag", options.tissue_lag_ticks,
+                  "haptic ticks the tissue thread may take for a step before a tick counts late")
+      ->capture_default_str()
+      ->check(CLI::Range(1u, 1000u));
   cmd->add_flag("--print-default-scene", options.print_default_scene,
                 "print the embedded default scene (TOML) and exit");
   cmd->add_flag("--json", options.json, "write the report as one JSON object on stdout");
@@ -92,6 +99,8 @@ int run_run(const RunOptions& options) {
   so.eye_width = options.eye_width;
   so.eye_height = options.eye_height;
   so.openxr = !options.no_openxr;
+  so.tissue_thread = !options.tissue_in_haptic_thread;
+  so.tissue_lag_ticks = options.tissue_lag_ticks;
   if (options.cpu) so.render_device = render::DevicePreference::Cpu;
   ProgressLine line;
   so.progress = [&line](const runtime::SessionProgress& p) {
@@ -164,6 +173,7 @@ int run_run(const RunOptions& options) {
       {"sink_note", r.sink_note},
       {"realtime_priority", r.realtime_priority},
       {"tissue_step_in_haptic_thread", r.tissue_in_haptic_thread},
+      {"tissue_lag_ticks", r.tissue_lag_ticks},
       {"devices", r.devices},
       {"solids", solids},
       {"ticks", r.ticks},
@@ -183,7 +193,10 @@ int run_run(const RunOptions& options) {
       {"counts",
        {{"overruns", r.overruns},
         {"missed_deadlines", r.missed_deadlines},
+        {"missed_by_late_wakeup", r.missed_by_late_wakeup},
         {"skipped_ticks", r.skipped_ticks},
+        {"late_ticks", r.late_ticks},
+        {"max_tissue_backlog", r.max_tissue_backlog},
         {"clamped_forces", r.clamped_forces},
         {"rate_limited_forces", r.rate_limited_forces},
         {"guard_latches", r.guard_latches},
@@ -207,8 +220,9 @@ int run_run(const RunOptions& options) {
               << " haptic ticks, " << r.frames << " frames (" << r.render_fps << " frames/s, 2 x "
               << r.eye_width << " x " << r.eye_height << " on " << r.render_device << ")\n"
               << "  haptic period error p99 " << p.p99 << " ms, max " << p.max << " ms; "
-              << r.missed_deadlines << " missed deadlines, " << r.overruns << " overruns; step p99 "
-              << r.step_ms.summary().p99 << " ms\n"
+              << r.missed_deadlines << " missed deadlines (" << r.missed_by_late_wakeup
+              << " woken late), " << r.overruns << " overruns; step p99 " << r.step_ms.summary().p99
+              << " ms, " << r.late_ticks << " late ticks\n"
               << "  motion-to-photon p50 " << mtp.p50 << " ms, p99 " << mtp.p99
               << " ms; action-to-response p50 " << atr.p50 << " ms, max " << atr.max << " ms ("
               << atr.count << " events)\n"

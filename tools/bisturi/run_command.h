@@ -24,6 +24,8 @@ struct RunOptions {
   std::optional<std::uint32_t> eye_height;
   std::uint32_t image_every = 10;
   bool no_openxr = false;
+  bool tissue_in_haptic_thread = false;
+  std::uint32_t tissue_lag_ticks = 3;
   bool cpu = false;
   bool print_default_scene = false;
   bool json = false;

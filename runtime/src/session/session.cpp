@@ -38,6 +38,7 @@
 #include "bisturi/scene/polygon_export.h"
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/sim/units.h"
+#include "tissue_thread.h"
 
 namespace bisturi::runtime {
 
@@ -106,10 +107,11 @@ struct SolidState {
   std::shared_ptr<const Topology> topology;
 };
 
+/// What the tissue thread hands the render thread after each step (the head pose comes straight
+/// from the haptic thread, see HeadPose below).
 struct Snapshot {
   std::uint64_t tick = 0;
   std::vector<SolidState> solids;
-  render::HeadPose head;
   glm::dvec3 tip_mm{0.0};
   glm::dvec3 blade_to_mm{0.0};
   bool grasping = false;
@@ -184,7 +186,7 @@ glm::dmat4 instrument_pose(const glm::dvec3& from_mm, const glm::dvec3& to_mm) {
 
 std::string session_trace_config(const std::string& scene_toml,
                                  const std::filesystem::path& base_dir, double haptic_hz,
-                                 std::uint16_t glove_device) {
+                                 std::uint16_t glove_device, std::uint32_t tissue_lag_ticks) {
   devices::ForceGuardConfig guard;
   guard.period = Nanoseconds{static_cast<std::int64_t>(std::llround(1e9 / haptic_hz))};
   nlohmann::json j = nlohmann::json::parse(devices::force_guard_config_json(guard));
@@ -192,6 +194,7 @@ std::string session_trace_config(const std::string& scene_toml,
                   {"base_dir", base_dir.string()},
                   {"haptic_hz", haptic_hz},
                   {"glove_device", glove_device},
+                  {"tissue_lag_ticks", tissue_lag_ticks},
                   {"producer", std::string("bisturi ") + kVersion}};
   return j.dump();
 }
@@ -216,6 +219,9 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
 
   // ---- The scene's solids and devices ----
   const DeviceChoice choice = choose_session_devices(scene);
+  const std::uint32_t lag = options.tissue_thread ? options.tissue_lag_ticks : 0;
+  report.tissue_in_haptic_thread = !options.tissue_thread;
+  report.tissue_lag_ticks = lag;
   stage("build");
   std::vector<BuiltSolid> solids = build_solids(scene);
   for (const BuiltSolid& s : solids)
@@ -241,7 +247,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     // The haptic device is opened first, so it is device 0 of the trace.
     header.config = session_trace_config(
         toml, scene.file.empty() ? std::filesystem::path() : scene.file.parent_path(),
-        scene.rates.haptic_hz, 0);
+        scene.rates.haptic_hz, 0, lag);
     writer = std::make_unique<devices::TraceWriter>(options.record, header);
     report.trace = options.record;
   }
@@ -250,8 +256,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   devices::Tracker* head = &session_devices.head();
   const std::uint16_t glove_index = session_devices.haptic_trace_index();
   report.devices = session_devices.summary();
-  devices::ForceGuardConfig guard_config =
-      devices::force_guard_config_from_json(session_trace_config("", {}, scene.rates.haptic_hz, 0));
+  devices::ForceGuardConfig guard_config = devices::force_guard_config_from_json(
+      session_trace_config("", {}, scene.rates.haptic_hz, 0, lag));
   devices::ForceGuard guard(glove->capabilities().force_channels, guard_config);
   devices::GuardedHaptic guarded(*glove, guard, clock, writer.get(), glove_index);
   report.max_force_N = choice.haptic->max_force_N;
@@ -269,6 +275,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
       initial.solids[b].positions_mm[i] = sim::sim_to_scene(body.positions()[i]);
   }
   TripleBuffer<Snapshot> handoff(initial);
+  TripleBuffer<render::HeadPose> head_handoff;
 
   std::atomic<bool> stop{false};
   std::atomic<bool> render_ready{false};
@@ -276,11 +283,52 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   std::atomic<std::size_t> event_count{0};
   std::atomic<double> force_now{0.0};
   std::exception_ptr render_error, haptic_error;
-  std::vector<Nanoseconds> event_times;  // written by the haptic thread, read after the join...
+  std::vector<Nanoseconds> event_times;  // written by the tissue thread, read after the join...
   event_times.reserve(4096);             // ...and by the render thread below its published count
   std::vector<double> event_response(4096, -1.0);
   std::atomic<bool> realtime{false};
   Nanoseconds t0{0};
+
+  // ---- Tissue thread: each step publishes the snapshot the renderer draws ----
+  std::vector<std::shared_ptr<const Topology>> topology;
+  for (const SolidState& st : initial.solids)
+    topology.push_back(st.topology);
+  std::uint64_t published_events = 0;
+  std::array<EventStamp, 16> recent{};
+  const auto publish_step = [&](const TickOutput& out, const devices::HapticState& state,
+                                double step_ms) {
+    report.step_ms.record(step_ms);
+    Snapshot& s = handoff.back();
+    s.tick = sim.ticks();
+    for (std::size_t b = 0; b < sim.body_count(); ++b) {
+      const sim::SoftBody& body = sim.world().body(static_cast<std::uint32_t>(b));
+      SolidState& st = s.solids[b];
+      if (out.topology_changed && body.mesh().topology_version() != topology[b]->version)
+        topology[b] = make_topology(body.mesh());
+      st.topology = topology[b];
+      const auto& x = body.positions();
+      st.positions_mm.resize(x.size());
+      for (std::size_t i = 0; i < x.size(); ++i)
+        st.positions_mm[i] = sim::sim_to_scene(x[i]);
+    }
+    s.tip_mm = sim.tip_mm();
+    s.blade_to_mm = sim.blade_to_mm();
+    s.grasping = sim.grasping();
+    s.cutting = sim.cutting();
+    for (; published_events < sim.events().size(); ++published_events) {
+      if (event_times.size() < event_times.capacity()) event_times.push_back(state.sample_time);
+      recent[published_events % recent.size()] = {published_events, state.sample_time};
+    }
+    s.event_count = std::min<std::uint64_t>(published_events, event_times.size());
+    s.recent = recent;
+    handoff.publish();
+    event_count.store(sim.events().size(), std::memory_order_relaxed);
+  };
+  devices::HapticState glove_shape;
+  glove_shape.end_effector_poses.resize(glove->capabilities().end_effectors);
+  glove_shape.finger_joint_angles_rad.resize(glove->capabilities().finger_joints.size());
+  TissueThread tissue(sim, glove_shape, options.tissue_thread, options.realtime_priority,
+                      publish_step);
 
   // ---- Render thread ----
   const double display_period_ms = 1000.0 / report.display_hz;
@@ -386,7 +434,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                              glm::dvec3(1.0, 1.0, glm::length(s.blade_to_mm - s.tip_mm)));
           renderer.set_pose(blade_id, m);
         }
-        const render::HeadPose pose = s.head;
+        head_handoff.take();
+        const render::HeadPose pose = head_handoff.front();
         const render::FrameStats stats = renderer.render(pose);
         for (; seen_events < s.event_count; ++seen_events) {
           if (s.event_count - seen_events <= s.recent.size())
@@ -442,11 +491,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
       Nanoseconds previous_start{0};
       bool first = true, lost = false;
       devices::HapticState last_state;
-      std::uint64_t published_events = 0;
-      std::array<EventStamp, 16> recent{};
-      std::vector<std::shared_ptr<const Topology>> topology;
-      for (std::size_t b = 0; b < initial.solids.size(); ++b)
-        topology.push_back(initial.solids[b].topology);
+      std::vector<double> command(sim.command_size(), 0.0);
       while (!stop.load(std::memory_order_relaxed)) {
         if (spin.count() > 0) {
           clock.sleep_until(next - spin);
@@ -482,74 +527,67 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
         }
         if (!lost) last_state = glove->state();
 
-        // Simulation, then the guarded force out.
-        const Nanoseconds step_begin = clock.now();
-        const TickOutput& out = sim.tick(last_state);
-        const Nanoseconds step_end = clock.now();
-        report.step_ms.record(ms(step_end - step_begin));
+        // The state goes to the tissue thread; the command is the one of the step `lag` ticks
+        // back (or, when that step is late, the newest one, noted in the trace for the replay).
+        tissue.push(last_state);
+        const std::uint64_t k = tissue.pushed();
+        const TissueThread::TickStep use = tissue.step_for_tick(k, lag);
+        report.max_tissue_backlog = std::max(report.max_tissue_backlog, k - tissue.done());
+        if (use.late) {
+          ++report.late_ticks;
+          if (writer) writer->note(clock.now().count(), late_tick_note(k, use.step));
+        }
+        const TickOutput* out = use.output;
+        if (out != nullptr) {
+          sim.command_for(*out, SessionSim::tip_of(last_state), command);
+        } else {
+          std::fill(command.begin(), command.end(), 0.0);
+        }
         devices::GuardStep g;
         if (!lost) {
           try {
-            g = guarded.send(out.command_N);
+            g = guarded.send(command);
           } catch (const devices::DeviceDisconnected&) {
             lost = true;
           }
         }
         if (lost && writer) writer->note(clock.now().count(), "tick");
         if (g.latched != devices::Fault::None) ++report.guard_latches;
-        if (sim.ticks() % force_every == 0 && report.force.size() < report.force.capacity()) {
+        if (k % force_every == 0 && report.force.size() < report.force.capacity()) {
           report.force.push_back(
-              {ms(t) * 1e-3, glm::length(out.force_N),
-               out.command_N.empty() ? 0.0 : out.command_N[0],
+              {ms(t) * 1e-3, out != nullptr ? glm::length(out->force_N) : 0.0,
+               command.empty() ? 0.0 : command[0],
                guarded.last_output_N().empty() ? 0.0 : guarded.last_output_N()[0]});
         }
+        force_now.store(out != nullptr ? glm::length(out->force_N) : 0.0,
+                        std::memory_order_relaxed);
 
-        // Publish the snapshot.
-        Snapshot& s = handoff.back();
-        s.tick = sim.ticks();
-        for (std::size_t b = 0; b < sim.body_count(); ++b) {
-          const sim::SoftBody& body = sim.world().body(static_cast<std::uint32_t>(b));
-          SolidState& st = s.solids[b];
-          if (out.topology_changed && body.mesh().topology_version() != topology[b]->version)
-            topology[b] = make_topology(body.mesh());
-          st.topology = topology[b];
-          const auto& x = body.positions();
-          st.positions_mm.resize(x.size());
-          for (std::size_t i = 0; i < x.size(); ++i)
-            st.positions_mm[i] = sim::sim_to_scene(x[i]);
-        }
+        // The head pose straight to the renderer (motion-to-photon starts at its sample).
+        render::HeadPose& hp = head_handoff.back();
         const devices::TrackerState& hs = head->state();
-        s.head.position_mm = sim::sim_to_scene(glm::dvec3(
+        hp.position_mm = sim::sim_to_scene(glm::dvec3(
             hs.head_pose.position_m.x, hs.head_pose.position_m.y, hs.head_pose.position_m.z));
-        s.head.orientation = glm::dquat(hs.head_pose.orientation.w, hs.head_pose.orientation.x,
-                                        hs.head_pose.orientation.y, hs.head_pose.orientation.z);
-        s.head.sample_time = to_pose_clock(hs.sample_time);
-        s.tip_mm = sim.tip_mm();
-        s.blade_to_mm = sim.blade_to_mm();
-        s.grasping = sim.grasping();
-        s.cutting = sim.cutting();
-        for (; published_events < sim.events().size(); ++published_events) {
-          if (event_times.size() < event_times.capacity())
-            event_times.push_back(last_state.sample_time);
-          recent[published_events % recent.size()] = {published_events, last_state.sample_time};
-        }
-        s.event_count = std::min<std::uint64_t>(published_events, event_times.size());
-        s.recent = recent;
-        handoff.publish();
-        event_count.store(sim.events().size(), std::memory_order_relaxed);
-        force_now.store(glm::length(out.force_N), std::memory_order_relaxed);
+        hp.orientation = glm::dquat(hs.head_pose.orientation.w, hs.head_pose.orientation.x,
+                                    hs.head_pose.orientation.y, hs.head_pose.orientation.z);
+        hp.sample_time = to_pose_clock(hs.sample_time);
+        head_handoff.publish();
 
         const Nanoseconds end = clock.now();
         report.tick_ms.record(ms(end - start));
         if (end - start > period) overruns.fetch_add(1, std::memory_order_relaxed);
         next += period;
-        if (end > next) ++report.missed_deadlines;
+        if (end > next) {
+          ++report.missed_deadlines;
+          // The tick's own work took under half a period: the thread was started late (the OS,
+          // or on a virtual machine the hypervisor, had the core), not slowed by its work.
+          if (end - start < period / 2) ++report.missed_by_late_wakeup;
+        }
         if (end > next + period) {  // fell behind by more than a period: drop those ticks
           const std::int64_t behind = (end - next).count() / period.count();
           report.skipped_ticks += static_cast<std::uint64_t>(behind);
           next += period * behind;
         }
-        ticks.store(sim.ticks(), std::memory_order_relaxed);
+        ticks.store(k, std::memory_order_relaxed);
       }
     } catch (...) {
       haptic_error = std::current_exception();
@@ -572,6 +610,14 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     if (options.progress) options.progress(progress);
   }
   haptic_thread.join();
+  // The steps still queued run to the last tick, so the final state is that of every tick.
+  std::exception_ptr tissue_error;
+  try {
+    tissue.finish();
+  } catch (...) {
+    tissue_error = std::current_exception();
+  }
+  stop.store(true);
   render_thread.join();
   const double run_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
@@ -605,6 +651,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   session_devices.close();
   if (writer) writer->close();
   if (render_error) std::rethrow_exception(render_error);
+  if (tissue_error) std::rethrow_exception(tissue_error);
   if (haptic_error) std::rethrow_exception(haptic_error);
   return report;
 }

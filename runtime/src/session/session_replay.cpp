@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstring>
+#include <deque>
 #include <memory>
 #include <nlohmann/json.hpp>
 
@@ -14,6 +15,7 @@
 #include "bisturi/devices/trace/trace_reader.h"
 #include "bisturi/runtime/session/scene_builder.h"
 #include "bisturi/runtime/session/session_sim.h"
+#include "tissue_thread.h"
 
 namespace bisturi::runtime {
 
@@ -42,11 +44,13 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
                               "bisturi run --record)");
   std::string scene_toml, base_dir;
   std::uint16_t glove_index = 0;
+  std::uint32_t lag = 0;  // traces without the key ran the tissue step inside the tick
   try {
     const nlohmann::json& s = config.at("session");
     scene_toml = s.at("scene_toml").get<std::string>();
     base_dir = s.at("base_dir").get<std::string>();
     glove_index = s.at("glove_device").get<std::uint16_t>();
+    if (s.contains("tissue_lag_ticks")) lag = s.at("tissue_lag_ticks").get<std::uint32_t>();
   } catch (const nlohmann::json::exception& e) {
     throw devices::TraceError(reader.name() + ": session configuration: " + e.what());
   }
@@ -64,6 +68,28 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
   devices::HapticState state;
   bool lost = false;
 
+  // The lockstep of the live session (tissue_thread.h): tick k queues its glove state and uses
+  // step k - lag, or the step its late-tick note names; steps run when a tick needs them.
+  std::deque<devices::HapticState> queued;
+  const TickOutput* step_output = nullptr;
+  std::optional<LateTick> late;
+  std::vector<double> command;
+  const auto run_steps_to = [&](std::uint64_t j) {
+    while (sim->ticks() < j && !queued.empty()) {
+      step_output = &sim->tick(queued.front());
+      queued.pop_front();
+    }
+  };
+  const auto haptic_tick = [&] {  // returns the step the tick's command comes from
+    queued.push_back(state);
+    ++result.ticks;
+    std::uint64_t j = scheduled_step(result.ticks, lag);
+    if (late && late->tick == result.ticks) j = std::min(late->step, result.ticks);
+    late.reset();
+    run_steps_to(j);
+    return j;
+  };
+
   for (;;) {
     std::optional<devices::TraceRecord> r;
     try {
@@ -77,8 +103,9 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
     if (r->type == devices::TraceRecordType::kNote) {
       const std::string text(r->payload.begin(), r->payload.end());
       if (text == "tick" && sim) {
-        sim->tick(state);
-        ++result.ticks;
+        (void)haptic_tick();
+      } else if (auto l = parse_late_tick_note(text)) {
+        late = l;
       } else {
         const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
         if (!j.is_discarded() && j.is_object() && j.contains("session_end")) {
@@ -121,15 +148,18 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
         break;
       case devices::TraceRecordType::kForceCommand: {
         if (!sim) throw devices::TraceError(reader.name() + ": a force command before the glove");
-        const TickOutput& out = sim->tick(state);
-        ++result.ticks;
+        const std::uint64_t j = haptic_tick();
+        if (j > 0 && step_output != nullptr) {
+          sim->command_for(*step_output, SessionSim::tip_of(state), command);
+        } else {
+          command.assign(sim->command_size(), 0.0);
+        }
         ++result.force_commands;
         const std::vector<double> expected = r->forces_N();
-        if (!same_bits(expected, out.command_N)) {
+        if (!same_bits(expected, command)) {
           ++result.force_mismatches;
           if (!result.first_mismatch)
-            result.first_mismatch =
-                ForceMismatch{sim->ticks(), r->time_ns, expected, out.command_N};
+            result.first_mismatch = ForceMismatch{result.ticks, r->time_ns, expected, command};
         }
         break;
       }
@@ -142,7 +172,10 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
     }
   }
   if (device) device->close();
-  if (sim) result.state_hash = sim->state_hash();
+  if (sim) {
+    run_steps_to(result.ticks);  // the live session ran every queued step before its hash
+    result.state_hash = sim->state_hash();
+  }
   result.seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   return result;

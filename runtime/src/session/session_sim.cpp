@@ -69,6 +69,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
     }
   }
   world_.options().haptic.max_force_N = max_force_N_;
+  coupling_N_per_m_ = world_.options().haptic.coupling_N_per_m;
   world_.options().integrator.dt_s = 1.0 / scene.rates.haptic_hz;
   for (BuiltSolid& s : solids) {
     const SolidDescription& d = *s.description;
@@ -92,14 +93,14 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   // Everything the first step would build lazily (solver structure, BVHs, scratch) is built now,
   // before the haptic clock starts: tick 1 costs what tick 2 costs.
   world_.prepare();
-  out_.command_N.assign(
-      [&] {
-        std::size_t n = 0;
-        for (const devices::ForceChannel& c : channels_)
-          n += c.components;
-        return n;
-      }(),
-      0.0);
+  for (const devices::ForceChannel& c : channels_)
+    command_size_ += c.components;
+  out_.command_N.assign(command_size_, 0.0);
+}
+
+glm::dvec3 SessionSim::tip_of(const devices::HapticState& state) {
+  return state.end_effector_poses.empty() ? glm::dvec3(0.0)
+                                          : to_glm(state.end_effector_poses.front().position_m);
 }
 
 void SessionSim::add_event(SessionEventKind kind, std::int32_t body, std::string detail) {
@@ -132,6 +133,7 @@ const TickOutput& SessionSim::tick(const devices::HapticState& state) {
   const devices::Pose pose =
       state.end_effector_poses.empty() ? devices::Pose{} : state.end_effector_poses.front();
   const glm::dvec3 tip_m = to_glm(pose.position_m);
+  out_.tip_m = tip_m;
   const glm::dquat q(pose.orientation.w, pose.orientation.x, pose.orientation.y,
                      pose.orientation.z);
   tip_mm_ = sim::sim_to_scene(tip_m);
@@ -217,26 +219,38 @@ const TickOutput& SessionSim::tick(const devices::HapticState& state) {
   }
   button_ = button;
 
-  // The glove's command: the contact force on the thumb and index actuators, the grasp on every
-  // finger, a vibration while cutting; never above the scene's limit for the device.
-  const double contact_N = std::min(glm::length(h.force_N), max_force_N_);
+  out_.grasping = grasp_body_ >= 0;
+  out_.cutting = cut_body_ >= 0;
+  command_for(out_, tip_m, out_.command_N);
+  ++ticks_;
+  return out_;
+}
+
+void SessionSim::command_for(const TickOutput& step, const glm::dvec3& tip_now_m,
+                             std::vector<double>& command_N) const {
+  // In contact the proxy stays where the step put it while the tip moves on: the coupling
+  // spring's change (k times the tip's motion) is added. Outside contact there is no force.
+  glm::dvec3 force = step.force_N;
+  if (step.contact) force += coupling_N_per_m_ * (step.tip_m - tip_now_m);
+  // The contact force on the thumb and index actuators, the grasp on every finger, a vibration
+  // while cutting; never above the scene's limit for the device.
+  const double contact_N = std::min(glm::length(force), max_force_N_);
+  command_N.resize(command_size_);
   std::size_t k = 0, finger = 0;
   for (const devices::ForceChannel& c : channels_) {
     for (std::size_t i = 0; i < c.components; ++i, ++k) {
       double f = 0.0;
       if (c.unitless) {
-        f = cut_body_ >= 0 ? options_.cut_vibration : 0.0;
+        f = step.cutting ? options_.cut_vibration : 0.0;
       } else {
         if (finger < 2) f += contact_N;
-        if (grasp_body_ >= 0) f += options_.grasp_force_N;
+        if (step.grasping) f += options_.grasp_force_N;
         f = std::min(f, std::min(max_force_N_, c.max_force_N));
       }
-      out_.command_N[k] = f;
+      command_N[k] = f;
     }
     if (!c.unitless) ++finger;
   }
-  ++ticks_;
-  return out_;
 }
 
 std::uint64_t SessionSim::state_hash() {

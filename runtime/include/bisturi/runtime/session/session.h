@@ -2,16 +2,21 @@
 // The headset session (the seed's figure 33 as threads):
 //  - haptic thread, at the scene's haptic rate: simulated twins send their reports (they stand in
 //    for hardware that sends on its own), the drivers read them over the virtual transport, or
-//    over hidapi/libusb for real devices (SessionDevices) -> SessionSim::tick (instruments, collision, proxy force and
-//    the soft-tissue step) -> GuardedHaptic (force guard) -> the glove's driver -> the trace;
-//    then it publishes a snapshot (positions per solid, topology, head pose with its sample time,
-//    instrument poses, events) into a TripleBuffer;
-//  - render thread, at the headset's rate: takes the newest snapshot -> StereoRenderer -> sink
-//    (OpenXR when a runtime is there, PNG files otherwise);
+//    over hidapi/libusb for real devices (SessionDevices) -> the glove state goes to the tissue
+//    thread -> the command of the step `tissue_lag_ticks` ticks back, its proxy force corrected
+//    for the tip's motion since (SessionSim::command_for) -> GuardedHaptic (force guard) -> the
+//    glove's driver -> the trace; the head pose goes to the renderer through a TripleBuffer;
+//  - tissue thread (TissueThread): SessionSim::tick on every tick's glove state in order
+//    (instruments, collision, proxy, soft-tissue step), then a snapshot (positions per solid,
+//    topology, instrument poses, events) into a TripleBuffer;
+//  - render thread, at the headset's rate: takes the newest snapshot and head pose ->
+//    StereoRenderer -> sink (OpenXR when a runtime is there, PNG files otherwise);
 //  - the calling thread only starts, watches (progress callback) and stops them.
-// Nothing waits on the renderer. The soft-tissue step runs inside the haptic tick (measured: the
-// default scene's step takes a fraction of the period; see the report's step_ms). All times come
-// from one injectable devices::Clock (SteadyClock live).
+// Nothing waits on the renderer, and the haptic thread waits on nothing. Why the tissue has its
+// own thread (measured on the 2-core machine with the renderer running): the step alone is
+// 0.2-0.6 ms, but a cut's topology change costs 2-6 ms and steps near contacts reach 1-5 ms
+// when the renderer's threads compete, so inside the tick they missed 14-65 deadlines in 10 s.
+// All times come from one injectable devices::Clock (SteadyClock live).
 
 #include <cstdint>
 #include <filesystem>
@@ -55,8 +60,13 @@ struct SessionOptions {
   render::DevicePreference render_device = render::DevicePreference::Any;
   /// The haptic thread sleeps until this long before each deadline, then spins (0: sleep only).
   double spin_us = 200.0;
-  /// Ask for SCHED_FIFO for the haptic thread (kept quietly when refused).
+  /// Ask for SCHED_FIFO for the haptic thread and, just below it, the tissue thread (kept
+  /// quietly when refused).
   bool realtime_priority = true;
+  /// Run the soft-tissue step on its own thread, `tissue_lag_ticks` ticks behind the haptic
+  /// loop; false: inside the haptic tick (lag 0), for comparison.
+  bool tissue_thread = true;
+  std::uint32_t tissue_lag_ticks = 3;
   /// The session's clock; nullptr: devices::steady_clock().
   devices::Clock* clock = nullptr;
   /// Called from the calling thread about ten times a second, and for start-up stages.
@@ -96,7 +106,12 @@ struct SessionReport {
   std::string sink;       ///< "openxr" or "png"
   std::string sink_note;  ///< why OpenXR was not used
   bool realtime_priority = false;
-  bool tissue_in_haptic_thread = true;
+  bool tissue_in_haptic_thread = false;
+  std::uint32_t tissue_lag_ticks = 0;
+  /// Ticks whose step (tick - lag) was not finished in time: they used the newest finished one.
+  std::uint64_t late_ticks = 0;
+  /// Most steps the tissue thread was behind the haptic loop at a tick.
+  std::uint64_t max_tissue_backlog = 0;
   std::vector<SolidReport> solids;
   std::vector<std::string> devices;  ///< "glove: hid-glove (simulated)"
 
@@ -108,16 +123,19 @@ struct SessionReport {
   TimingRecorder haptic_period_ms{"ms"};
   TimingRecorder haptic_period_error_ms{"ms"};  ///< |period - nominal|
   TimingRecorder tick_ms{"ms"};                 ///< the whole tick's work
-  TimingRecorder step_ms{"ms"};                 ///< SessionSim::tick (instruments + tissue)
-  TimingRecorder frame_ms{"ms"};                ///< between frames handed to the renderer
-  TimingRecorder render_ms{"ms"};               ///< update + render() call
+  TimingRecorder step_ms{"ms"};    ///< SessionSim::tick (instruments + tissue), its own thread
+  TimingRecorder frame_ms{"ms"};   ///< between frames handed to the renderer
+  TimingRecorder render_ms{"ms"};  ///< update + render() call
   TimingRecorder motion_to_photon_ms{"ms"};
   TimingRecorder action_to_response_ms{"ms"};
 
   std::uint64_t overruns = 0;          ///< ticks whose work took longer than the period
   std::uint64_t missed_deadlines = 0;  ///< ticks that ended after the next tick was due
-  std::uint64_t skipped_ticks = 0;     ///< periods dropped when the loop fell behind
-  std::uint64_t clamped_forces = 0;    ///< force guard clamps
+  /// Missed deadlines of ticks whose own work took under half a period: the thread was woken
+  /// late (compare tools/bench/timer_bench: the machine's own floor).
+  std::uint64_t missed_by_late_wakeup = 0;
+  std::uint64_t skipped_ticks = 0;   ///< periods dropped when the loop fell behind
+  std::uint64_t clamped_forces = 0;  ///< force guard clamps
   std::uint64_t rate_limited_forces = 0;
   std::uint64_t guard_latches = 0;   ///< steps on which the guard latched (watchdog, NaN, ...)
   std::uint64_t dropped_frames = 0;  ///< display refreshes without a new frame
@@ -138,6 +156,6 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
 /// scene's TOML text, so a replay rebuilds the same session from the trace alone.
 std::string session_trace_config(const std::string& scene_toml,
                                  const std::filesystem::path& base_dir, double haptic_hz,
-                                 std::uint16_t glove_device);
+                                 std::uint16_t glove_device, std::uint32_t tissue_lag_ticks);
 
 }  // namespace bisturi::runtime

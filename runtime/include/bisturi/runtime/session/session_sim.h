@@ -43,8 +43,11 @@ struct SessionEvent {
 
 struct TickOutput {
   glm::dvec3 force_N{0.0};        ///< proxy force on the tip (world frame)
+  glm::dvec3 tip_m{0.0};          ///< the tip the step was computed for
   std::vector<double> command_N;  ///< per glove force component, before the force guard
   bool contact = false;
+  bool grasping = false;  ///< the grasper holds tissue after this step
+  bool cutting = false;   ///< the scalpel is sweeping after this step
   bool topology_changed = false;
   std::size_t events = 0;  ///< events added by this tick (the last ones of events())
 };
@@ -71,6 +74,18 @@ class SessionSim {
   /// One haptic tick with the glove in `state`.
   const TickOutput& tick(const devices::HapticState& state);
 
+  /// The glove's command for a step's output with the tip now at tip_now_m (the step may be a
+  /// few ticks old when the tissue runs on its own thread): the proxy force corrected by the
+  /// coupling spring for the tip's motion since the step, so the force follows the hand at the
+  /// haptic rate. For the step's own tip it is the step's command_N, bit for bit. Reads only
+  /// what the constructor set: safe to call from another thread while tick() runs.
+  void command_for(const TickOutput& step, const glm::dvec3& tip_now_m,
+                   std::vector<double>& command_N) const;
+  /// The probe tip (metres) of a glove state: its first end effector's position.
+  static glm::dvec3 tip_of(const devices::HapticState& state);
+  /// Number of force components of the glove's command.
+  [[nodiscard]] std::size_t command_size() const { return command_size_; }
+
   [[nodiscard]] std::size_t body_count() const { return world_.body_count(); }
   sim::SimWorld& world() { return world_; }
   [[nodiscard]] const std::string& body_name(std::size_t i) const { return names_[i]; }
@@ -95,6 +110,8 @@ class SessionSim {
   std::vector<std::string> names_;
   std::vector<devices::ForceChannel> channels_;
   double max_force_N_ = 3.0;
+  double coupling_N_per_m_ = 0.0;
+  std::size_t command_size_ = 0;
   double jaw_radius_mm_ = 1.5;
   sim::Grasp grasp_;
   std::int32_t grasp_body_ = -1;

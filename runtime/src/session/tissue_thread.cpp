@@ -1,0 +1,133 @@
+// The soft-tissue step on its own thread (see tissue_thread.h).
+
+#include "tissue_thread.h"
+
+#include <pthread.h>
+#include <sched.h>
+
+#include <algorithm>
+#include <chrono>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <string>
+
+namespace bisturi::runtime {
+
+TissueThread::TissueThread(SessionSim& sim, const devices::HapticState& shape, bool threaded,
+                           bool realtime_priority, AfterStep after_step, std::size_t capacity)
+    : sim_(sim),
+      after_step_(std::move(after_step)),
+      capacity_(capacity),
+      states_(capacity, shape),
+      outputs_(capacity) {
+  for (TickOutput& o : outputs_)
+    o.command_N.reserve(sim.command_size());  // no allocation when a step's output is copied
+  if (!threaded) return;
+  thread_ = std::thread([this, realtime_priority] {
+    if (realtime_priority) {
+      // Below the haptic thread (which takes max / 2), above the renderer.
+      sched_param p{};
+      p.sched_priority = std::max(1, sched_get_priority_max(SCHED_FIFO) / 2 - 1);
+      (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &p);
+    }
+    run();
+  });
+}
+
+TissueThread::~TissueThread() {
+  if (thread_.joinable()) {
+    finishing_.store(true, std::memory_order_release);
+    wake_.fetch_add(1, std::memory_order_release);
+    wake_.notify_one();
+    thread_.join();
+  }
+}
+
+void TissueThread::push(const devices::HapticState& state) {
+  if (failed_.load(std::memory_order_acquire))
+    throw std::runtime_error("session: the soft-tissue simulation failed");
+  const std::uint64_t k = pushed_.load(std::memory_order_relaxed) + 1;
+  if (k - done_.load(std::memory_order_acquire) >= capacity_)
+    throw std::runtime_error("session: the soft-tissue simulation fell " +
+                             std::to_string(capacity_) + " ticks behind the haptic loop");
+  states_[k % capacity_] = state;
+  pushed_.store(k, std::memory_order_release);
+  if (!thread_.joinable()) {
+    step(k);
+    return;
+  }
+  wake_.fetch_add(1, std::memory_order_release);
+  wake_.notify_one();
+}
+
+const TickOutput* TissueThread::output(std::uint64_t j) const {
+  if (j == 0 || j > done_.load(std::memory_order_acquire)) return nullptr;
+  return &outputs_[j % capacity_];
+}
+
+TissueThread::TickStep TissueThread::step_for_tick(std::uint64_t k, std::uint32_t lag) const {
+  const std::uint64_t done = done_.load(std::memory_order_acquire);
+  TickStep t;
+  t.step = scheduled_step(k, lag);
+  if (done < t.step) {
+    t.step = done;
+    t.late = true;
+  }
+  t.output = output(t.step);
+  return t;
+}
+
+void TissueThread::step(std::uint64_t j) {
+  const devices::HapticState& state = states_[j % capacity_];
+  const auto begin = std::chrono::steady_clock::now();
+  const TickOutput& out = sim_.tick(state);
+  const auto end = std::chrono::steady_clock::now();
+  outputs_[j % capacity_] = out;
+  if (after_step_)
+    after_step_(out, state, std::chrono::duration<double, std::milli>(end - begin).count());
+  done_.store(j, std::memory_order_release);
+}
+
+void TissueThread::run() {
+  try {
+    std::uint64_t j = 0;
+    for (;;) {
+      const std::uint32_t seen = wake_.load(std::memory_order_acquire);
+      if (j < pushed_.load(std::memory_order_acquire)) {
+        step(++j);
+        continue;
+      }
+      if (finishing_.load(std::memory_order_acquire)) break;
+      wake_.wait(seen, std::memory_order_acquire);
+    }
+  } catch (...) {
+    error_ = std::current_exception();
+    failed_.store(true, std::memory_order_release);
+  }
+}
+
+void TissueThread::finish() {
+  if (thread_.joinable()) {
+    finishing_.store(true, std::memory_order_release);
+    wake_.fetch_add(1, std::memory_order_release);
+    wake_.notify_one();
+    thread_.join();
+  }
+  if (error_) std::rethrow_exception(error_);
+}
+
+std::string late_tick_note(std::uint64_t tick, std::uint64_t step) {
+  return nlohmann::json{{"late_tick", {{"tick", tick}, {"step", step}}}}.dump();
+}
+
+std::optional<LateTick> parse_late_tick_note(const std::string& text) {
+  const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+  if (j.is_discarded() || !j.is_object() || !j.contains("late_tick")) return std::nullopt;
+  const nlohmann::json& l = j["late_tick"];
+  if (!l.is_object() || !l.contains("tick") || !l.contains("step") ||
+      !l["tick"].is_number_unsigned() || !l["step"].is_number_unsigned())
+    return std::nullopt;
+  return LateTick{l["tick"].get<std::uint64_t>(), l["step"].get<std::uint64_t>()};
+}
+
+}  // namespace bisturi::runtime

@@ -1,0 +1,95 @@
+#pragma once
+// The soft-tissue step on its own thread, in lockstep with the haptic ticks without ever making
+// them wait. Tick k hands over the glove state it read (push); step k, the k-th SessionSim::tick,
+// runs on exactly that state as soon as it is there; tick k sends the command of step
+// k - lag, so the simulation has `lag` periods to finish a step. Which step a tick uses is
+// therefore fixed by the tick number, not by the threads' timing, and a replay in virtual time
+// pairs the same steps with the same ticks. A step that is not finished in time makes a late
+// tick: it uses the newest finished step, and the session notes which in its trace.
+//
+// Lock-free: two single-producer single-consumer rings (states in, step outputs out) and
+// counters; the simulation thread sleeps on an atomic wait while no state is pending. Without a
+// thread (threaded = false, lag 0) push() runs the step at once: the tissue in the haptic thread.
+
+#include <atomic>
+#include <cstdint>
+#include <exception>
+#include <functional>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "bisturi/devices/device.h"
+#include "bisturi/runtime/session/session_sim.h"
+
+namespace bisturi::runtime {
+
+class TissueThread {
+ public:
+  /// Called on the simulation's thread after each step with its output, the glove state it ran
+  /// on and the step's wall time.
+  using AfterStep =
+      std::function<void(const TickOutput&, const devices::HapticState&, double step_ms)>;
+
+  /// `shape`: a glove state of the device's shape (poses, joints); every ring slot is made like
+  /// it up front, so handing a state over never allocates on the haptic thread.
+  TissueThread(SessionSim& sim, const devices::HapticState& shape, bool threaded,
+               bool realtime_priority, AfterStep after_step, std::size_t capacity = 8192);
+  ~TissueThread();
+  TissueThread(const TissueThread&) = delete;
+  TissueThread& operator=(const TissueThread&) = delete;
+
+  /// Haptic thread: hands over the next tick's glove state. Throws std::runtime_error when the
+  /// simulation is a whole ring (capacity ticks) behind, or has failed.
+  void push(const devices::HapticState& state);
+  /// Haptic thread: step j's output (1-based) once it is finished, else nullptr.
+  [[nodiscard]] const TickOutput* output(std::uint64_t j) const;
+
+  /// The step tick k uses: scheduled_step(k, lag) when it is finished, else the newest finished
+  /// one (late; step 0 and no output when none has finished).
+  struct TickStep {
+    std::uint64_t step = 0;
+    const TickOutput* output = nullptr;
+    bool late = false;
+  };
+  [[nodiscard]] TickStep step_for_tick(std::uint64_t k, std::uint32_t lag) const;
+  [[nodiscard]] std::uint64_t done() const { return done_.load(std::memory_order_acquire); }
+  [[nodiscard]] std::uint64_t pushed() const { return pushed_.load(std::memory_order_relaxed); }
+  /// Runs the steps still pending and joins the thread; rethrows what the simulation threw.
+  void finish();
+
+ private:
+  void run();
+  void step(std::uint64_t j);
+
+  SessionSim& sim_;
+  AfterStep after_step_;
+  std::size_t capacity_;
+  std::vector<devices::HapticState> states_;
+  std::vector<TickOutput> outputs_;
+  std::atomic<std::uint64_t> pushed_{0};
+  std::atomic<std::uint64_t> done_{0};
+  std::atomic<std::uint32_t> wake_{0};
+  std::atomic<bool> finishing_{false};
+  std::atomic<bool> failed_{false};
+  std::exception_ptr error_;
+  std::thread thread_;
+};
+
+/// The step whose command tick k sends when it is on time: k - lag (0, none, for the first ticks).
+constexpr std::uint64_t scheduled_step(std::uint64_t k, std::uint32_t lag) {
+  return k > lag ? k - lag : 0;
+}
+
+/// The trace note a late tick writes before its force command: {"late_tick": {"tick": k,
+/// "step": j}} (step 0: no step had finished, the command was zero).
+std::string late_tick_note(std::uint64_t tick, std::uint64_t step);
+struct LateTick {
+  std::uint64_t tick = 0;
+  std::uint64_t step = 0;
+};
+/// The late tick a note's text holds, if it is one.
+std::optional<LateTick> parse_late_tick_note(const std::string& text);
+
+}  // namespace bisturi::runtime

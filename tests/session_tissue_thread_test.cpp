@@ -1,0 +1,153 @@
+// The tissue thread's lockstep with the haptic ticks (issue 10, runtime/src/session/
+// tissue_thread.h): which step a tick uses, the late-tick note, and that the threaded simulation
+// runs exactly the steps the inline one runs (same commands, same final state).
+
+#include <gtest/gtest.h>
+
+#include <glm/geometric.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <thread>
+#include <vector>
+
+#include "bisturi/devices/simulated.h"
+#include "bisturi/runtime/session/procedure.h"
+#include "bisturi/runtime/session/scene_builder.h"
+#include "bisturi/runtime/session/scene_description.h"
+#include "bisturi/runtime/session/session_sim.h"
+#include "session/tissue_thread.h"
+
+namespace bisturi::runtime {
+namespace {
+
+using devices::Nanoseconds;
+
+std::vector<devices::ForceChannel> glove_channels() {
+  std::vector<devices::ForceChannel> c(5);
+  for (devices::ForceChannel& f : c)
+    f.max_force_N = 2.0;
+  return c;
+}
+
+/// The default procedure's glove states, one per haptic tick over `ticks` milliseconds.
+std::vector<devices::HapticState> procedure_states(std::size_t ticks) {
+  const SceneDescription scene = default_scene();
+  const std::vector<BuiltSolid> solids = build_solids(scene);
+  const Procedure p = make_procedure("default", solids, Nanoseconds(ticks * 1'000'000),
+                                     devices::SimulatedGlove::kJoints);
+  std::vector<devices::HapticState> states(ticks);
+  for (std::size_t k = 0; k < ticks; ++k) {
+    const Nanoseconds t(static_cast<std::int64_t>(k) * 1'000'000);
+    states[k].sample_time = t;
+    states[k].end_effector_poses = {p.glove.pose_at(t)};
+    states[k].finger_joint_angles_rad = p.glove.joints_at(t, devices::SimulatedGlove::kJoints);
+    states[k].buttons = p.glove.buttons_at(t);
+  }
+  return states;
+}
+
+struct StepRun {
+  std::vector<std::vector<double>> commands;  ///< per step, in order
+  std::uint64_t state_hash = 0;
+};
+
+StepRun run_steps(const std::vector<devices::HapticState>& states, bool threaded) {
+  const SceneDescription scene = default_scene();
+  SessionSim sim(scene, build_solids(scene), glove_channels());
+  StepRun run;
+  TissueThread tissue(sim, states.front(), threaded, false,
+                      [&](const TickOutput& out, const devices::HapticState&, double) {
+                        run.commands.push_back(out.command_N);
+                      });
+  for (const devices::HapticState& s : states)
+    tissue.push(s);
+  tissue.finish();
+  EXPECT_EQ(tissue.done(), states.size());
+  run.state_hash = sim.state_hash();
+  return run;
+}
+
+TEST(TissueThread, ScheduledStepIsTheTickMinusTheLag) {
+  EXPECT_EQ(scheduled_step(1, 3), 0u);
+  EXPECT_EQ(scheduled_step(3, 3), 0u);
+  EXPECT_EQ(scheduled_step(4, 3), 1u);
+  EXPECT_EQ(scheduled_step(7, 0), 7u);
+}
+
+TEST(TissueThread, LateTickNoteRoundTrips) {
+  const auto l = parse_late_tick_note(late_tick_note(1234, 1229));
+  ASSERT_TRUE(l.has_value());
+  EXPECT_EQ(l->tick, 1234u);
+  EXPECT_EQ(l->step, 1229u);
+  EXPECT_FALSE(parse_late_tick_note("tick").has_value());
+  EXPECT_FALSE(parse_late_tick_note(R"({"late_tick": {"tick": -1, "step": 2}})").has_value());
+  EXPECT_FALSE(parse_late_tick_note(R"({"session_end": {"ticks": 3}})").has_value());
+}
+
+TEST(TissueThread, ThreadedStepsEqualInlineSteps) {
+  // 600 ticks of the default procedure (laid out over 0.6 s: approach, palpate, grasp, cut).
+  const std::vector<devices::HapticState> states = procedure_states(600);
+  const StepRun inline_run = run_steps(states, false);
+  const StepRun threaded_run = run_steps(states, true);
+  ASSERT_EQ(inline_run.commands.size(), states.size());
+  ASSERT_EQ(threaded_run.commands.size(), states.size());
+  EXPECT_EQ(inline_run.commands, threaded_run.commands);  // bit for bit (doubles compared with ==)
+  EXPECT_EQ(inline_run.state_hash, threaded_run.state_hash);
+  bool any_force = false;
+  for (const auto& c : inline_run.commands)
+    any_force = any_force || (!c.empty() && c[0] > 0.0);
+  EXPECT_TRUE(any_force) << "the procedure never touched the tissue: the test proves nothing";
+}
+
+TEST(TissueThread, ALateTickUsesTheNewestFinishedStep) {
+  const std::vector<devices::HapticState> states = procedure_states(12);
+  const SceneDescription scene = default_scene();
+  SessionSim sim(scene, build_solids(scene), glove_channels());
+  std::atomic<bool> release{false};
+  TissueThread tissue(sim, states.front(), true, false,
+                      [&](const TickOutput&, const devices::HapticState&, double) {
+                        // Step 3 hangs until the test lets it go: ticks after it are late.
+                        if (sim.ticks() == 3)
+                          while (!release.load())
+                            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+                      });
+  for (const devices::HapticState& s : states)
+    tissue.push(s);
+  EXPECT_EQ(tissue.output(3), nullptr);
+  const TissueThread::TickStep t = tissue.step_for_tick(12, 2);
+  EXPECT_TRUE(t.late);
+  EXPECT_LE(t.step, 2u);
+  EXPECT_EQ(t.output == nullptr, t.step == 0);
+  release.store(true);
+  tissue.finish();
+  const TissueThread::TickStep on_time = tissue.step_for_tick(12, 2);
+  EXPECT_FALSE(on_time.late);
+  EXPECT_EQ(on_time.step, 10u);
+  EXPECT_NE(on_time.output, nullptr);
+}
+
+TEST(SessionSim, CommandForTheStepsOwnTipIsTheStepsCommand) {
+  const std::vector<devices::HapticState> states = procedure_states(400);
+  const SceneDescription scene = default_scene();
+  SessionSim sim(scene, build_solids(scene), glove_channels());
+  std::vector<double> command;
+  std::size_t in_contact = 0;
+  for (const devices::HapticState& s : states) {
+    const TickOutput& out = sim.tick(s);
+    sim.command_for(out, SessionSim::tip_of(s), command);
+    ASSERT_EQ(command, out.command_N);
+    if (!out.contact) continue;
+    ++in_contact;
+    // The tip pressed 0.1 mm deeper along the force: the coupling spring pushes harder.
+    const glm::dvec3 deeper = SessionSim::tip_of(s) - 1e-4 * glm::normalize(out.force_N);
+    sim.command_for(out, deeper, command);
+    if (out.command_N[0] < 1.9) {
+      EXPECT_GT(command[0], out.command_N[0]);
+    }
+  }
+  EXPECT_GT(in_contact, 0u);
+}
+
+}  // namespace
+}  // namespace bisturi::runtime
