@@ -388,6 +388,8 @@ TEST_F(RenderTest, PngSinkWritesFramesWithPosesAndLatency) {
   for (int i = 0; i < 3; ++i)
     r->render(origin_pose());
   r->flush();
+  sink.finish();
+  EXPECT_EQ(sink.images_written(), 6u);
   EXPECT_TRUE(std::filesystem::exists(dir / "frame_00002_left.png"));
   EXPECT_TRUE(std::filesystem::exists(dir / "frame_00002_right.png"));
   ASSERT_EQ(sink.latencies_ms().size(), 3u);

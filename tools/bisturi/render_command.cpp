@@ -135,6 +135,7 @@ int run_render(const RenderOptions& options) {
     line.show("render", i + 1, options.frames);
   }
   renderer.flush();
+  sink.finish();
   const double total_s = std::chrono::duration<double>(Clock::now() - start).count();
   line.clear();
 

@@ -1,5 +1,7 @@
 #include "bisturi/runtime/render/png_sink.h"
 
+#include "png_writer.h"
+
 #include <png.h>
 
 #include <cstdio>
@@ -66,7 +68,7 @@ void write_png(const std::filesystem::path& file, std::uint32_t width, std::uint
 }
 
 PngSink::PngSink(std::filesystem::path directory, const PngSinkOptions& options)
-    : directory_(std::move(directory)), options_(options) {
+    : directory_(std::move(directory)), options_(options), writer_(std::make_unique<PngWriter>()) {
   std::error_code ec;
   std::filesystem::create_directories(directory_, ec);
   if (ec) throw RenderError(directory_.string() + ": cannot create the folder: " + ec.message());
@@ -85,7 +87,9 @@ void PngSink::consume(const StereoFrame& frame) {
     if (options_.layout == PngLayout::PerEye) {
       for (int e = 0; e < 2; ++e) {
         const std::string name = numbered("frame_", frame.index, e == 0 ? "_left" : "_right");
-        write_png(directory_ / name, w, h, frame.eye(e).data(), std::size_t{w} * 4);
+        const std::uint8_t* px = frame.eye(e).data();
+        writer_->write(directory_ / name, w, h,
+                       std::vector<std::uint8_t>(px, px + std::size_t{w} * h * 4));
         image += (e == 0 ? "" : " ") + name;
       }
     } else {
@@ -99,9 +103,8 @@ void PngSink::consume(const StereoFrame& frame) {
         }
       }
       image = numbered("frame_", frame.index, "");
-      write_png(directory_ / image, 2 * w, h, joined.data(), std::size_t{w} * 2 * 4);
+      writer_->write(directory_ / image, 2 * w, h, std::move(joined));
     }
-    ++images_;
   }
   const double latency = ms_between(frame.pose.sample_time, frame.ready_time);
   latencies_ms_.push_back(latency);
@@ -109,8 +112,20 @@ void PngSink::consume(const StereoFrame& frame) {
   poses_ << frame.index << ',' << image << ',' << p.position_mm.x << ',' << p.position_mm.y << ','
          << p.position_mm.z << ',' << p.orientation.w << ',' << p.orientation.x << ','
          << p.orientation.y << ',' << p.orientation.z << ','
-         << ms_between(p.sample_time, frame.submit_time) << ',' << latency << std::endl;
+         << ms_between(p.sample_time, frame.submit_time) << ',' << latency << '\n';
   if (!poses_) throw RenderError((directory_ / "frames.csv").string() + ": write failed");
+}
+
+PngSink::~PngSink() = default;
+
+void PngSink::finish() {
+  writer_->finish();
+  poses_.flush();
+  if (!poses_) throw RenderError((directory_ / "frames.csv").string() + ": write failed");
+}
+
+std::size_t PngSink::images_written() const {
+  return writer_->written();
 }
 
 }  // namespace bisturi::render

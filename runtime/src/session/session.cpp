@@ -462,6 +462,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
         }
       }
       renderer.flush();
+      if (png != nullptr) png->finish();
       report.frames = frames.load();
       report.images = png != nullptr ? png->images_written() : measuring.consumed();
     } catch (...) {

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <memory>
 #include <vector>
 
 #include "bisturi/runtime/render/frame_sink.h"
@@ -20,22 +21,30 @@ struct PngSinkOptions {
   std::uint32_t every = 1;
 };
 
+class PngWriter;
+
+/// Images are encoded and written on a worker thread (the render thread only copies the pixels);
+/// call finish() before reading the files.
 class PngSink : public FrameSink {
  public:
   /// Creates `directory` if needed; throws RenderError when it cannot be written.
   explicit PngSink(std::filesystem::path directory, const PngSinkOptions& options = {});
+  ~PngSink() override;
   void consume(const StereoFrame& frame) override;
+  /// Waits until every image is written and frames.csv flushed; throws RenderError on a failure.
+  void finish();
 
   /// Motion-to-photon latency of every consumed frame (ready time minus pose sample time).
   [[nodiscard]] const std::vector<double>& latencies_ms() const { return latencies_ms_; }
-  [[nodiscard]] std::size_t images_written() const { return images_; }
+  /// Images written so far (all of them after finish()).
+  [[nodiscard]] std::size_t images_written() const;
 
  private:
   std::filesystem::path directory_;
   PngSinkOptions options_;
   std::ofstream poses_;
   std::vector<double> latencies_ms_;
-  std::size_t images_ = 0;
+  std::unique_ptr<PngWriter> writer_;
 };
 
 /// Writes RGBA8 rows (top first) as a PNG; throws RenderError on failure.
