@@ -1,10 +1,11 @@
-// import_polygons() writes closed, consistently oriented manifold input straight into the DLFL
-// (construction/closed_manifold_writer.h) and builds everything else along the general path. The
-// fast path must give exactly what the general path gives: every record array, label, rotation
-// link and free list, the topology version, the report and the input maps. Random closed meshes
-// (relabelled, reordered, turned, as soups, with unused vertices, dropped faces, several parts and
-// duplicate faces) must take it; random damage (a flip, a hole, a bow-tie, a third face on an
-// edge, every face twice) must make it give up, and the result is then the general path's.
+// import_polygons() writes consistently oriented manifold input, closed or with boundary, straight
+// into the DLFL (construction/manifold_writer.h) and builds everything else along the
+// general path. The fast path must give exactly what the general path gives: every record array,
+// label, rotation link and free list, the topology version, the report and the input maps. Random
+// closed and open meshes (relabelled, reordered, turned, as soups, with unused vertices, dropped
+// faces, several parts and duplicate faces) must take it; random damage (a flip, a bow-tie, a
+// third face on an edge, every face twice) must make it give up, and the result is then the
+// general path's.
 
 #include <gtest/gtest.h>
 
@@ -218,6 +219,49 @@ PolygonMesh with_extras(const PolygonMesh& m, std::mt19937& rng) {
   return out;
 }
 
+/// The mesh without the faces `drop` marks.
+PolygonMesh without(const PolygonMesh& m, const std::vector<char>& drop) {
+  PolygonMesh out;
+  out.positions = m.positions;
+  for (std::size_t f = 0; f < m.face_count(); ++f) {
+    if (!drop[f]) out.add_face(m.face(f));
+  }
+  return out;
+}
+
+/// Holes that keep a manifold: faces removed that share no vertex with each other, so every
+/// vertex keeps one fan (a path of faces where a face went).
+PolygonMesh with_holes(const PolygonMesh& m, std::mt19937& rng) {
+  std::vector<char> used(m.positions.size(), 0), drop(m.face_count(), 0);
+  const int tries = std::uniform_int_distribution<int>(1, 12)(rng);
+  for (int t = 0; t < tries; ++t) {
+    const auto f = static_cast<std::size_t>(rng() % m.face_count());
+    const auto face = m.face(f);
+    if (std::any_of(face.begin(), face.end(), [&](std::uint32_t v) { return used[v] != 0; })) {
+      continue;
+    }
+    for (std::uint32_t v : face)
+      used[v] = 1;
+    drop[f] = 1;
+  }
+  return without(m, drop);
+}
+
+/// A random open, consistently oriented manifold: a closed mesh with holes, a grid or a tube.
+PolygonMesh random_open(std::mt19937& rng) {
+  switch (std::uniform_int_distribution<int>(0, 2)(rng)) {
+    case 0:
+      return with_holes(random_closed(rng), rng);
+    case 1:
+      return grid_mesh(std::uniform_int_distribution<std::size_t>(1, 9)(rng),
+                       std::uniform_int_distribution<std::size_t>(1, 9)(rng), 1.0, rng() % 2 != 0);
+    default:
+      return with_holes(tube_mesh(1.0, 3.0, std::uniform_int_distribution<std::size_t>(3, 9)(rng),
+                                  std::uniform_int_distribution<std::size_t>(1, 6)(rng)),
+                        rng);
+  }
+}
+
 TEST(PolygonImportFastPath, ClosedMeshesTakeItAndMatchTheGeneralPath) {
   std::mt19937 rng(20261123);
   int taken = 0;
@@ -245,13 +289,23 @@ TEST(PolygonImportFastPath, DamagedMeshesFallBackToTheGeneralPath) {
       case 0:  // one face flipped
         std::reverse(m.indices.begin() + m.offsets[f], m.indices.begin() + m.offsets[f + 1]);
         break;
-      case 1: {  // one face removed: a hole
+      case 1: {  // one face removed, the neighbour of one of its sides flipped
+        const std::uint32_t a = m.indices[m.offsets[f]];
+        const std::uint32_t b = m.indices[m.offsets[f] + 1];
         PolygonMesh holed;
         holed.positions = m.positions;
         for (std::size_t g = 0; g < m.face_count(); ++g) {
           if (g != f) holed.add_face(m.face(g));
         }
         m = holed;
+        for (std::size_t g = 0; g < m.face_count(); ++g) {
+          const auto face = m.face(g);
+          if (std::find(face.begin(), face.end(), a) != face.end() &&
+              std::find(face.begin(), face.end(), b) != face.end()) {
+            std::reverse(m.indices.begin() + m.offsets[g], m.indices.begin() + m.offsets[g + 1]);
+            break;
+          }
+        }
         break;
       }
       case 2: {  // a tetrahedron on one vertex: a bow-tie
@@ -283,6 +337,84 @@ TEST(PolygonImportFastPath, DamagedMeshesFallBackToTheGeneralPath) {
         m.positions.push_back(0.5 * (m.positions[face[0]] + m.positions[face[1]]) +
                               Dlfl::Vec3(0.37, -0.61, 2.3));
         m.add_face({face[0], face[1], base});
+        break;
+      }
+    }
+    EXPECT_FALSE(compare_paths(m, true, {}, what)) << what << ": the fast path took it";
+    compare_paths(as_soup(m), false, {}, what + " soup");
+  }
+}
+
+TEST(PolygonImportFastPath, OpenMeshesTakeItAndMatchTheGeneralPath) {
+  std::mt19937 rng(4242);
+  int taken = 0;
+  for (int trial = 0; trial < 90; ++trial) {
+    PolygonMesh m = random_open(rng);
+    if (trial % 2 == 1) m = shuffled(m, rng);
+    if (trial % 3 == 2) m = with_extras(m, rng);
+    const std::string what = "open trial " + std::to_string(trial);
+    taken += compare_paths(m, true, {}, what + " indexed") ? 1 : 0;
+    taken += compare_paths(as_soup(m), false, {}, what + " soup") ? 1 : 0;
+    ImportOptions weld;
+    weld.weld = true;
+    taken += compare_paths(m, true, weld, what + " welded") ? 1 : 0;
+  }
+  EXPECT_EQ(taken, 270);
+}
+
+TEST(PolygonImportFastPath, RandomlyHoledMeshesMatchTheGeneralPath) {
+  // Any faces removed: bow-ties where a fan loses two faces apart, manifold holes elsewhere.
+  std::mt19937 rng(99);
+  int taken = 0;
+  for (int trial = 0; trial < 120; ++trial) {
+    const PolygonMesh closed = shuffled(random_closed(rng), rng);
+    std::vector<char> drop(closed.face_count(), 0);
+    const double share = std::uniform_real_distribution<double>(0.02, 0.5)(rng);
+    for (auto& d : drop)
+      d = std::bernoulli_distribution(share)(rng) ? 1 : 0;
+    const PolygonMesh m = without(closed, drop);
+    if (m.face_count() == 0) continue;
+    taken += compare_paths(m, true, {}, "holed trial " + std::to_string(trial)) ? 1 : 0;
+  }
+  EXPECT_GT(taken, 10);
+  EXPECT_LT(taken, 110);
+}
+
+TEST(PolygonImportFastPath, DamagedOpenMeshesFallBackToTheGeneralPath) {
+  std::mt19937 rng(31);
+  for (int trial = 0; trial < 60; ++trial) {
+    PolygonMesh m = shuffled(
+        grid_mesh(std::uniform_int_distribution<std::size_t>(2, 8)(rng),
+                  std::uniform_int_distribution<std::size_t>(2, 8)(rng), 1.0, rng() % 2 != 0),
+        rng);
+    const std::string what = "open trial " + std::to_string(trial);
+    const auto f = static_cast<std::size_t>(rng() % m.face_count());
+    switch (trial % 4) {
+      case 0:  // one face flipped
+        std::reverse(m.indices.begin() + m.offsets[f], m.indices.begin() + m.offsets[f + 1]);
+        break;
+      case 1: {  // a second grid on one corner vertex: a bow-tie of two boundary fans
+        const std::uint32_t apex = m.indices[m.offsets[f]];
+        const auto base = static_cast<std::uint32_t>(m.positions.size());
+        const Dlfl::Vec3 p = m.positions[apex];
+        m.positions.push_back(p + Dlfl::Vec3(0.0, 0.0, 3.0));
+        m.positions.push_back(p + Dlfl::Vec3(1.0, 0.0, 3.0));
+        m.add_face({apex, base, base + 1});
+        break;
+      }
+      case 2: {  // a third face on an edge
+        const auto face = m.face(f);
+        const auto base = static_cast<std::uint32_t>(m.positions.size());
+        m.positions.push_back(0.5 * (m.positions[face[0]] + m.positions[face[1]]) +
+                              Dlfl::Vec3(0.37, -0.61, 2.3));
+        m.add_face({face[0], face[1], base});
+        break;
+      }
+      default: {  // a boundary side run twice the same way (a face copied, turned)
+        const auto face = m.face(f);
+        std::vector<std::uint32_t> copy(face.begin(), face.end());
+        std::rotate(copy.begin(), copy.begin() + 1, copy.end());
+        m.add_face(copy);
         break;
       }
     }

@@ -7,11 +7,12 @@
 #include <string>
 
 #include "bisturi/scene/errors.h"
-#include "construction/closed_manifold_writer.h"
 #include "construction/edge_groups.h"
 #include "construction/import_paths.h"
 #include "construction/import_report.h"
+#include "construction/manifold_writer.h"
 #include "construction/orient.h"
+#include "construction/prefault.h"
 #include "construction/rotation_system.h"
 #include "construction/weld.h"
 
@@ -173,8 +174,9 @@ std::optional<ImportResult> construction::import_polygons_via(const PolygonMesh&
   const std::size_t nf = offsets.size() - 1;
   auto input_face = [&](std::uint32_t f) { return all_kept ? f : kept_input_face[f]; };
 
-  // The fast path: closed, consistently oriented manifold surfaces written straight into the
-  // DLFL. It gives up on anything else (the general path below then builds the same mesh).
+  // The fast path: consistently oriented manifold surfaces (closed or with boundary) written
+  // straight into the DLFL. It gives up on anything else (the general path below then builds the
+  // same mesh).
   const bool tried_fast = path != construction::ImportPath::kGeneral && !options.use_operators;
   if (path == construction::ImportPath::kFast && !tried_fast) return std::nullopt;
   if (tried_fast) {
@@ -183,20 +185,23 @@ std::optional<ImportResult> construction::import_polygons_via(const PolygonMesh&
     if (weld) {
       dlfl_positions = std::move(welded.positions);
     } else {
+      dlfl_positions.reserve(
+          construction::whole_huge_pages(in.positions.size(), sizeof(Dlfl::Vec3)));
+      construction::prefault(dlfl_positions.data(), in.positions.size() * sizeof(Dlfl::Vec3));
       dlfl_positions.assign(in.positions.begin(), in.positions.end());
     }
     bool written = false;
     const std::span<const std::uint32_t> indices(in.indices);
     if (!all_kept) {
-      written = construction::write_closed_manifold(
+      written = construction::write_manifold(
           result.mesh, [&](std::uint32_t h) { return kept_from[h]; }, offsets, dlfl_positions,
           report);
     } else if (weld) {
-      written = construction::write_closed_manifold(
+      written = construction::write_manifold(
           result.mesh, [&](std::uint32_t h) { return welded_index[indices[h]]; }, offsets,
           dlfl_positions, report);
     } else {
-      written = construction::write_closed_manifold(
+      written = construction::write_manifold(
           result.mesh, [&](std::uint32_t h) { return indices[h]; }, offsets, dlfl_positions,
           report);
     }
@@ -204,6 +209,9 @@ std::optional<ImportResult> construction::import_polygons_via(const PolygonMesh&
       if (options.progress)
         options.progress("insert", in.indices.size() / 2, in.indices.size() / 2);
       const std::uint32_t spheres = static_cast<std::uint32_t>(report.isolated_vertices);
+      construction::reserve_mapped(result.vertex_of_input, in.positions.size());
+      construction::reserve_mapped(result.face_of_input, in.face_count());
+      construction::reserve_mapped(result.flipped, in.face_count());
       result.vertex_of_input.resize(in.positions.size());
       for (std::uint32_t v = 0; v < in.positions.size(); ++v)
         result.vertex_of_input[v] = VertexId(vertex_at(v));

@@ -1,9 +1,10 @@
 // Figures for building a solid from a mesh file: read_mesh_from_memory (parse) + import_polygons
 // (construct) on a triangulated torus of 100k and 2M triangles, from an indexed binary PLY and
-// from a binary STL soup; with BISTURI_BENCH_OPENMESH / BISTURI_BENCH_CGAL the same build in
-// OpenMesh's TriMesh and CGAL's Surface_mesh from the same in-memory arrays. After the table: a
-// summary with faces/s and ratios, the faces each library keeps on non-manifold inputs, and the
-// peak memory of the 2M build (measured in a forked child, so nothing before it pollutes it).
+// from a binary STL soup, and (construct only) on the same torus with holes from an indexed PLY;
+// with BISTURI_BENCH_OPENMESH / BISTURI_BENCH_CGAL the same build in OpenMesh's TriMesh and CGAL's
+// Surface_mesh from the same in-memory arrays. After the table: a summary with faces/s and ratios,
+// the faces each library keeps on non-manifold inputs, and the peak memory of the 2M build
+// (measured in a forked child, so nothing before it pollutes it).
 //
 // Every timed section starts with the input already in memory and ends when the mesh is built;
 // destruction and copies of the input are not timed (PauseTiming). The summary's figures are per
@@ -202,6 +203,26 @@ PolygonMesh torus(std::int64_t triangles) {
   return bisturi::torus_mesh(40.0, 12.0, 4 * nv, nv, true);
 }
 
+/// The torus with holes: every 29th face removed unless it shares a vertex with one removed
+/// before, so the surface stays manifold (every vertex one fan) with many triangular loops.
+PolygonMesh holed(const PolygonMesh& closed, std::size_t& holes) {
+  PolygonMesh out;
+  out.positions = closed.positions;
+  std::vector<char> used(closed.positions.size(), 0);
+  holes = 0;
+  for (std::size_t f = 0; f < closed.face_count(); ++f) {
+    const auto t = closed.face(f);
+    if (f % 29 == 0 && std::none_of(t.begin(), t.end(), [&](std::uint32_t v) { return used[v]; })) {
+      for (const std::uint32_t v : t)
+        used[v] = 1;
+      ++holes;
+      continue;
+    }
+    out.add_face(t);
+  }
+  return out;
+}
+
 void put_u32(std::vector<std::byte>& out, std::uint32_t v) {
   for (int i = 0; i < 4; ++i)
     out.push_back(static_cast<std::byte>((v >> (8 * i)) & 0xffu));
@@ -292,13 +313,17 @@ CgalSoup cgal_soup(const PolygonMesh& mesh) {
 
 struct Inputs {
   std::size_t triangles = 0;
-  std::size_t vertices = 0;  // of the torus (what welding the soup must find)
+  std::size_t vertices = 0;        // of the torus (what welding the soup must find)
+  std::size_t open_triangles = 0;  // of the torus with holes
+  std::size_t open_holes = 0;
   std::vector<std::byte> ply;
   std::vector<std::byte> stl;
+  std::vector<std::byte> open_ply;
   MeshFile ply_file;  // parsed once: the arrays the peers build from
   MeshFile stl_file;
+  MeshFile open_file;
 #ifdef BISTURI_BENCH_CGAL
-  std::optional<CgalSoup> cgal_indexed, cgal_soup;
+  std::optional<CgalSoup> cgal_indexed, cgal_soup, cgal_open;
 #endif
 };
 
@@ -319,27 +344,38 @@ Inputs& inputs(std::int64_t triangles) {
       std::ofstream(temp_dir() / (stem + ".stl"), std::ios::binary)
           .write(reinterpret_cast<const char*>(stl.data()),
                  static_cast<std::streamsize>(stl.size()));
+      const PolygonMesh open = holed(mesh, in.open_holes);
+      in.open_triangles = open.face_count();
+      bisturi::write_ply(temp_dir() / (stem + "_open.ply"), open,
+                         bisturi::PlyEncoding::BinaryLittleEndian);
     }
     in.ply = slurp(temp_dir() / (stem + ".ply"));
     in.stl = slurp(temp_dir() / (stem + ".stl"));
+    in.open_ply = slurp(temp_dir() / (stem + "_open.ply"));
     std::filesystem::remove(temp_dir() / (stem + ".ply"));  // read once; nothing left behind
     std::filesystem::remove(temp_dir() / (stem + ".stl"));
+    std::filesystem::remove(temp_dir() / (stem + "_open.ply"));
     in.ply_file = bisturi::read_mesh_from_memory(in.ply, MeshFormat::Ply, stem + ".ply");
     in.stl_file = bisturi::read_mesh_from_memory(in.stl, MeshFormat::Stl, stem + ".stl");
+    in.open_file = bisturi::read_mesh_from_memory(in.open_ply, MeshFormat::Ply, stem + "_open.ply");
   }
   return *slot;
 }
 
-enum class Source { kPly, kStl };
+/// The closed torus as indexed PLY and as STL soup; the torus with holes as indexed PLY.
+enum class Source { kPly, kStl, kOpenPly };
 
 const std::vector<std::byte>& bytes_of(const Inputs& in, Source s) {
-  return s == Source::kPly ? in.ply : in.stl;
+  return s == Source::kPly ? in.ply : s == Source::kStl ? in.stl : in.open_ply;
 }
 const MeshFile& file_of(const Inputs& in, Source s) {
-  return s == Source::kPly ? in.ply_file : in.stl_file;
+  return s == Source::kPly ? in.ply_file : s == Source::kStl ? in.stl_file : in.open_file;
 }
 MeshFormat format_of(Source s) {
-  return s == Source::kPly ? MeshFormat::Ply : MeshFormat::Stl;
+  return s == Source::kStl ? MeshFormat::Stl : MeshFormat::Ply;
+}
+std::size_t triangles_of(const Inputs& in, Source s) {
+  return s == Source::kOpenPly ? in.open_triangles : in.triangles;
 }
 
 /// Minor page faults (first touches of fresh pages) inside the timed sections.
@@ -369,18 +405,20 @@ void finish(benchmark::State& state, std::size_t triangles, const FaultMeter& fa
 }
 
 /// Everything our import promises for the torus: all faces kept, none dropped, the soup welded
-/// back to the torus's vertices, one part of genus 1.
-std::optional<std::string> check_import(const bisturi::ImportReport& r, const Inputs& in) {
-  if (r.faces != in.triangles || !r.dropped.empty()) {
-    return "import kept " + std::to_string(r.faces) + " of " + std::to_string(in.triangles) +
-           " faces";
+/// back to the torus's vertices, one part of genus 1 (closed, or with one loop per hole).
+std::optional<std::string> check_import(const bisturi::ImportReport& r, const Inputs& in,
+                                        Source source) {
+  if (r.faces != triangles_of(in, source) || !r.dropped.empty()) {
+    return "import kept " + std::to_string(r.faces) + " of " +
+           std::to_string(triangles_of(in, source)) + " faces";
   }
   if (r.vertices != in.vertices) {
     return "import has " + std::to_string(r.vertices) + " vertices, torus " +
            std::to_string(in.vertices);
   }
-  if (r.parts.size() != 1 || !r.parts[0].closed || r.parts[0].genus != 1) {
-    return std::string("import: not one closed part of genus 1");
+  const std::size_t loops = source == Source::kOpenPly ? in.open_holes : 0;
+  if (r.parts.size() != 1 || r.parts[0].boundary_loops != loops || r.parts[0].genus != 1) {
+    return "import: not one part of genus 1 with " + std::to_string(loops) + " boundary loops";
   }
   return std::nullopt;
 }
@@ -397,7 +435,7 @@ void BM_Parse(benchmark::State& state, Source source) {
     file.emplace(bisturi::read_mesh_from_memory(bytes_of(in, source), format_of(source), "bench"));
     faults.pause();
     state.PauseTiming();
-    if (file->polygons.face_count() != in.triangles) {
+    if (file->polygons.face_count() != triangles_of(in, source)) {
       state.SkipWithError("parse: wrong face count");
       break;
     }
@@ -405,7 +443,7 @@ void BM_Parse(benchmark::State& state, Source source) {
     settle_heap();
     state.ResumeTiming();
   }
-  finish(state, in.triangles, faults);
+  finish(state, triangles_of(in, source), faults);
   state.SetBytesProcessed(state.iterations() *
                           static_cast<std::int64_t>(bytes_of(in, source).size()));
 }
@@ -421,7 +459,7 @@ void BM_Construct(benchmark::State& state, Source source) {
     result.emplace(bisturi::import_polygons(file.polygons, file.has_vertex_list));
     faults.pause();
     state.PauseTiming();
-    if (const auto problem = check_import(result->report, in)) {
+    if (const auto problem = check_import(result->report, in, source)) {
       state.SkipWithError(problem->c_str());
       break;
     }
@@ -429,7 +467,7 @@ void BM_Construct(benchmark::State& state, Source source) {
     settle_heap();
     state.ResumeTiming();
   }
-  finish(state, in.triangles, faults);
+  finish(state, triangles_of(in, source), faults);
 }
 
 void BM_Total(benchmark::State& state, Source source) {
@@ -444,7 +482,7 @@ void BM_Total(benchmark::State& state, Source source) {
     result.emplace(bisturi::import_polygons(file->polygons, file->has_vertex_list));
     faults.pause();
     state.PauseTiming();
-    if (const auto problem = check_import(result->report, in)) {
+    if (const auto problem = check_import(result->report, in, source)) {
       state.SkipWithError(problem->c_str());
       break;
     }
@@ -453,7 +491,7 @@ void BM_Total(benchmark::State& state, Source source) {
     settle_heap();
     state.ResumeTiming();
   }
-  finish(state, in.triangles, faults);
+  finish(state, triangles_of(in, source), faults);
 }
 
 // ---- OpenMesh ----
@@ -521,9 +559,9 @@ Welded weld_with_hash_map(const PolygonMesh& soup) {
   return out;
 }
 
-void BM_OpenMeshIndexed(benchmark::State& state, bool reserve) {
+void BM_OpenMeshIndexed(benchmark::State& state, Source source, bool reserve) {
   const Inputs& in = inputs(state.range(0));
-  const PolygonMesh& mesh = in.ply_file.polygons;
+  const PolygonMesh& mesh = file_of(in, source).polygons;
   std::optional<TriMesh> om;
   FaultMeter faults;
   settle_heap();
@@ -541,7 +579,7 @@ void BM_OpenMeshIndexed(benchmark::State& state, bool reserve) {
     settle_heap();
     state.ResumeTiming();
   }
-  finish(state, in.triangles, faults);
+  finish(state, triangles_of(in, source), faults);
 }
 
 void BM_OpenMeshSoup(benchmark::State& state) {
@@ -574,16 +612,18 @@ void BM_OpenMeshSoup(benchmark::State& state) {
 
 #ifdef BISTURI_BENCH_CGAL
 const CgalSoup& cgal_input(Inputs& in, Source source) {
-  auto& slot = source == Source::kPly ? in.cgal_indexed : in.cgal_soup;
+  auto& slot = source == Source::kPly   ? in.cgal_indexed
+               : source == Source::kStl ? in.cgal_soup
+                                        : in.cgal_open;
   if (!slot) slot.emplace(cgal_soup(file_of(in, source).polygons));
   return *slot;
 }
 
 /// polygon_soup_to_polygon_mesh from CGAL's arrays; `checked` adds the validity test
 /// is_polygon_soup_a_polygon_mesh that the conversion requires of its input.
-void BM_CgalIndexed(benchmark::State& state, bool checked) {
+void BM_CgalIndexed(benchmark::State& state, Source source, bool checked) {
   Inputs& in = inputs(state.range(0));
-  const CgalSoup& soup = cgal_input(in, Source::kPly);
+  const CgalSoup& soup = cgal_input(in, source);
   if (!PMP::is_polygon_soup_a_polygon_mesh(soup.triangles)) {
     state.SkipWithError("CGAL: is_polygon_soup_a_polygon_mesh refused the torus");
     return;
@@ -601,7 +641,7 @@ void BM_CgalIndexed(benchmark::State& state, bool checked) {
     PMP::polygon_soup_to_polygon_mesh(soup.points, soup.triangles, *sm);
     faults.pause();
     state.PauseTiming();
-    if (sm->number_of_faces() != in.triangles) {
+    if (sm->number_of_faces() != triangles_of(in, source)) {
       state.SkipWithError("CGAL: wrong face count");
       break;
     }
@@ -609,7 +649,7 @@ void BM_CgalIndexed(benchmark::State& state, bool checked) {
     settle_heap();
     state.ResumeTiming();
   }
-  finish(state, in.triangles, faults);
+  finish(state, triangles_of(in, source), faults);
 }
 
 /// merge_duplicate_points_in_polygon_soup, then polygon_soup_to_polygon_mesh (the soup is
@@ -964,9 +1004,11 @@ void print_peak_memory(std::ostream& out) {
       << "   more come from posix_memalign (BigVector), so only RSS and mallinfo2 see them)\n";
   const double mb = 1024.0 * 1024.0;
   const auto tri = double(in.triangles);
-  for (const Source s : {Source::kPly, Source::kStl}) {
+  for (const Source s : {Source::kPly, Source::kStl, Source::kOpenPly}) {
     const PeakMemory m = measure_in_child(bytes_of(in, s), format_of(s));
-    const char* label = s == Source::kPly ? "indexed PLY" : "STL soup";
+    const char* label = s == Source::kPly   ? "indexed PLY"
+                        : s == Source::kStl ? "STL soup"
+                                            : "open PLY";
     if (!m.ok) {
       out << "  " << label << ": the child failed\n";
       continue;
@@ -1024,6 +1066,8 @@ constexpr Peer kPeers[] = {
     {"cgal/indexed_checked", "CGAL, indexed + is_polygon_soup_a_polygon_mesh",
      "bisturi/indexed_ply"},
     {"cgal/soup_merge_duplicate_points", "CGAL, soup + merge_duplicate_points", "bisturi/stl_soup"},
+    {"openmesh/open", "OpenMesh TriMesh, torus with holes", "bisturi/open_ply"},
+    {"cgal/open", "CGAL Surface_mesh, torus with holes", "bisturi/open_ply"},
 };
 
 /// Throughput and ratio tables, per CPU second or per wall second.
@@ -1039,7 +1083,8 @@ void print_rates(const CollectingReporter& runs, std::ostream& out, bool wall) {
     const char* key;
     const char* label;
   } ours[] = {{"bisturi/indexed_ply", "bisturi, indexed binary PLY"},
-              {"bisturi/stl_soup", "bisturi, binary STL soup (welded)"}};
+              {"bisturi/stl_soup", "bisturi, binary STL soup (welded)"},
+              {"bisturi/open_ply", "bisturi, torus with holes, indexed PLY"}};
   for (const auto& o : ours) {
     const std::string k = o.key;
     out << format(
@@ -1101,15 +1146,20 @@ void register_benchmarks() {
       sizes(RegisterBenchmark((key + "/construct").c_str(), BM_Construct, s), size);
       sizes(RegisterBenchmark((key + "/total").c_str(), BM_Total, s), size);
     }
+    // The torus with holes: construction only (its parse is the indexed PLY's).
+    sizes(RegisterBenchmark("bisturi/open_ply/construct", BM_Construct, Source::kOpenPly), size);
 #ifdef BISTURI_BENCH_OPENMESH
-    sizes(RegisterBenchmark("openmesh/indexed", BM_OpenMeshIndexed, false), size);
-    sizes(RegisterBenchmark("openmesh/indexed_reserved", BM_OpenMeshIndexed, true), size);
+    sizes(RegisterBenchmark("openmesh/indexed", BM_OpenMeshIndexed, Source::kPly, false), size);
+    sizes(RegisterBenchmark("openmesh/indexed_reserved", BM_OpenMeshIndexed, Source::kPly, true),
+          size);
     sizes(RegisterBenchmark("openmesh/soup_unordered_map_weld", BM_OpenMeshSoup), size);
+    sizes(RegisterBenchmark("openmesh/open", BM_OpenMeshIndexed, Source::kOpenPly, false), size);
 #endif
 #ifdef BISTURI_BENCH_CGAL
-    sizes(RegisterBenchmark("cgal/indexed", BM_CgalIndexed, false), size);
-    sizes(RegisterBenchmark("cgal/indexed_checked", BM_CgalIndexed, true), size);
+    sizes(RegisterBenchmark("cgal/indexed", BM_CgalIndexed, Source::kPly, false), size);
+    sizes(RegisterBenchmark("cgal/indexed_checked", BM_CgalIndexed, Source::kPly, true), size);
     sizes(RegisterBenchmark("cgal/soup_merge_duplicate_points", BM_CgalSoup), size);
+    sizes(RegisterBenchmark("cgal/open", BM_CgalIndexed, Source::kOpenPly, false), size);
 #endif
   }
 }
@@ -1118,17 +1168,21 @@ void register_benchmarks() {
 bool check_small_imports(std::ostream& out) {
   const Inputs& in = inputs(kSmall);
   bool ok = true;
-  for (const Source s : {Source::kPly, Source::kStl}) {
+  for (const Source s : {Source::kPly, Source::kStl, Source::kOpenPly}) {
     const MeshFile& file = file_of(in, s);
     const ImportResult r = bisturi::import_polygons(file.polygons, file.has_vertex_list);
     const bisturi::ValidationReport v = bisturi::validate(r.mesh);
-    const auto problem = check_import(r.report, in);
+    const auto problem = check_import(r.report, in, s);
     out << format(
         "  check %s %zu triangles: %zu faces, %zu vertices (%zu welded), %zu dropped, "
-        "genus %lld, validate() %s\n",
-        s == Source::kPly ? "indexed PLY" : "STL soup", in.triangles, r.report.faces,
-        r.report.vertices, r.report.welded_vertices, r.report.dropped.size(),
+        "genus %lld, %zu boundary loops, validate() %s\n",
+        s == Source::kPly   ? "indexed PLY"
+        : s == Source::kStl ? "STL soup"
+                            : "open PLY",
+        triangles_of(in, s), r.report.faces, r.report.vertices, r.report.welded_vertices,
+        r.report.dropped.size(),
         static_cast<long long>(r.report.parts.empty() ? -1 : r.report.parts[0].genus.value_or(-1)),
+        r.report.parts.empty() ? std::size_t{0} : r.report.parts[0].boundary_loops,
         v.ok() ? "ok" : "BROKEN");
     if (problem) out << "    " << *problem << "\n";
     if (!v.ok()) out << v.summary() << "\n";

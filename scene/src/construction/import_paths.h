@@ -10,7 +10,7 @@ namespace bisturi::construction {
 enum class ImportPath {
   kAuto,     ///< the fast path where it applies, the general path otherwise (import_polygons)
   kGeneral,  ///< orient, rotation system and assembler for every input
-  kFast,     ///< closed consistently oriented manifolds written directly; nullopt otherwise
+  kFast,     ///< consistently oriented manifolds written directly; nullopt otherwise
 };
 
 /// import_polygons() along the given path. nullopt only for kFast on input it does not take.

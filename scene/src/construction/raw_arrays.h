@@ -9,6 +9,7 @@
 #include <utility>
 
 #include "bisturi/scene/dlfl.h"
+#include "prefault.h"
 
 namespace bisturi::construction {
 
@@ -24,8 +25,9 @@ class RawArrays {
     Dlfl::Vec3* positions = nullptr;
   };
 
-  /// Takes the vertex positions and sizes the other arrays of an empty Dlfl exactly, one rotation
-  /// per vertex. Every record is then the caller's to write (the arrays start filled with invalid
+  /// Takes the vertex positions and sizes the other arrays of an empty Dlfl exactly (their room
+  /// rounded up to whole huge pages where that adds at most a sixteenth), one rotation per
+  /// vertex. Every record is then the caller's to write (the arrays start filled with invalid
   /// handles, labels with 0). Faces get room for face_capacity, so push_face() keeps the view
   /// valid up to that.
   static View size_empty(Dlfl& d, BigVector<Dlfl::Vec3>&& positions, std::size_t corners,
@@ -35,16 +37,35 @@ class RawArrays {
     }
     const std::size_t vertices = positions.size();
     d.positions_ = std::move(positions);
-    d.faces_.reserve(face_capacity);
-    d.bounding_.reserve(face_capacity);
+    // Mapped before the fill: one system call per array instead of a fault per page.
+    reserve_whole(d.faces_, face_capacity);
+    reserve_whole(d.bounding_, face_capacity);
+    reserve_whole(d.vertices_, vertices);
+    reserve_whole(d.rotations_, vertices);
+    reserve_whole(d.corners_, corners);
+    reserve_whole(d.edges_, edges);
     d.vertices_.resize(vertices);
     d.rotations_.resize(vertices);
     d.corners_.resize(corners);
     d.faces_.resize(faces);
     d.bounding_.resize(faces);
     d.edges_.resize(edges);
-    return {d.corners_.data(),  d.faces_.data(),     d.bounding_.data(), d.edges_.data(),
-            d.vertices_.data(), d.rotations_.data(), d.positions_.data()};
+    return view(d);
+  }
+
+  /// Resizes the corner and edge arrays of a sized Dlfl (new records invalid, the old ones
+  /// kept) to exactly these sizes; the view then points at the new arrays.
+  static View grow(Dlfl& d, std::size_t corners, std::size_t edges) {
+    grow_to(d.corners_, corners);
+    grow_to(d.edges_, edges);
+    return view(d);
+  }
+
+  /// Resizes the face arrays (records and labels) to exactly n faces.
+  static View grow_faces(Dlfl& d, std::size_t n) {
+    grow_to(d.faces_, n);
+    grow_to(d.bounding_, n);
+    return view(d);
   }
 
   /// Appends a face (its corners' face fields are the caller's to set).
@@ -63,6 +84,31 @@ class RawArrays {
     d.face_props_.resize(d.faces_.size());
     d.edge_props_.resize(d.edges_.size());
     d.topology_version_ += topology_changes;
+  }
+
+ private:
+  static View view(Dlfl& d) {
+    return {d.corners_.data(),  d.faces_.data(),     d.bounding_.data(), d.edges_.data(),
+            d.vertices_.data(), d.rotations_.data(), d.positions_.data()};
+  }
+
+  /// Room for n records (whole huge pages where cheap), the first n mapped for writing.
+  template <class T>
+  static void reserve_whole(BigVector<T>& v, std::size_t n) {
+    v.reserve(whole_huge_pages(n, sizeof(T)));
+    prefault(v.data(), n * sizeof(T));
+  }
+
+  /// Resizes to n; a new block holds exactly n (whole huge pages where cheap), not double.
+  template <class T>
+  static void grow_to(BigVector<T>& v, std::size_t n) {
+    if (v.capacity() < n) {
+      BigVector<T> bigger;
+      reserve_whole(bigger, n);
+      bigger.assign(v.begin(), v.end());
+      v = std::move(bigger);
+    }
+    v.resize(n);
   }
 };
 

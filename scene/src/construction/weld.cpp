@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "bisturi/scene/errors.h"
+#include "prefault.h"
 
 namespace bisturi::construction {
 
@@ -44,6 +45,7 @@ std::size_t table_size_for(std::size_t n) {
 WeldResult weld_exact(std::span<const Dlfl::Vec3> positions) {
   WeldResult out;
   const std::size_t n = positions.size();
+  reserve_mapped(out.welded_index, n);
   out.welded_index.resize(n);
   // Open addressing, linear probing, at most 3/4 full. Fresh memory is slow here and a soup
   // keeps about one vertex in six, so the table starts small and doubles when it fills.
@@ -53,7 +55,9 @@ WeldResult weld_exact(std::span<const Dlfl::Vec3> positions) {
   std::size_t mask = size - 1;
   auto slot_of = [](const Dlfl::Vec3& p) { return hash_bits(p.x, p.y, p.z); };
   // Pass 1: the table holds the first input vertex of every place; each vertex notes its first.
-  ScratchVector<std::uint32_t> table(size, kEmpty);
+  ScratchVector<std::uint32_t> table;
+  reserve_mapped(table, size);
+  table.assign(size, kEmpty);
   std::size_t kept = 0;
   // Places recur close together in a soup (the faces around a vertex are near in the file): a
   // small cache of recent places, holding their coordinates, answers most repeats from L2
@@ -63,7 +67,10 @@ WeldResult weld_exact(std::span<const Dlfl::Vec3> positions) {
     std::uint32_t first = kEmpty;
   };
   constexpr std::size_t kRecent = std::size_t{1} << 14;
-  std::vector<Recent> recent(n >= 4 * kRecent ? kRecent : 0);
+  const std::size_t recent_size = n >= 4 * kRecent ? kRecent : 0;
+  std::vector<Recent> recent;
+  reserve_mapped(recent, recent_size);
+  recent.resize(recent_size);
   for (std::size_t i = 0; i < n; ++i) {
     const Dlfl::Vec3& p = positions[i];
     const std::uint64_t hash = slot_of(p);
@@ -94,7 +101,9 @@ WeldResult weld_exact(std::span<const Dlfl::Vec3> positions) {
     }
     if (cached != nullptr) *cached = {p, out.welded_index[i]};
     if (4 * kept > 3 * size) {
-      ScratchVector<std::uint32_t> bigger(2 * size, kEmpty);
+      ScratchVector<std::uint32_t> bigger;
+      reserve_mapped(bigger, 2 * size);
+      bigger.assign(2 * size, kEmpty);
       const std::size_t bigger_mask = 2 * size - 1;
       for (const std::uint32_t first : table) {
         if (first == kEmpty) continue;
@@ -110,7 +119,7 @@ WeldResult weld_exact(std::span<const Dlfl::Vec3> positions) {
   }
   // Pass 2: kept vertices numbered in order of first appearance, into an exactly sized array.
   // A repeat's first vertex comes earlier, so it is already renumbered.
-  out.positions.reserve(kept);
+  reserve_mapped(out.positions, kept);
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t first = out.welded_index[i];
     if (first == i) {

@@ -14,10 +14,11 @@
 //    rotation per fan (add_rotation), so no face degenerates.
 // 6. Insertion with the DLFL operators; every boundary loop becomes a labelled face.
 //
-// The common input, closed surfaces whose faces already agree in orientation (every edge in two
-// faces running it opposite ways, one fan per vertex), skips 4-6: its DLFL is written directly
-// in one pass, the same structure and report the general path gives it. Anything else (a
-// boundary, a flip, a non-manifold edge, a bow-tie) is detected there and takes the general path.
+// The common input, manifold surfaces whose faces already agree in orientation (every edge in one
+// face, or in two running it opposite ways; one fan per vertex), closed or with boundary, skips
+// 4-6: its DLFL is written directly in one pass, with its boundary loops as labelled faces, the
+// same structure and report the general path gives it. Anything else (a flip, a non-manifold
+// edge, a bow-tie) is detected there and takes the general path.
 //
 // Faces with fewer than three distinct vertices, a vertex repeated on consecutive corners, or
 // zero area are dropped and listed with their reason; every other input face appears in the DLFL

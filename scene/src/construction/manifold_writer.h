@@ -1,14 +1,16 @@
 #pragma once
-// Internal: the fast path of import_polygons() for the common input, closed surfaces oriented
-// consistently: every edge in exactly two faces that run it in opposite directions, and the
-// faces around every vertex one fan (no bow-tie). For such input the general path (orient, the
-// rotation system, the bulk assembler) flips nothing, adds no hole and gives every vertex one
-// rotation, so its DLFL follows from the polygons alone: after one lone point sphere per unused
-// vertex (k of them, in vertex order, as create_vertex makes them), side h is corner k + h,
-// polygon f is face k + f, edges come in the order of their first side and rotations in the order
-// of their vertex's first side. This writes those arrays once, in place (RawArrays, like marching
-// cubes), with the report's topology figures, and gives up on anything else: the Dlfl is then
-// emptied and the positions handed back, for the general path.
+// Internal: the fast path of import_polygons() for the common input, consistently oriented
+// manifold surfaces, closed or with boundary: every edge in one face or in two that run it in
+// opposite directions, and the faces around every vertex one fan (no bow-tie). For such input the
+// general path (orient, the rotation system, the bulk assembler) flips nothing and gives every
+// vertex one rotation, so its DLFL follows from the polygons alone: after one lone point sphere
+// per unused vertex (k of them, in vertex order, as create_vertex makes them), side h is corner
+// k + h, polygon f is face k + f, edges come in the order of their first side and rotations in
+// the order of their vertex's first side; the hole corners of boundary sides follow the sides'
+// corners, and the hole loops, labelled, the polygons' faces, in close_boundaries()' order.
+// This writes those arrays once, in place (RawArrays, like marching cubes), with the report's
+// topology figures, and gives up on anything else: the Dlfl is then emptied and the positions
+// handed back, for the general path.
 
 #include <algorithm>
 #include <cstdint>
@@ -17,11 +19,12 @@
 
 #include "bisturi/scene/big_vector.h"
 #include "bisturi/scene/polygon_import.h"
+#include "prefault.h"
 #include "raw_arrays.h"
 
 namespace bisturi::construction {
 
-namespace closed_manifold_detail {
+namespace manifold_detail {
 
 /// Marks a union-find root that already has its part number (in the low bits).
 inline constexpr std::uint32_t kPartTag = 0x80000000u;
@@ -41,35 +44,36 @@ void canonical_cycle(const CornerVertex& vertex_of, std::uint32_t begin, std::ui
     out.push_back(vertex_of(begin + (forward ? (m + i) % n : (m + n - i) % n)));
 }
 
-}  // namespace closed_manifold_detail
+}  // namespace manifold_detail
 
 /// `vertex_of(h)`: the (welded) vertex of side h of the kept polygons; `offsets`: CSR over them.
 /// On success the Dlfl holds the mesh (it must be empty before), `positions` is moved into it
 /// and the topology fields of `report` are set (vertices, isolated_vertices, edges, faces,
 /// nonmanifold_*, flipped_faces, seam_edges, duplicate_faces, parts).
 template <class CornerVertex>
-bool write_closed_manifold(Dlfl& d, const CornerVertex& vertex_of,
-                           std::span<const std::uint32_t> offsets, BigVector<Dlfl::Vec3>& positions,
-                           ImportReport& report) {
-  using namespace closed_manifold_detail;
+bool write_manifold(Dlfl& d, const CornerVertex& vertex_of, std::span<const std::uint32_t> offsets,
+                    BigVector<Dlfl::Vec3>& positions, ImportReport& report) {
+  using namespace manifold_detail;
   const std::size_t nv = positions.size();
   const std::size_t nf = offsets.size() - 1;
   const std::size_t nh = offsets[nf];
-  // Odd side counts cannot pair up; the tag bit must stay free for part numbers.
-  if (nh % 2 != 0 || nh >= kPartTag || nv >= kPartTag || nf == 0) return false;
+  // The tag bits must stay free: part numbers on vertices, twin marks on sides.
+  if (nh >= kPartTag / 2 || nv >= kPartTag || nf == 0) return false;
 
   // Which vertices the polygons use; the others become lone point spheres (k of them). `head`
   // later starts each vertex's list of leaving sides, linked through the corners' prev fields
   // (prev is written last), so the lists cost no memory of their own.
   constexpr std::uint32_t kUnused = 0xffffffffu;
   constexpr std::uint32_t kEndOfList = 0xfffffffeu;
-  ScratchVector<std::uint32_t> head(nv, kUnused);
+  ScratchVector<std::uint32_t> head;
+  reserve_mapped(head, nv);
+  head.assign(nv, kUnused);
   for (std::uint32_t h = 0; h < nh; ++h)
     head[vertex_of(h)] = kEndOfList;
   const auto k = static_cast<std::uint32_t>(std::count(head.begin(), head.end(), kUnused));
 
-  const RawArrays::View w =
-      RawArrays::size_empty(d, std::move(positions), nh + k, nf + k, nf + k, nh / 2);
+  // Edges and faces are sized once their numbers are known (boundaries add both).
+  RawArrays::View w = RawArrays::size_empty(d, std::move(positions), nh + k, 0, 0, 0);
   auto give_up = [&] {
     positions = std::move(d.positions());
     d = Dlfl();
@@ -82,20 +86,18 @@ bool write_closed_manifold(Dlfl& d, const CornerVertex& vertex_of,
     for (std::uint32_t v = 0; v < nv; ++v) {
       if (head[v] != kUnused) continue;
       w.corners[s] = {VertexId(v), FaceId(s), CornerId(s), CornerId(s), EdgeId{}};
-      w.faces[s].first = CornerId(s);
       w.rotations[s].corner = CornerId(s);
       w.vertices[v].first = RotationId(s);
       ++s;
     }
   }
 
-  // Corners and faces; a vertex's rotation is numbered (and anchored) at its first side.
-  Dlfl::CornerRecord* const corners = w.corners + k;  // indexed by side
+  // Corners; a vertex's rotation is numbered (and anchored) at its first side.
+  Dlfl::CornerRecord* corners = w.corners + k;  // indexed by side
   std::uint32_t rotation = k;
   for (std::uint32_t f = 0; f < nf; ++f) {
     const std::uint32_t b = offsets[f];
     const std::uint32_t e = offsets[f + 1];
-    w.faces[k + f].first = CornerId(k + b);
     for (std::uint32_t h = b; h < e; ++h) {
       const std::uint32_t v = vertex_of(h);
       const std::uint32_t next = h + 1 == e ? b : h + 1;
@@ -108,10 +110,16 @@ bool write_closed_manifold(Dlfl& d, const CornerVertex& vertex_of,
     }
   }
 
-  // Twins: side h (a -> b) pairs with the one side b -> a. None (a boundary), several, or one
-  // already paired (an edge in three or more faces, or run twice one way) leaves the fast path.
-  // Parts are joined across every edge on the way (vertex union-find, roots later tagged).
-  ScratchVector<std::uint32_t> parent(nv);
+  // Twins: side h (a -> b) pairs with the one side b -> a; the edge fields hold the twin (tagged)
+  // until the edges are numbered. Several, or one already paired (an edge in three or more
+  // faces, or run twice one way), leaves the fast path. None makes h a boundary side, if it is
+  // the only side a -> b and the only boundary side leaving a and entering b (else a flip, a
+  // fin or a bow-tie). Parts are joined across every edge on the way (vertex union-find).
+  constexpr std::uint32_t kTwinTag = kPartTag;
+  constexpr std::uint32_t kNoTwin = kTwinTag | 0x7ffffffeu;
+  ScratchVector<std::uint32_t> parent;
+  reserve_mapped(parent, nv);
+  parent.resize(nv);
   for (std::uint32_t v = 0; v < nv; ++v)
     parent[v] = v;
   auto root = [&](std::uint32_t x) {
@@ -122,7 +130,8 @@ bool write_closed_manifold(Dlfl& d, const CornerVertex& vertex_of,
     return x;
   };
   auto head_vertex = [&](std::uint32_t h) { return corners[corners[h].next.idx - k].vertex.idx; };
-  std::uint32_t edge_count = 0;
+  ScratchVector<std::uint32_t> boundary_out, boundary_in;  // per vertex; for open input only
+  std::uint32_t nb = 0;
   for (std::uint32_t h = 0; h < nh; ++h) {
     if (corners[h].edge.valid()) continue;
     const std::uint32_t a = corners[h].vertex.idx;
@@ -135,14 +144,51 @@ bool write_closed_manifold(Dlfl& d, const CornerVertex& vertex_of,
         ++matches;
       }
     }
-    if (matches != 1 || corners[twin].edge.valid()) return give_up();
-    const EdgeId edge(edge_count++);
-    w.edges[edge.idx] = {CornerId(k + h), CornerId(k + twin)};
-    corners[h].edge = edge;
-    corners[twin].edge = edge;
+    if (matches == 1) {
+      if (corners[twin].edge.valid()) return give_up();
+      corners[h].edge = EdgeId(kTwinTag | twin);
+      corners[twin].edge = EdgeId(kTwinTag | h);
+    } else {
+      if (matches != 0) return give_up();
+      std::uint32_t same = 0;
+      for (std::uint32_t x = head[a]; x != kEndOfList; x = corners[x].prev.idx)
+        same += head_vertex(x) == b ? 1 : 0;
+      if (same != 1) return give_up();
+      if (boundary_out.empty()) {
+        reserve_mapped(boundary_out, nv);
+        reserve_mapped(boundary_in, nv);
+        boundary_out.assign(nv, kUnused);
+        boundary_in.assign(nv, kUnused);
+      }
+      if (boundary_out[a] != kUnused || boundary_in[b] != kUnused) return give_up();
+      boundary_out[a] = h;
+      boundary_in[b] = h;
+      corners[h].edge = EdgeId(kNoTwin);
+      ++nb;
+    }
     const std::uint32_t ra = root(a);
     const std::uint32_t rb = root(b);
     if (ra != rb) parent[std::max(ra, rb)] = std::min(ra, rb);
+  }
+  // A hole corner for every boundary side, after the polygons' corners.
+  const auto first_hole = static_cast<std::uint32_t>(k + nh);
+  w = RawArrays::grow(d, std::size_t{first_hole} + nb, (nh + nb) / 2);
+  corners = w.corners + k;
+  // Edges in the order of their first side.
+  {
+    std::uint32_t edge_count = 0;
+    for (std::uint32_t h = 0; h < nh; ++h) {
+      const std::uint32_t t = corners[h].edge.idx;
+      if ((t & kTwinTag) == 0) continue;  // numbered at its twin
+      const EdgeId edge(edge_count++);
+      corners[h].edge = edge;
+      if (t == kNoTwin) {
+        w.edges[edge.idx].a = CornerId(k + h);  // b: the hole corner, numbered below
+        continue;
+      }
+      w.edges[edge.idx] = {CornerId(k + h), CornerId(k + (t & ~kTwinTag))};
+      corners[t & ~kTwinTag].edge = edge;
+    }
   }
   // The lists are done with: prev takes its meaning.
   for (std::uint32_t f = 0; f < nf; ++f) {
@@ -151,6 +197,59 @@ bool write_closed_manifold(Dlfl& d, const CornerVertex& vertex_of,
     corners[b].prev = CornerId(k + e - 1);
     for (std::uint32_t h = b + 1; h < e; ++h)
       corners[h].prev = CornerId(k + h - 1);
+  }
+
+  // Holes, numbered as close_boundaries() makes them: vertex by vertex in rotation order, the
+  // hole of the boundary side entering the vertex, then that of the one leaving it. The hole of
+  // side a -> b runs b -> a; the next hole leaves a. Hole loops become labelled faces.
+  std::size_t loops = 0;
+  if (nb > 0) {
+    std::uint32_t holes = 0;
+    auto make_hole = [&](std::uint32_t side) {
+      CornerPair& pair = w.edges[corners[side].edge.idx];
+      if (pair.b.valid()) return;
+      const std::uint32_t c = first_hole + holes++;
+      pair.b = CornerId(c);
+      w.corners[c].vertex = VertexId(head_vertex(side));
+      w.corners[c].edge = corners[side].edge;
+    };
+    for (std::uint32_t r = k; r < rotation; ++r) {
+      const std::uint32_t v = w.corners[w.rotations[r].corner.idx].vertex.idx;
+      const bool leaves = boundary_out[v] != kUnused;
+      if (leaves != (boundary_in[v] != kUnused)) return give_up();
+      if (!leaves) continue;
+      make_hole(boundary_in[v]);
+      make_hole(boundary_out[v]);
+    }
+    for (std::uint32_t c = first_hole; c < first_hole + nb; ++c) {
+      const std::uint32_t enters = corners[w.edges[w.corners[c].edge.idx].a.idx - k].vertex.idx;
+      const CornerId next = w.edges[corners[boundary_in[enters]].edge.idx].b;
+      w.corners[c].next = next;
+      w.corners[next.idx].prev = CornerId(c);
+    }
+    // Hole loops, numbered in the order of their first corner.
+    for (std::uint32_t c = first_hole; c < first_hole + nb; ++c) {
+      if (w.corners[c].face.valid()) continue;
+      const FaceId face(static_cast<std::uint32_t>(k + nf + loops++));
+      std::uint32_t x = c;
+      do {
+        w.corners[x].face = face;
+        x = w.corners[x].next.idx;
+      } while (x != c);
+    }
+  }
+  // Faces: point spheres, polygons, labelled hole loops.
+  w = RawArrays::grow_faces(d, k + nf + loops);
+  corners = w.corners + k;
+  for (std::uint32_t s = 0; s < k; ++s)
+    w.faces[s].first = CornerId(s);
+  for (std::uint32_t f = 0; f < nf; ++f)
+    w.faces[k + f].first = CornerId(k + offsets[f]);
+  for (std::uint32_t c = first_hole; c < first_hole + nb; ++c) {
+    const FaceId face = w.corners[c].face;
+    if (w.bounding[face.idx] != 0) continue;
+    w.faces[face.idx].first = CornerId(c);
+    w.bounding[face.idx] = 1;
   }
 
   // One fan per vertex: every side lies on one rotation cycle (x -> twin(prev(x))), so the
@@ -167,9 +266,9 @@ bool write_closed_manifold(Dlfl& d, const CornerVertex& vertex_of,
     do {
       x = twin_corner(w.corners[x].prev.idx);
       ++covered;
-    } while (x != first && covered <= nh);
+    } while (x != first && covered <= std::size_t{nh} + nb);
   }
-  if (covered != nh) return give_up();
+  if (covered != std::size_t{nh} + nb) return give_up();
 
   // Parts in the order of their first face, as the orientation walk numbers them. Roots get
   // their part number tagged in; a path step onto a tagged root copies the tag.
@@ -223,10 +322,15 @@ bool write_closed_manifold(Dlfl& d, const CornerVertex& vertex_of,
   for (std::uint32_t v = 0; v < nv; ++v) {
     if (head[v] != kUnused) ++parts[part_of(v) & ~kPartTag].vertices;
   }
+  // A boundary side is an edge of its own (one side where others have two), a hole face a loop.
+  for (std::uint32_t c = first_hole; c < first_hole + nb; ++c) {
+    ImportPart& part = parts[part_of(w.corners[c].vertex.idx) & ~kPartTag];
+    ++part.edges;
+    if (w.faces[w.corners[c].face.idx].first.idx == c) ++part.boundary_loops;
+  }
   for (ImportPart& part : parts) {
     part.edges /= 2;
-    part.closed = true;
-    part.boundary_loops = 0;
+    part.closed = part.boundary_loops == 0;
     part.orientable = true;
     part.euler = static_cast<std::int64_t>(part.vertices) - static_cast<std::int64_t>(part.edges) +
                  static_cast<std::int64_t>(part.faces);
@@ -236,7 +340,7 @@ bool write_closed_manifold(Dlfl& d, const CornerVertex& vertex_of,
   RawArrays::finish(d, std::size_t{k} + 1);  // create_vertex per sphere, then the bulk write
   report.vertices = nv - k;
   report.isolated_vertices = k;
-  report.edges = nh / 2;
+  report.edges = (nh + nb) / 2;
   report.faces = nf;
   report.nonmanifold_edges = 0;
   report.nonmanifold_vertices = 0;
