@@ -16,6 +16,7 @@ namespace {
 constexpr std::uint32_t kIndexMask = (1u << 30) - 1u;
 constexpr std::uint32_t kNotFree = std::numeric_limits<std::uint32_t>::max();
 constexpr std::size_t kMaxStructures = 16;
+constexpr double kNeverQuiet = std::numeric_limits<double>::infinity();
 /// Springs per block of the spring passes: gathered into small arrays, computed in a loop the
 /// compiler vectorises (sqrt and division four or two at a time), then scattered.
 constexpr std::size_t kChunk = 64;
@@ -399,67 +400,99 @@ ImplicitIntegrator::Structure& ImplicitIntegrator::structure(const SoftBody& bod
   return structures_.back();
 }
 
-void ImplicitIntegrator::update_free_rows(Structure& st, const std::vector<std::uint8_t>& mask) {
-  if (st.free_mask == mask && !st.row.empty()) return;
+void ImplicitIntegrator::update_free_rows(Structure& st, const std::vector<std::uint8_t>& mask,
+                                          const std::vector<double>& masses) {
+  if (st.free_mask == mask && !st.full.row.empty()) return;
   st.free_mask = mask;
-  st.agg.clear();
-  st.coarse_h = -1.0;
+  build_system(st, st.full, mask);
+  aggregate(st.full);
+  // The aggregates' rows, for sleeping whole aggregates.
+  const std::size_t nf = st.full.vertex.size();
+  const std::size_t nc = st.full.coarse_count;
+  st.agg_start.assign(nc + 1, 0);
+  for (std::size_t i = 0; i < nf; ++i)
+    ++st.agg_start[st.full.agg[i] + 1];
+  for (std::size_t c = 0; c < nc; ++c)
+    st.agg_start[c + 1] += st.agg_start[c];
+  st.agg_rows.resize(nf);
+  std::vector<std::uint32_t> fill(st.agg_start.begin(), st.agg_start.end() - 1);
+  for (std::size_t i = 0; i < nf; ++i)
+    st.agg_rows[fill[st.full.agg[i]]++] = static_cast<std::uint32_t>(i);
+  st.agg_mass2.assign(nc, 0.0);
+  for (std::size_t i = 0; i < nf; ++i) {
+    const double mi = masses[st.full.vertex[i]];
+    st.agg_mass2[st.full.agg[i]] += mi * mi;
+  }
+  for (auto* v : {&st.sleep_p6, &st.sleep_residual, &st.sleep_gradient, &st.step_residual,
+                  &st.step_speed, &st.step_gradient})
+    v->assign(nc, 0.0);
+  st.awake.assign(nc, 1);
+  st.quiet.assign(nc, 0);
+  st.asleep = 0;
+  st.part_dirty = true;
+}
+
+void ImplicitIntegrator::build_system(const Structure& st, System& sys,
+                                      const std::vector<std::uint8_t>& mask) {
+  sys.agg.clear();
+  sys.coarse_h = -1.0;
+  sys.fixed_energy_valid = false;
   const std::size_t n = mask.size();
-  st.vertex.clear();
-  st.compact.assign(n, kNotFree);
+  sys.vertex.clear();
+  sys.compact.assign(n, kNotFree);
   for (std::size_t i = 0; i < n; ++i) {
     if (mask[i]) {
-      st.compact[i] = static_cast<std::uint32_t>(st.vertex.size());
-      st.vertex.push_back(static_cast<std::uint32_t>(i));
+      sys.compact[i] = static_cast<std::uint32_t>(sys.vertex.size());
+      sys.vertex.push_back(static_cast<std::uint32_t>(i));
     }
   }
-  const std::size_t nf = st.vertex.size();
+  const std::size_t nf = sys.vertex.size();
   // Four segments per row, one per stiffness class (segment 4 r + class), each in spring order:
   // the product sums a segment's neighbour differences and scales the sum once by the class's
   // weight. Springs to constrained vertices only count towards the row's diagonal.
-  st.row.assign(4 * nf + 1, 0);
-  st.fixed_count.assign(4 * nf, 0);
+  sys.row.assign(4 * nf + 1, 0);
+  sys.fixed_count.assign(4 * nf, 0);
   const std::size_t ns = st.a.size();
   std::size_t active = 0;
   for (std::size_t s = 0; s < ns; ++s) {
-    const std::uint32_t ca = st.compact[st.a[s]], cb = st.compact[st.b[s]];
+    const std::uint32_t ca = sys.compact[st.a[s]], cb = sys.compact[st.b[s]];
     const std::uint32_t cls = st.spring_class[s];
     if (ca != kNotFree && cb != kNotFree) {
-      ++st.row[4 * ca + cls + 1];
-      ++st.row[4 * cb + cls + 1];
+      ++sys.row[4 * ca + cls + 1];
+      ++sys.row[4 * cb + cls + 1];
     } else if (ca != kNotFree) {
-      ++st.fixed_count[4 * ca + cls];
+      ++sys.fixed_count[4 * ca + cls];
     } else if (cb != kNotFree) {
-      ++st.fixed_count[4 * cb + cls];
+      ++sys.fixed_count[4 * cb + cls];
     }
     if (ca != kNotFree || cb != kNotFree) ++active;
   }
   for (std::size_t i = 0; i < 4 * nf; ++i)
-    st.row[i + 1] += st.row[i];
-  st.col.resize(st.row[4 * nf]);
-  std::vector<std::uint32_t> fill(st.row.begin(), st.row.end() - 1);
+    sys.row[i + 1] += sys.row[i];
+  sys.col.resize(sys.row[4 * nf]);
+  std::vector<std::uint32_t> fill(sys.row.begin(), sys.row.end() - 1);
   for (std::size_t s = 0; s < ns; ++s) {
-    const std::uint32_t ca = st.compact[st.a[s]], cb = st.compact[st.b[s]];
+    const std::uint32_t ca = sys.compact[st.a[s]], cb = sys.compact[st.b[s]];
     if (ca == kNotFree || cb == kNotFree) continue;
-    st.col[fill[4 * ca + st.spring_class[s]]++] = cb;
-    st.col[fill[4 * cb + st.spring_class[s]]++] = ca;
+    sys.col[fill[4 * ca + st.spring_class[s]]++] = cb;
+    sys.col[fill[4 * cb + st.spring_class[s]]++] = ca;
   }
   // The product's form: one run per row, each entry a neighbour with its class in the top two
   // bits, padded to an even length with the row itself (in_i - in_i adds an exact zero), so the
   // product takes two neighbours per trip with one loop exit per row.
-  st.prow.assign(nf + 1, 0);
-  st.pcol.clear();
-  st.pcol.reserve(st.col.size() + nf);
+  sys.prow.assign(nf + 1, 0);
+  sys.pcol.clear();
+  sys.pcol.reserve(sys.col.size() + nf);
   for (std::size_t i = 0; i < nf; ++i) {
     for (std::uint32_t k = 0; k < 4; ++k) {
-      for (std::uint32_t e = st.row[4 * i + k]; e < st.row[4 * i + k + 1]; ++e)
-        st.pcol.push_back(st.col[e] | (k << 30));
+      for (std::uint32_t e = sys.row[4 * i + k]; e < sys.row[4 * i + k + 1]; ++e)
+        sys.pcol.push_back(sys.col[e] | (k << 30));
     }
-    if ((st.pcol.size() - st.prow[i]) % 2 != 0) st.pcol.push_back(static_cast<std::uint32_t>(i));
-    st.prow[i + 1] = static_cast<std::uint32_t>(st.pcol.size());
+    if ((sys.pcol.size() - sys.prow[i]) % 2 != 0) sys.pcol.push_back(static_cast<std::uint32_t>(i));
+    sys.prow[i + 1] = static_cast<std::uint32_t>(sys.pcol.size());
   }
   // The two spring sets, in spring order, padded with null springs (vertex 0 to itself).
-  auto reset = [](Structure::SpringSet& set, std::size_t count) {
+  auto reset = [](System::SpringSet& set, std::size_t count) {
     const std::size_t padded = (count + 3) / 4 * 4;
     set.count = count;
     set.a.assign(padded, 0);
@@ -467,12 +500,12 @@ void ImplicitIntegrator::update_free_rows(Structure& st, const std::vector<std::
     set.rest.assign(padded, 0.0);
     set.k.assign(padded, 0.0);
   };
-  reset(st.active, active);
-  reset(st.fixed, ns - active);
+  reset(sys.active, active);
+  reset(sys.fixed, ns - active);
   std::size_t ia = 0, ix = 0;
   for (std::size_t s = 0; s < ns; ++s) {
-    const bool is_active = st.compact[st.a[s]] != kNotFree || st.compact[st.b[s]] != kNotFree;
-    Structure::SpringSet& set = is_active ? st.active : st.fixed;
+    const bool is_active = sys.compact[st.a[s]] != kNotFree || sys.compact[st.b[s]] != kNotFree;
+    System::SpringSet& set = is_active ? sys.active : sys.fixed;
     std::size_t& i = is_active ? ia : ix;
     set.a[i] = st.a[s];
     set.b[i] = st.b[s];
@@ -482,66 +515,71 @@ void ImplicitIntegrator::update_free_rows(Structure& st, const std::vector<std::
   }
 }
 
-void ImplicitIntegrator::update_coarse(Structure& st, const SoftBody& body, double h) {
-  if (st.coarse_h == h) return;
-  const std::size_t nf = st.vertex.size();
-  const std::uint32_t* row = st.row.data();
-  const std::uint32_t* col = st.col.data();
-  if (st.agg.size() != nf) {
-    // Aggregates: a seed whose neighbours are all unassigned takes them and grows by whole rings
-    // of neighbours until it holds `target` rows; leftovers join an assigned neighbour's
-    // aggregate. About nf / 192 aggregates (the dense coarse solve stays below a fifth of a
-    // product at 20k vertices), but no more than 80 rows each: at 95k vertices aggregates of
-    // 330 rows left a relative residual of 0.65 after 6 iterations, of 80 rows 0.02.
-    const std::size_t target = std::clamp<std::size_t>(nf / 192, 8, 80);
-    constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
-    st.agg.assign(nf, kNone);
-    std::uint32_t count = 0;
-    std::vector<std::uint32_t> ring, next;
-    for (std::size_t seed = 0; seed < nf; ++seed) {
-      if (st.agg[seed] != kNone) continue;
-      bool free_around = true;
-      for (std::uint32_t e = row[4 * seed]; e < row[4 * seed + 4] && free_around; ++e)
-        free_around = st.agg[col[e]] == kNone;
-      if (!free_around) continue;
-      st.agg[seed] = count;
-      std::size_t size = 1;
-      ring.assign(1, static_cast<std::uint32_t>(seed));
-      while (size < target && !ring.empty()) {
-        next.clear();
-        for (std::uint32_t i : ring) {
-          for (std::uint32_t e = row[4 * i]; e < row[4 * i + 4]; ++e) {
-            if (st.agg[col[e]] != kNone) continue;
-            st.agg[col[e]] = count;
-            next.push_back(col[e]);
-            ++size;
-          }
-        }
-        ring.swap(next);
-      }
-      ++count;
-    }
-    for (bool changed = true; changed;) {
-      changed = false;
-      for (std::size_t i = 0; i < nf; ++i) {
-        if (st.agg[i] != kNone) continue;
+void ImplicitIntegrator::aggregate(System& sys) {
+  const std::size_t nf = sys.vertex.size();
+  const std::uint32_t* row = sys.row.data();
+  const std::uint32_t* col = sys.col.data();
+  // Aggregates: a seed whose neighbours are all unassigned takes them and grows by whole rings
+  // of neighbours until it holds `target` rows; leftovers join an assigned neighbour's
+  // aggregate. About nf / 192 aggregates (the dense coarse solve stays below a fifth of a
+  // product at 20k vertices), but no more than 80 rows each: at 95k vertices aggregates of
+  // 330 rows left a relative residual of 0.65 after 6 iterations, of 80 rows 0.02.
+  const std::size_t target = std::clamp<std::size_t>(nf / 192, 8, 80);
+  constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+  sys.agg.assign(nf, kNone);
+  std::uint32_t count = 0;
+  std::vector<std::uint32_t> ring, next;
+  for (std::size_t seed = 0; seed < nf; ++seed) {
+    if (sys.agg[seed] != kNone) continue;
+    bool free_around = true;
+    for (std::uint32_t e = row[4 * seed]; e < row[4 * seed + 4] && free_around; ++e)
+      free_around = sys.agg[col[e]] == kNone;
+    if (!free_around) continue;
+    sys.agg[seed] = count;
+    std::size_t size = 1;
+    ring.assign(1, static_cast<std::uint32_t>(seed));
+    while (size < target && !ring.empty()) {
+      next.clear();
+      for (std::uint32_t i : ring) {
         for (std::uint32_t e = row[4 * i]; e < row[4 * i + 4]; ++e) {
-          if (st.agg[col[e]] != kNone) {
-            st.agg[i] = st.agg[col[e]];
-            changed = true;
-            break;
-          }
+          if (sys.agg[col[e]] != kNone) continue;
+          sys.agg[col[e]] = count;
+          next.push_back(col[e]);
+          ++size;
+        }
+      }
+      ring.swap(next);
+    }
+    ++count;
+  }
+  for (bool changed = true; changed;) {
+    changed = false;
+    for (std::size_t i = 0; i < nf; ++i) {
+      if (sys.agg[i] != kNone) continue;
+      for (std::uint32_t e = row[4 * i]; e < row[4 * i + 4]; ++e) {
+        if (sys.agg[col[e]] != kNone) {
+          sys.agg[i] = sys.agg[col[e]];
+          changed = true;
+          break;
         }
       }
     }
-    for (std::size_t i = 0; i < nf; ++i) {  // rows with no free neighbour at all
-      if (st.agg[i] == kNone) st.agg[i] = count++;
-    }
-    st.coarse_count = count;
   }
+  for (std::size_t i = 0; i < nf; ++i) {  // rows with no free neighbour at all
+    if (sys.agg[i] == kNone) sys.agg[i] = count++;
+  }
+  sys.coarse_count = count;
+}
+
+void ImplicitIntegrator::update_coarse(System& sys, const Structure& st, const SoftBody& body,
+                                       double h) {
+  if (sys.coarse_h == h) return;
+  const std::size_t nf = sys.vertex.size();
+  const std::uint32_t* row = sys.row.data();
+  const std::uint32_t* col = sys.col.data();
   // P^T A P with P the aggregates' indicator: each aggregate sums its rows' diagonal parts that
   // are not a free neighbour's weight, and the weights of springs leaving it.
-  const std::size_t nc = st.coarse_count;
+  const std::size_t nc = sys.coarse_count;
   const auto& m = body.masses();
   const Material& mat = body.material();
   double w[4];
@@ -549,12 +587,12 @@ void ImplicitIntegrator::update_coarse(Structure& st, const SoftBody& body, doub
     w[k] = h * h * st.k_class[k] + h * mat.spring_damping_N_s_per_m;
   std::vector<double> a(nc * nc, 0.0);
   for (std::size_t i = 0; i < nf; ++i) {
-    const std::size_t I = st.agg[i];
-    double self = m[st.vertex[i]] * (1.0 + h * mat.drag_per_s);
+    const std::size_t I = sys.agg[i];
+    double self = m[sys.vertex[i]] * (1.0 + h * mat.drag_per_s);
     for (std::size_t k = 0; k < 4; ++k) {
-      self += double(st.fixed_count[4 * i + k]) * w[k];
+      self += double(sys.fixed_count[4 * i + k]) * w[k];
       for (std::uint32_t e = row[4 * i + k]; e < row[4 * i + k + 1]; ++e) {
-        const std::size_t J = st.agg[col[e]];
+        const std::size_t J = sys.agg[col[e]];
         if (J == I) continue;
         a[I * nc + I] += w[k];
         a[I * nc + J] -= w[k];
@@ -563,8 +601,8 @@ void ImplicitIntegrator::update_coarse(Structure& st, const SoftBody& body, doub
     a[I * nc + I] += self;
   }
   // Dense Cholesky, packed lower rows (row I holds columns 0..I), 1 / L_II on the diagonal.
-  st.coarse.assign(nc * (nc + 1) / 2, 0.0);
-  double* L = st.coarse.data();
+  sys.coarse.assign(nc * (nc + 1) / 2, 0.0);
+  double* L = sys.coarse.data();
   auto at = [](std::size_t i, std::size_t j) { return i * (i + 1) / 2 + j; };
   for (std::size_t i = 0; i < nc; ++i) {
     for (std::size_t j = 0; j <= i; ++j) {
@@ -580,10 +618,10 @@ void ImplicitIntegrator::update_coarse(Structure& st, const SoftBody& body, doub
       }
     }
   }
-  st.coarse_f.resize(st.coarse.size());
-  for (std::size_t i = 0; i < st.coarse.size(); ++i)
-    st.coarse_f[i] = static_cast<float>(st.coarse[i]);
-  st.coarse_h = h;
+  sys.coarse_f.resize(sys.coarse.size());
+  for (std::size_t i = 0; i < sys.coarse.size(); ++i)
+    sys.coarse_f[i] = static_cast<float>(sys.coarse[i]);
+  sys.coarse_h = h;
 }
 
 void ImplicitIntegrator::free_mask(const SoftBody& body) {
@@ -600,11 +638,11 @@ void ImplicitIntegrator::prepare(SoftBody& body, const IntegratorOptions& option
   body.refresh_topology();
   Structure& st = structure(body);
   free_mask(body);
-  update_free_rows(st, free_);
-  if (options.cg_coarse_level) update_coarse(st, body, options.dt_s);
+  update_free_rows(st, free_, body.masses());
+  if (options.cg_coarse_level) update_coarse(st.full, st, body, options.dt_s);
   // Scratch at its working size, so the first step allocates nothing.
   const std::size_t n = body.positions().size();
-  const std::size_t n4 = 4 * st.vertex.size();
+  const std::size_t n4 = 4 * st.full.vertex.size();
   saved_x_.reserve(n);
   saved_v_.reserve(n);
   f_.reserve(n);
@@ -628,6 +666,11 @@ StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& opti
     return stats;
   }
   Structure& st = structure(body);
+  if (options.sleeping && sleeps_entirely(st, body)) {
+    stats.free_vertices = static_cast<std::uint32_t>(st.full.vertex.size());
+    body.clear_forces();
+    return stats;
+  }
   auto& x = body.positions();
   auto& v = body.velocities();
   saved_x_ = x;
@@ -638,22 +681,28 @@ StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& opti
     if (body.kinematic(VertexId(static_cast<std::uint32_t>(i)))) any_kinematic = true;
   }
   const bool energy_check = !any_kinematic;
-  double energy_before = 0.0, fixed_energy = 0.0;
+  double energy_before = 0.0;
+  // Kinematic vertices move their neighbours every step: nothing sleeps while there are any.
+  if (!options.sleeping || any_kinematic) wake_all(st);
 
   for (int attempt = 0; attempt <= options.max_retry_halvings; ++attempt) {
     const int substeps = 1 << attempt;
     const double h = options.dt_s / substeps;
     StepStats trial;
     trial.substeps = substeps;
+    System* sys = nullptr;
     for (int s = 0; s < substeps; ++s) {
       // The energy of the start state comes out of the first substep's force pass for free.
       const bool first = attempt == 0 && s == 0 && energy_check;
-      substep(body, st, options, h, double(s + 1) / substeps, trial,
-              first ? &energy_before : nullptr, first ? &fixed_energy : nullptr);
+      sys = &substep(body, st, options, h, double(s + 1) / substeps, trial,
+                     first ? &energy_before : nullptr);
     }
-    const std::string reason = check(body, st, options, energy_before, fixed_energy, energy_check);
+    const std::string reason = check(body, *sys, options, energy_before, energy_check);
     if (reason.empty()) {
       trial.rolled_back = attempt > 0;
+      trial.free_vertices = static_cast<std::uint32_t>(st.full.vertex.size());
+      trial.awake_vertices = static_cast<std::uint32_t>(sys->vertex.size());
+      if (options.sleeping && !any_kinematic && attempt == 0) update_sleep(st, body, options);
       body.clear_forces();
       return trial;
     }
@@ -670,9 +719,9 @@ StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& opti
   return stats;
 }
 
-std::string ImplicitIntegrator::check(const SoftBody& body, const Structure& st,
+std::string ImplicitIntegrator::check(const SoftBody& body, System& st,
                                       const IntegratorOptions& options, double energy_before,
-                                      double fixed_energy, bool energy_check) const {
+                                      bool energy_check) const {
   const auto& x = body.positions();
   const auto& v = body.velocities();
   const auto& m = body.masses();
@@ -710,9 +759,9 @@ std::string ImplicitIntegrator::check(const SoftBody& body, const Structure& st,
   }
   if (!energy_check) return {};
   // Springs between constrained vertices did not move: their energy is the start state's.
-  const Structure::SpringSet& sa = st.active;
-  double elastic = fixed_energy + spring_energy(sa.a.data(), sa.b.data(), sa.rest.data(),
-                                                sa.k.data(), sa.a.size(), x.data());
+  const System::SpringSet& sa = st.active;
+  double elastic = fixed_energy(st, body) + spring_energy(sa.a.data(), sa.b.data(), sa.rest.data(),
+                                                          sa.k.data(), sa.a.size(), x.data());
   if (body.closed() && body.rest_volume_m3() > 0.0) {
     const double dv = body.volume_m3() - body.rest_volume_m3();
     elastic += 0.5 * body.material().bulk_modulus_Pa * dv * dv / body.rest_volume_m3();
@@ -729,7 +778,7 @@ std::string ImplicitIntegrator::check(const SoftBody& body, const Structure& st,
 }
 
 template <class T>
-void ImplicitIntegrator::solve(const Structure& st, const double (&w)[4], int max_iterations,
+void ImplicitIntegrator::solve(const System& st, const double (&w)[4], int max_iterations,
                                double rel_tol2, double abs_tol2, StepStats& stats) {
   const std::size_t nf = st.vertex.size();
   const std::size_t n4 = 4 * nf;
@@ -820,9 +869,44 @@ void ImplicitIntegrator::solve(const Structure& st, const double (&w)[4], int ma
   stats.relative_residual = std::sqrt(r2 / std::max(b2, 1e-300));
 }
 
-void ImplicitIntegrator::substep(SoftBody& body, Structure& st, const IntegratorOptions& options,
-                                 double h, double fraction, StepStats& stats, double* energy_out,
-                                 double* fixed_energy_out) {
+double ImplicitIntegrator::fixed_energy(System& sys, const SoftBody& body) {
+  if (!sys.fixed_energy_valid) {
+    const System::SpringSet& sx = sys.fixed;
+    sys.fixed_energy = spring_energy(sx.a.data(), sx.b.data(), sx.rest.data(), sx.k.data(),
+                                     sx.a.size(), body.positions().data());
+    sys.fixed_energy_valid = true;
+  }
+  return sys.fixed_energy;
+}
+
+double ImplicitIntegrator::spring_pass(System& sys, const SoftBody& body, double h, bool energy) {
+  const auto& x = body.positions();
+  const auto& v = body.velocities();
+  const double c = body.material().spring_damping_N_s_per_m;
+  f_.assign(x.size(), glm::dvec3(0.0));
+  const System::SpringSet& sa = sys.active;
+  double elastic = 0.0;
+  if (energy) {
+    elastic = spring_forces_energy(sa.a.data(), sa.b.data(), sa.rest.data(), sa.k.data(),
+                                   sa.a.size(), sa.count, x.data(), v.data(), c, h, f_.data()) +
+              fixed_energy(sys, body);
+  } else {
+    spring_forces(sa.a.data(), sa.b.data(), sa.rest.data(), sa.k.data(), sa.a.size(), sa.count,
+                  x.data(), v.data(), c, h, f_.data());
+  }
+  // The halo completes the spring forces on the border of the awake region (for waking).
+  const System::SpringSet& sb = sys.halo;
+  if (sb.count > 0) {
+    spring_forces(sb.a.data(), sb.b.data(), sb.rest.data(), sb.k.data(), sb.a.size(), sb.count,
+                  x.data(), v.data(), c, h, f_.data());
+  }
+  return elastic;
+}
+
+ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structure& st,
+                                                        const IntegratorOptions& options, double h,
+                                                        double fraction, StepStats& stats,
+                                                        double* energy_out) {
   auto& x = body.positions();
   auto& v = body.velocities();
   const auto& m = body.masses();
@@ -835,7 +919,9 @@ void ImplicitIntegrator::substep(SoftBody& body, Structure& st, const Integrator
   const double h2 = h * h;
 
   // Constraints: anchored and massless vertices stand still, kinematic ones follow their target.
+  // Vertices with an external load are noted: they may not sleep.
   free_.resize(n);
+  loaded_.clear();
   double kinetic = 0.0, potential = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     const VertexId vi(static_cast<std::uint32_t>(i));
@@ -850,32 +936,19 @@ void ImplicitIntegrator::substep(SoftBody& body, Structure& st, const Integrator
       v[i] = (goal - x[i]) / h;
     }
     free_[i] = is_free;
+    if (fext[i] != glm::dvec3(0.0)) loaded_.push_back(static_cast<std::uint32_t>(i));
     if (energy_out) {
       kinetic += 0.5 * m[i] * glm::dot(v[i], v[i]);
       potential -= m[i] * glm::dot(g, x[i]);
     }
   }
-  update_free_rows(st, free_);
-  const std::size_t nf = st.vertex.size();
-  const std::uint32_t* vertex = st.vertex.data();
+  update_free_rows(st, free_, m);
+  if (st.asleep > 0) wake_loaded(st, body);
+  System* sys = &system(st, body);
 
-  // Springs with a free end: forces and the h^2 H v term of the right-hand side (H = k I per
+  // Springs with a solved end: forces and the h^2 H v term of the right-hand side (H = k I per
   // spring). The others only add their (constant) energy to the start state's.
-  f_.assign(n, glm::dvec3(0.0));
-  const Structure::SpringSet& sa = st.active;
-  double elastic_energy = 0.0;
-  if (energy_out) {
-    elastic_energy =
-        spring_forces_energy(sa.a.data(), sa.b.data(), sa.rest.data(), sa.k.data(), sa.a.size(),
-                             sa.count, x.data(), v.data(), c, h, f_.data());
-    const Structure::SpringSet& sx = st.fixed;
-    *fixed_energy_out =
-        spring_energy(sx.a.data(), sx.b.data(), sx.rest.data(), sx.k.data(), sx.a.size(), x.data());
-    elastic_energy += *fixed_energy_out;
-  } else {
-    spring_forces(sa.a.data(), sa.b.data(), sa.rest.data(), sa.k.data(), sa.a.size(), sa.count,
-                  x.data(), v.data(), c, h, f_.data());
-  }
+  double spring_energy = spring_pass(*sys, body, h, energy_out != nullptr);
 
   // Volume term (explicit): p dV/dx_i, p = K (V0 - V) / V0. 6 dV/dx_i is the sum over the
   // triangles around i of x_j x x_k; around a closed fan that equals the sum of the triangles'
@@ -883,7 +956,7 @@ void ImplicitIntegrator::substep(SoftBody& body, Structure& st, const Integrator
   // same vector for all three corners: one cross product per triangle instead of three. The
   // volume comes out of the same pass (x_0 . N = x_0 . (x_1 x x_2)). The term applies to closed
   // bodies only, whose fans are closed.
-  double p6 = 0.0;
+  double p6 = 0.0, volume_energy = 0.0;
   const bool volume_term = body.closed() && body.rest_volume_m3() > 0.0;
   if (volume_term) {
     grad_.assign(n, glm::dvec3(0.0));
@@ -904,9 +977,20 @@ void ImplicitIntegrator::substep(SoftBody& body, Structure& st, const Integrator
     const double v0 = body.rest_volume_m3();
     // volume_m3() is measured outward whatever the faces' winding; the gradient follows it.
     p6 = body.orientation() * mat.bulk_modulus_Pa * (v0 - volume) / v0 / 6.0;
-    elastic_energy += 0.5 * mat.bulk_modulus_Pa * (volume - v0) * (volume - v0) / v0;
+    volume_energy = 0.5 * mat.bulk_modulus_Pa * (volume - v0) * (volume - v0) / v0;
   }
-  if (energy_out) *energy_out = kinetic + potential + elastic_energy;
+  p6_ = p6;
+  // Sleeping aggregates whose residual can now exceed the tolerance wake; the forces are taken
+  // again over the larger awake region.
+  if (st.asleep > 0 && wake_by_forces(st, *sys, body, options, p6)) {
+    sys = &system(st, body);
+    spring_energy = spring_pass(*sys, body, h, energy_out != nullptr);
+  }
+  if (energy_out) *energy_out = kinetic + potential + spring_energy + volume_energy;
+  const std::size_t nf = sys->vertex.size();
+  const std::uint32_t* vertex = sys->vertex.data();
+  const std::uint32_t* full_compact = st.full.compact.data();
+  const std::uint32_t* full_agg = st.full.agg.data();
 
   // The right-hand side and the diagonal over the free vertices, four lanes per vertex
   // (x, y, z and a zero pad: the loops below run on whole vectors the compiler vectorises).
@@ -915,17 +999,28 @@ void ImplicitIntegrator::substep(SoftBody& body, Structure& st, const Integrator
   for (int k = 0; k < 4; ++k)
     w[k] = h2 * st.k_class[k] + h * c;
   const std::size_t n4 = 4 * nf;
-  const std::uint32_t* row = st.row.data();
-  const std::uint32_t* fixed = st.fixed_count.data();
+  const std::uint32_t* row = sys->row.data();
+  const std::uint32_t* fixed = sys->fixed_count.data();
   rhs_.assign(n4, 0.0);
   diag_.resize(nf);
   self_.resize(nf);
   inv_diag_.assign(n4, 1.0);
   double weight2 = 0.0;  // sum of the free vertices' squared masses, for the absolute tolerance
+  // Per aggregate, for sleeping: the sums over its vertices of the squared residual force and
+  // pressure gradient.
+  std::fill(st.step_residual.begin(), st.step_residual.end(), 0.0);
+  std::fill(st.step_gradient.begin(), st.step_gradient.end(), 0.0);
   for (std::size_t ci = 0; ci < nf; ++ci) {
     const std::uint32_t i = vertex[ci];
     glm::dvec3 f = m[i] * g + fext[i] - drag * m[i] * v[i] + f_[i];
     if (volume_term) f += p6 * grad_[i];
+    {
+      const std::uint32_t A = full_agg[full_compact[i]];
+      st.step_residual[A] += glm::dot(f, f);
+      if (volume_term) st.step_gradient[A] += glm::dot(grad_[i], grad_[i]);
+      // A loaded vertex does not sleep (the load is applied again step after step).
+      if (fext[i] != glm::dvec3(0.0)) st.step_residual[A] = kNeverQuiet;
+    }
     rhs_[4 * ci] = h * f.x;
     rhs_[4 * ci + 1] = h * f.y;
     rhs_[4 * ci + 2] = h * f.z;
@@ -947,7 +1042,8 @@ void ImplicitIntegrator::substep(SoftBody& body, Structure& st, const Integrator
   for (const SoftBody::ContactTerm& ct : body.contacts()) {
     const std::uint32_t i = ct.vertex;
     if (i >= n || !free_[i]) continue;
-    const std::uint32_t ci = st.compact[i];
+    const std::uint32_t ci = sys->compact[i];
+    st.step_residual[full_agg[full_compact[i]]] = kNeverQuiet;
     const double kc = h2 * ct.stiffness_N_per_m;
     const glm::dvec3 nn = ct.normal;
     contacts_.insert(contacts_.end(), {double(ci), nn.x, nn.y, nn.z, kc});
@@ -985,27 +1081,36 @@ void ImplicitIntegrator::substep(SoftBody& body, Structure& st, const Integrator
   // float reaches a relative residual of about 1e-6 (its rounding of b and A p): below 1e-5
   // the solve runs in double.
   if (options.cg_coarse_level) {
-    update_coarse(st, body, h);
+    update_coarse(*sys, st, body, h);
   } else {
-    st.coarse_h = -1.0;  // keeps solve() on Jacobi alone
+    sys->coarse_h = -1.0;  // keeps solve() on Jacobi alone
   }
   if (options.cg_relative_tolerance >= 1e-5) {
-    solve<float>(st, w, options.max_cg_iterations, rel_tol2, abs_tol2, stats);
+    solve<float>(*sys, w, options.max_cg_iterations, rel_tol2, abs_tol2, stats);
   } else {
-    solve<double>(st, w, options.max_cg_iterations, rel_tol2, abs_tol2, stats);
+    solve<double>(*sys, w, options.max_cg_iterations, rel_tol2, abs_tol2, stats);
   }
 
-  // v += dv (free vertices only), x += h v (every vertex with mass); the warm start keeps dv.
+  // v += dv (solved vertices only), x += h v (every vertex with mass); the warm start keeps dv.
+  // Per aggregate, for sleeping: the sum over its vertices of the squared force that one more
+  // step at their speed would add to their residual (the diagonal, inertia and springs, times
+  // the speed over h): a vertex stopped while it moves that much was not at rest.
   std::fill(warm.begin(), warm.end(), glm::dvec3(0.0));
+  std::fill(st.step_speed.begin(), st.step_speed.end(), 0.0);
   for (std::size_t ci = 0; ci < nf; ++ci) {
+    const std::uint32_t i = vertex[ci];
     const glm::dvec3 d(dv_[4 * ci], dv_[4 * ci + 1], dv_[4 * ci + 2]);
-    warm[vertex[ci]] = d;
-    v[vertex[ci]] += d;
+    warm[i] = d;
+    v[i] += d;
+    const std::uint32_t A = full_agg[full_compact[i]];
+    const double stop = diag_[ci] / h;
+    st.step_speed[A] += stop * stop * glm::dot(v[i], v[i]);
   }
   for (std::size_t i = 0; i < n; ++i) {
     if (m[i] <= 0.0) continue;
     x[i] += h * v[i];
   }
+  return *sys;
 }
 
 }  // namespace bisturi::sim

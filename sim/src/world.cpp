@@ -47,7 +47,9 @@ HapticOutput SimWorld::step(const glm::dvec3& device_m) {
   if (options_.contact.enabled && bodies_.size() > 1) tissue_contacts();
   for (std::uint32_t i = 0; i < bodies_.size(); ++i) {
     stats_[i] = integrator_.step(bodies_[i], options_.integrator, events_, i, steps_);
-    bvhs_[i].update(bodies_[i]);
+    // A body asleep entirely did not move: its BVH still fits.
+    const StepStats& s = stats_[i];
+    if (!(s.free_vertices > 0 && s.awake_vertices == 0)) bvhs_[i].update(bodies_[i]);
   }
   ++steps_;
   return out;

@@ -98,7 +98,7 @@ void BM_FullStep(benchmark::State& state) {
   std::vector<double> samples;
   double cg = 0.0;
   int cg_max = 0;
-  double residual = 0.0, residual_sum = 0.0;
+  double residual = 0.0, residual_sum = 0.0, awake = 0.0;
   for (auto _ : state) {
     const glm::dvec3 d = device();
     const auto t0 = std::chrono::steady_clock::now();
@@ -112,6 +112,8 @@ void BM_FullStep(benchmark::State& state) {
     cg_max = std::max(cg_max, world.last_stats(id).cg_iterations);
     residual = world.last_stats(id).relative_residual;
     residual_sum += residual;
+    const StepStats& st = world.last_stats(id);
+    awake += st.free_vertices > 0 ? double(st.awake_vertices) / double(st.free_vertices) : 0.0;
     ++s;
   }
   state.counters["vertices"] = double(body.mesh().num_vertices());
@@ -122,6 +124,7 @@ void BM_FullStep(benchmark::State& state) {
   state.counters["cg_max"] = cg_max;
   state.counters["mean_residual"] = residual_sum / double(std::max<std::size_t>(samples.size(), 1));
   state.counters["events"] = double(world.take_events().size());
+  state.counters["awake"] = awake / double(std::max<std::size_t>(samples.size(), 1));
 }
 BENCHMARK(BM_FullStep)
     ->Arg(2000)

@@ -23,6 +23,17 @@
 // combined in a fixed order, and the AVX2 and baseline clones of the hot loops round alike): the
 // same inputs give bit-identical states.
 //
+// Sleeping (IntegratorOptions::sleeping): the free vertices are grouped into the coarse level's
+// aggregates. An aggregate whose residual force, and the force one more step of its motion would
+// add, stayed under the solver's absolute tolerance for sleep_steps steps is stopped and held
+// fixed, like an anchor: the solve, the spring pass and the right-hand side run over the awake
+// aggregates only, and a body asleep entirely skips its step. A sleeping aggregate wakes when its
+// residual can exceed three tolerances: an external load on it (add_force, add_contact), the
+// springs to a moving awake neighbour (evaluated every step on the border of the awake region),
+// or a change of the pressure since it fell asleep (bounded per aggregate, no per-vertex work);
+// anchoring, grasping and cutting wake the whole body (docs/sim/integrator.md, "Fourth
+// performance pass").
+//
 // The guard: after a step, a state with a non-finite value, a vertex faster than max_speed, or
 // an energy rise larger than the work of the external forces plus a tolerance is a divergence.
 // The body is rolled back to the state before the step and the step is retried with 2, 4, 8...
@@ -62,6 +73,11 @@ struct IntegratorOptions {
   /// Allowed energy rise beyond the external work: energy_jump_J + energy_jump_relative * |E|.
   double energy_jump_J = 1e-3;
   double energy_jump_relative = 0.05;
+  /// Aggregates of vertices at rest stop and cost nothing until a load, a moving neighbour or a
+  /// pressure change wakes them (see above). Off: every free vertex is solved every step.
+  bool sleeping = true;
+  /// Steps in a row an aggregate must stay under the sleep thresholds before it sleeps.
+  int sleep_steps = 10;
 };
 
 enum class SimEventKind : std::uint8_t { RolledBack, Frozen };
@@ -80,6 +96,8 @@ struct StepStats {
   double relative_residual = 0.0;  ///< of the last solve
   bool rolled_back = false;
   bool frozen = false;
+  std::uint32_t free_vertices = 0;   ///< neither anchored, kinematic nor massless
+  std::uint32_t awake_vertices = 0;  ///< free vertices that were solved (not sleeping)
 };
 
 class ImplicitIntegrator {
@@ -92,74 +110,136 @@ class ImplicitIntegrator {
   /// topology and set of free vertices, scratch buffers), so that step costs what later ones do.
   /// Optional; call again after anchoring or a cut to move that work off the next step.
   void prepare(SoftBody& body, const IntegratorOptions& options = {});
+  /// Wakes every sleeping vertex of `body`: for callers that move vertices directly
+  /// (set_position, set_velocity, positions()), which the integrator does not see.
+  void wake(const SoftBody& body);
 
  private:
-  /// The springs of one body generation as arrays, and the matrix's neighbour rows restricted to
-  /// the free vertices (neither anchored, kinematic nor massless): the solve runs over those only,
-  /// in a compact numbering. The compact part is rebuilt when the set of free vertices changes.
-  struct Structure {
-    std::uint64_t generation = 0;
-    std::vector<std::uint32_t> a, b;  ///< spring ends
-    std::vector<double> rest, k;
-    std::vector<std::uint8_t> spring_class;  ///< index into k_class
-    double k_class[4] = {0.0, 0.0, 0.0, 0.0};
-    // The free vertices: mask per vertex (1 = free), compact -> vertex, vertex -> compact.
-    std::vector<std::uint8_t> free_mask;
+  /// A linear system over a set of solved vertices (the free ones, or the awake ones when some
+  /// sleep), in a compact numbering, with its spring sets and coarse level.
+  struct System {
+    // compact -> vertex, vertex -> compact (kNotFree outside the set).
     std::vector<std::uint32_t> vertex, compact;
-    /// 4 (free count) + 1 offsets into col: row r's neighbours of stiffness class k are
+    /// 4 (count) + 1 offsets into col: row r's neighbours of stiffness class k are
     /// col[row[4 r + k] .. row[4 r + k + 1]).
     std::vector<std::uint32_t> row;
-    std::vector<std::uint32_t> col;  ///< free neighbours' compact indices
-    /// The same neighbours for the product: nf + 1 offsets into pcol, whose entries are
+    std::vector<std::uint32_t> col;  ///< solved neighbours' compact indices
+    /// The same neighbours for the product: count + 1 offsets into pcol, whose entries are
     /// compact index | class << 30, each row padded to an even length with itself.
     std::vector<std::uint32_t> prow, pcol;
-    /// Per free row and class: springs to constrained vertices (they weigh on the diagonal only).
-    std::vector<std::uint32_t> fixed_count;  ///< 4 per free row
-    /// Springs as copies in two sets, each padded to a multiple of 4 with null springs: those
-    /// with a free end (their forces are needed) and those between two constrained vertices,
-    /// which do not move during a step (their energy is taken once per step, no forces).
+    /// Per row and class: springs to vertices held fixed (they weigh on the diagonal only).
+    std::vector<std::uint32_t> fixed_count;  ///< 4 per row
+    /// Springs as copies in sets, each padded to a multiple of 4 with null springs: those with a
+    /// solved end (their forces are needed), those with none, which do not move during a step
+    /// (their energy is taken once per set), and among those the ones with an end on the border
+    /// of the awake region (their forces tell whether a sleeping vertex must wake).
     struct SpringSet {
       std::vector<std::uint32_t> a, b;
       std::vector<double> rest, k;
       std::size_t count = 0;  ///< real springs (a.size() is padded)
     };
-    SpringSet active, fixed;
-    /// The coarse level of the preconditioner: free rows grouped into aggregates of nearby
-    /// vertices (agg: row -> aggregate), and the Cholesky factor of the aggregated matrix
-    /// P^T A P (contacts left out), packed lower rows with the diagonal inverted, for the h it
-    /// was built with (coarse_h < 0: none yet).
+    SpringSet active, fixed, halo;
+    /// Sleeping free vertices with a spring or a triangle to an awake one.
+    std::vector<std::uint32_t> border;
+    double fixed_energy = 0.0;
+    bool fixed_energy_valid = false;
+    /// The coarse level of the preconditioner: rows grouped into aggregates of nearby vertices
+    /// (agg: row -> aggregate), and the Cholesky factor of the aggregated matrix P^T A P
+    /// (contacts left out), packed lower rows with the diagonal inverted, for the h it was built
+    /// with (coarse_h < 0: none yet).
     std::vector<std::uint32_t> agg;
     std::uint32_t coarse_count = 0;
     double coarse_h = -1.0;
     std::vector<double> coarse;
     std::vector<float> coarse_f;
   };
+  /// The springs of one body generation as arrays, the system over its free vertices (neither
+  /// anchored, kinematic nor massless; rebuilt when that set changes), and the sleep state of
+  /// the free system's aggregates with the system over the awake ones.
+  struct Structure {
+    std::uint64_t generation = 0;
+    std::vector<std::uint32_t> a, b;  ///< spring ends
+    std::vector<double> rest, k;
+    std::vector<std::uint8_t> spring_class;  ///< index into k_class
+    double k_class[4] = {0.0, 0.0, 0.0, 0.0};
+    std::vector<std::uint8_t> free_mask;  ///< per vertex, 1 = free
+    System full;
+    /// Per aggregate of `full`: its rows (agg_start offsets into agg_rows), awake flag, steps
+    /// in a row under the sleep thresholds, and for a sleeping one the pressure factor it fell
+    /// asleep with and the bounds of its residual and pressure gradient (in tolerances).
+    std::vector<std::uint32_t> agg_start, agg_rows;
+    std::vector<double> agg_mass2;  ///< sum of the squared masses of its vertices
+    std::vector<std::uint8_t> awake;
+    std::vector<std::uint16_t> quiet;
+    std::vector<double> sleep_p6, sleep_residual, sleep_gradient;
+    /// Per aggregate, sums over its vertices of the last substep's squared residual force, force
+    /// that stopping them within a step takes, and pressure gradient.
+    std::vector<double> step_residual, step_speed, step_gradient;
+    std::uint32_t asleep = 0;  ///< sleeping aggregates
+    System part;               ///< the awake vertices' system (when asleep > 0)
+    bool part_dirty = true;
+  };
   Structure& structure(const SoftBody& body);
-  /// Rebuilds st's compact rows when free_ differs from the mask they were built for.
-  static void update_free_rows(Structure& st, const std::vector<std::uint8_t>& free_mask);
-  /// (Re)factors st's coarse matrix for substep length h when it was built for another h.
-  void update_coarse(Structure& st, const SoftBody& body, double h);
+  /// Rebuilds st's free system when free_mask differs from the mask it was built for (every
+  /// vertex wakes).
+  static void update_free_rows(Structure& st, const std::vector<std::uint8_t>& free_mask,
+                               const std::vector<double>& masses);
+  /// Builds sys over the vertices with mask[i] = 1.
+  static void build_system(const Structure& st, System& sys, const std::vector<std::uint8_t>& mask);
+  /// Groups the system's rows into aggregates of nearby vertices.
+  static void aggregate(System& sys);
+  /// (Re)factors sys's coarse matrix (over its aggregates, which it must have) for substep
+  /// length h when it was built for another h.
+  static void update_coarse(System& sys, const Structure& st, const SoftBody& body, double h);
+  // ---- Sleeping (integrator_sleep.cpp) ----
+  /// The system to solve: the free one while every aggregate is awake, else the awake one.
+  System& system(Structure& st, const SoftBody& body);
+  static void wake_all(Structure& st);
+  /// True when every aggregate sleeps and nothing can wake one this step (same constraints, no
+  /// external load on a free vertex): the step then leaves the state as it is.
+  bool sleeps_entirely(const Structure& st, const SoftBody& body);
+  static void wake_aggregate(Structure& st, std::uint32_t aggregate);
+  /// Wakes the aggregates of the vertices with an external load (force or contact).
+  void wake_loaded(Structure& st, const SoftBody& body);
+  /// Wakes sleeping aggregates whose residual force can exceed the tolerance at the state the
+  /// substep starts from (f_, grad_ and p6 of its force pass); true when one woke.
+  bool wake_by_forces(Structure& st, const System& sys, const SoftBody& body,
+                      const IntegratorOptions& options, double p6);
+  /// After an accepted step: counts the quiet steps of the awake aggregates and stops those
+  /// that stayed quiet for options.sleep_steps.
+  void update_sleep(Structure& st, SoftBody& body, const IntegratorOptions& options);
+  /// The solver's absolute tolerance summed over an aggregate's vertices: the sum of the squared
+  /// residual forces it allows there (options.cg_weight_fraction of the weights, the floor).
+  static double tolerance2(const Structure& st, std::uint32_t aggregate,
+                           const IntegratorOptions& options);
   /// free_[i] = 1 for a vertex the solve moves (mass, not anchored, not kinematic).
   void free_mask(const SoftBody& body);
   /// One backward Euler substep of length h; kinematic targets are interpolated by fraction.
   /// When energy_out is given, it receives the total energy of the state the substep starts from
-  /// and fixed_energy_out the part of it in springs between constrained vertices.
-  void substep(SoftBody& body, Structure& st, const IntegratorOptions& options, double h,
-               double fraction, StepStats& stats, double* energy_out, double* fixed_energy_out);
+  /// Returns the system it solved.
+  System& substep(SoftBody& body, Structure& st, const IntegratorOptions& options, double h,
+                  double fraction, StepStats& stats, double* energy_out);
+  /// The spring forces of sys (and of its halo) into f_ (zeroed first); when energy is set,
+  /// returns the elastic energy of every spring (the fixed ones' is kept in sys).
+  double spring_pass(System& sys, const SoftBody& body, double h, bool energy);
+  /// The energy of sys's fixed springs (which do not move while sys is in use), taken once.
+  static double fixed_energy(System& sys, const SoftBody& body);
   /// The CG over the free vertices in T (float: half the memory traffic; double for tolerances
   /// float cannot reach). Reads rhs_, diag_, self_, inv_diag_, contacts_ and the warm start in
   /// dv_; leaves the solution in dv_.
   template <class T>
-  void solve(const Structure& st, const double (&w)[4], int max_iterations, double rel_tol2,
+  void solve(const System& st, const double (&w)[4], int max_iterations, double rel_tol2,
              double abs_tol2, StepStats& stats);
   /// Empty when the state is fine, else the reason.
-  std::string check(const SoftBody& body, const Structure& st, const IntegratorOptions& options,
-                    double energy_before, double fixed_energy, bool energy_check) const;
+  std::string check(const SoftBody& body, System& st, const IntegratorOptions& options,
+                    double energy_before, bool energy_check) const;
 
   std::vector<Structure> structures_;
   std::vector<glm::dvec3> saved_x_, saved_v_;
   std::vector<glm::dvec3> f_, grad_;  ///< per vertex: spring forces, volume gradient (x 6)
-  std::vector<std::uint8_t> free_;
+  std::vector<std::uint8_t> free_, mask_;
+  std::vector<std::uint32_t> loaded_;  ///< vertices with an external force this step
+  double p6_ = 0.0;                    ///< the last substep's pressure factor
   // Solver data over the free vertices, four lanes (x, y, z, zero pad) per vertex: the
   // right-hand side, the diagonal and its inverse (contact blocks included), and the part of the
   // diagonal that is not a free neighbour's weight (mass, drag, springs to constrained vertices).
