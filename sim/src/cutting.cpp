@@ -9,20 +9,14 @@
 
 #include "bisturi/sim/errors.h"
 #include "bisturi/sim/units.h"
+#include "vertex_corners.h"
 
 namespace bisturi::sim {
 namespace {
 
 std::vector<CornerId> vertex_corners(const Dlfl& mesh, VertexId v) {
   std::vector<CornerId> out;
-  for (RotationId r = mesh.first_rotation(v); r.valid(); r = mesh.next_rotation(r)) {
-    const CornerId start = mesh.rotation_corner(r);
-    CornerId c = start;
-    do {
-      out.push_back(c);
-      c = mesh.rot_next(c);
-    } while (c != start && out.size() < 100000);
-  }
+  for_each_corner(mesh, v, [&](CornerId c) { out.push_back(c); });
   return out;
 }
 

@@ -9,6 +9,7 @@
 
 #include "bisturi/sim/errors.h"
 #include "bisturi/sim/units.h"
+#include "vertex_corners.h"
 
 namespace bisturi::sim {
 namespace {
@@ -121,19 +122,9 @@ bool SoftBody::refresh_topology_local(std::span<const VertexId> touched) {
   // do not depend on any face the edit changed (docs/sim/integrator.md, "Cuts").
   std::vector<std::uint8_t> region(n, 0);
   std::vector<std::uint32_t> verts;
-  auto corners = [&](VertexId v, auto&& f) {
-    for (RotationId r = mesh_.first_rotation(v); r.valid(); r = mesh_.next_rotation(r)) {
-      const CornerId start = mesh_.rotation_corner(r);
-      CornerId c = start;
-      do {
-        f(c);
-        c = mesh_.rot_next(c);
-      } while (c != start);
-    }
-  };
   for (VertexId t : touched) {
     if (!mesh_.alive(t)) continue;
-    corners(t, [&](CornerId c) {
+    for_each_corner(mesh_, t, [&](CornerId c) {
       const CornerId first = mesh_.first_corner(mesh_.face(c));
       CornerId k = first;
       do {
@@ -168,7 +159,7 @@ bool SoftBody::refresh_topology_local(std::span<const VertexId> touched) {
   const auto& rest = rest_->raw();
   for (std::uint32_t v : verts) {
     double m = 0.0;
-    corners(VertexId(v), [&](CornerId c) {
+    for_each_corner(mesh_, VertexId(v), [&](CornerId c) {
       const FaceId f = mesh_.face(c);
       if (mesh_.is_bounding(f) || mesh_.is_point_sphere(c)) return;
       glm::dvec3 twice_area(0.0);

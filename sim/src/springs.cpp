@@ -6,6 +6,8 @@
 
 #include <glm/geometric.hpp>
 
+#include "vertex_corners.h"
+
 namespace bisturi::sim {
 namespace {
 
@@ -86,19 +88,6 @@ std::vector<Spring> springs_from_keys(std::vector<Key>& keys, const std::vector<
     if (s.k_N_per_m > 0.0) springs.push_back(s);
   }
   return springs;
-}
-
-/// Every corner of v, over all its rotations.
-template <class F>
-void for_each_corner(const Dlfl& mesh, VertexId v, F&& f) {
-  for (RotationId r = mesh.first_rotation(v); r.valid(); r = mesh.next_rotation(r)) {
-    const CornerId start = mesh.rotation_corner(r);
-    CornerId c = start;
-    do {
-      f(c);
-      c = mesh.rot_next(c);
-    } while (c != start);
-  }
 }
 
 }  // namespace
