@@ -262,21 +262,28 @@ PolygonMesh random_open(std::mt19937& rng) {
   }
 }
 
-TEST(PolygonImportFastPath, ClosedMeshesTakeItAndMatchTheGeneralPath) {
-  std::mt19937 rng(20261123);
+/// `trials` meshes from make(rng) (shuffled on odd trials, with extras on every third), each
+/// compared across both paths indexed, as a soup and welded; returns how many the fast path took.
+template <class Make>
+int compare_variants(std::mt19937& rng, int trials, const std::string& label, Make make) {
   int taken = 0;
-  for (int trial = 0; trial < 60; ++trial) {
-    PolygonMesh m = random_closed(rng);
+  for (int trial = 0; trial < trials; ++trial) {
+    PolygonMesh m = make(rng);
     if (trial % 2 == 1) m = shuffled(m, rng);
     if (trial % 3 == 2) m = with_extras(m, rng);
-    const std::string what = "trial " + std::to_string(trial);
+    const std::string what = label + " " + std::to_string(trial);
     taken += compare_paths(m, true, {}, what + " indexed") ? 1 : 0;
     taken += compare_paths(as_soup(m), false, {}, what + " soup") ? 1 : 0;
     ImportOptions weld;
     weld.weld = true;
     taken += compare_paths(m, true, weld, what + " welded") ? 1 : 0;
   }
-  EXPECT_EQ(taken, 180);
+  return taken;
+}
+
+TEST(PolygonImportFastPath, ClosedMeshesTakeItAndMatchTheGeneralPath) {
+  std::mt19937 rng(20261123);
+  EXPECT_EQ(compare_variants(rng, 60, "trial", random_closed), 180);
 }
 
 TEST(PolygonImportFastPath, DamagedMeshesFallBackToTheGeneralPath) {
@@ -347,19 +354,7 @@ TEST(PolygonImportFastPath, DamagedMeshesFallBackToTheGeneralPath) {
 
 TEST(PolygonImportFastPath, OpenMeshesTakeItAndMatchTheGeneralPath) {
   std::mt19937 rng(4242);
-  int taken = 0;
-  for (int trial = 0; trial < 90; ++trial) {
-    PolygonMesh m = random_open(rng);
-    if (trial % 2 == 1) m = shuffled(m, rng);
-    if (trial % 3 == 2) m = with_extras(m, rng);
-    const std::string what = "open trial " + std::to_string(trial);
-    taken += compare_paths(m, true, {}, what + " indexed") ? 1 : 0;
-    taken += compare_paths(as_soup(m), false, {}, what + " soup") ? 1 : 0;
-    ImportOptions weld;
-    weld.weld = true;
-    taken += compare_paths(m, true, weld, what + " welded") ? 1 : 0;
-  }
-  EXPECT_EQ(taken, 270);
+  EXPECT_EQ(compare_variants(rng, 90, "open trial", random_open), 270);
 }
 
 TEST(PolygonImportFastPath, RandomlyHoledMeshesMatchTheGeneralPath) {
