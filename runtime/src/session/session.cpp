@@ -2,9 +2,6 @@
 
 #include "bisturi/runtime/session/session.h"
 
-#include <pthread.h>
-#include <sched.h>
-
 #include <algorithm>
 #include <array>
 #include <atomic>
@@ -480,11 +477,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   report.force.reserve(static_cast<std::size_t>(report.duration_s * 200.0) + 16);
   std::thread haptic_thread([&] {
     try {
-      if (options.realtime_priority) {
-        sched_param p{};
-        p.sched_priority = std::max(1, sched_get_priority_max(SCHED_FIFO) / 2);
-        realtime.store(pthread_setschedparam(pthread_self(), SCHED_FIFO, &p) == 0);
-      }
+      if (options.realtime_priority) realtime.store(request_realtime_priority(0));
       while (!render_ready.load())
         std::this_thread::sleep_for(std::chrono::milliseconds(1));
       t0 = clock.now();

@@ -24,23 +24,27 @@ TissueThread::TissueThread(SessionSim& sim, const devices::HapticState& shape, b
     o.command_N.reserve(sim.command_size());  // no allocation when a step's output is copied
   if (!threaded) return;
   thread_ = std::thread([this, realtime_priority] {
-    if (realtime_priority) {
-      // Below the haptic thread (which takes max / 2), above the renderer.
-      sched_param p{};
-      p.sched_priority = std::max(1, sched_get_priority_max(SCHED_FIFO) / 2 - 1);
-      (void)pthread_setschedparam(pthread_self(), SCHED_FIFO, &p);
-    }
+    if (realtime_priority) (void)request_realtime_priority(1);  // under haptics, over render
     run();
   });
 }
 
 TissueThread::~TissueThread() {
-  if (thread_.joinable()) {
-    finishing_.store(true, std::memory_order_release);
-    wake_.fetch_add(1, std::memory_order_release);
-    wake_.notify_one();
-    thread_.join();
-  }
+  stop_thread();
+}
+
+void TissueThread::stop_thread() {
+  if (!thread_.joinable()) return;
+  finishing_.store(true, std::memory_order_release);
+  wake_.fetch_add(1, std::memory_order_release);
+  wake_.notify_one();
+  thread_.join();
+}
+
+bool request_realtime_priority(int below) {
+  sched_param p{};
+  p.sched_priority = std::max(1, sched_get_priority_max(SCHED_FIFO) / 2 - below);
+  return pthread_setschedparam(pthread_self(), SCHED_FIFO, &p) == 0;
 }
 
 void TissueThread::push(const devices::HapticState& state) {
@@ -107,12 +111,7 @@ void TissueThread::run() {
 }
 
 void TissueThread::finish() {
-  if (thread_.joinable()) {
-    finishing_.store(true, std::memory_order_release);
-    wake_.fetch_add(1, std::memory_order_release);
-    wake_.notify_one();
-    thread_.join();
-  }
+  stop_thread();
   if (error_) std::rethrow_exception(error_);
 }
 

@@ -62,6 +62,8 @@ class TissueThread {
  private:
   void run();
   void step(std::uint64_t j);
+  /// Lets the thread run what is pending, then joins it (no-op without a thread).
+  void stop_thread();
 
   SessionSim& sim_;
   AfterStep after_step_;
@@ -76,6 +78,10 @@ class TissueThread {
   std::exception_ptr error_;
   std::thread thread_;
 };
+
+/// Asks SCHED_FIFO for the calling thread at `below` levels under the haptic thread's priority
+/// (half the maximum); false when the system refuses (the thread keeps its priority).
+bool request_realtime_priority(int below);
 
 /// The step whose command tick k sends when it is on time: k - lag (0, none, for the first ticks).
 constexpr std::uint64_t scheduled_step(std::uint64_t k, std::uint32_t lag) {
