@@ -87,9 +87,12 @@ TOML
     echo "stored: ok"
     ;;
   lockstep)
-    # The tissue step inside the haptic tick (for comparison), and on its own thread with a lag
-    # of one tick (steps often finish late, so late-tick notes get written): both replay exactly.
-    for variant in "--tissue-in-haptic-thread" "--tissue-lag 1"; do
+    # The tissue step inside the haptic tick (for comparison); on its own thread with a lag of one
+    # tick (steps often finish late, so late-tick notes get written); at a fixed quarter of the
+    # haptic rate; and adapting its rate with a load limit so low that it halves three times
+    # (rate-change notes in the trace): all replay exactly.
+    for variant in "--tissue-in-haptic-thread" "--tissue-lag 1" "--tissue-hz 250" \
+                   "--tissue-max-load 0.001"; do
       name=$(echo "$variant" | tr -d ' -')
       # shellcheck disable=SC2086
       "$bisturi" run --duration 1 --eye-width 128 --eye-height 128 --no-openxr $variant \
@@ -103,6 +106,10 @@ TOML
     done
     grep -q '"tissue_step_in_haptic_thread": true' "$work/tissueinhapticthread/report.json" ||
       fail "the inline run does not say so"
+    grep -q '"final_hz": 250.0' "$work/tissuehz250/report.json" ||
+      fail "the fixed-rate run does not step at 250 Hz"
+    grep -q '"lowest_hz": 125.0' "$work/tissuemaxload0.001/report.json" ||
+      fail "the low load limit did not bring the tissue rate down to an eighth"
     echo "lockstep: ok"
     ;;
   *) fail "unknown mode $mode" ;;

@@ -16,6 +16,7 @@
 #include "bisturi/runtime/session/scene_builder.h"
 #include "bisturi/runtime/session/scene_description.h"
 #include "bisturi/runtime/session/session_sim.h"
+#include "session/step_schedule.h"
 #include "session/tissue_thread.h"
 
 namespace bisturi::runtime {
@@ -98,6 +99,44 @@ TEST(TissueThread, ThreadedStepsEqualInlineSteps) {
   for (const auto& c : inline_run.commands)
     any_force = any_force || (!c.empty() && c[0] > 0.0);
   EXPECT_TRUE(any_force) << "the procedure never touched the tissue: the test proves nothing";
+}
+
+TEST(TissueThread, MultiRateStepsEqualInlineStepsAndUseTheirLength) {
+  // The same 800 ticks handed over by a StepSchedule whose ticks per step change 1 -> 2 -> 4 -> 2
+  // (as the live session's controller may, and its replay then does): the threaded steps equal
+  // the inline ones bit for bit, every tick is simulated once, and the length is really used
+  // (the state differs from stepping at every tick).
+  const std::vector<devices::HapticState> states = procedure_states(800);
+  const SceneDescription scene = default_scene();
+  const auto run = [&](bool threaded, bool change) {
+    SessionSim sim(scene, build_solids(scene), glove_channels());
+    StepRun r;
+    TissueThread tissue(sim, states.front(), threaded, false,
+                        [&](const TickOutput& out, const devices::HapticState&, double) {
+                          r.commands.push_back(out.command_N);
+                        });
+    StepSchedule schedule(3, 1);
+    for (std::uint64_t k = 1; k <= states.size(); ++k) {
+      if (!schedule.hands_over(k)) continue;
+      tissue.push(states[k - 1], schedule.handed_over_ticks());
+      if (!change) continue;
+      if (k == 150) schedule.set_ticks_per_step(k, 2);
+      if (k == 350) schedule.set_ticks_per_step(k, 4);
+      if (k == 602) schedule.set_ticks_per_step(k, 2);
+    }
+    tissue.finish();
+    EXPECT_EQ(tissue.done(), schedule.steps());
+    // The last hand-over tick: 800 with these changes, every tick stepping otherwise.
+    EXPECT_EQ(sim.ticks(), states.size());
+    r.state_hash = sim.state_hash();
+    return r;
+  };
+  const StepRun inline_run = run(false, true);
+  const StepRun threaded_run = run(true, true);
+  EXPECT_EQ(inline_run.commands.size(), 150u + 100u + 63u + 99u);
+  EXPECT_EQ(inline_run.commands, threaded_run.commands);
+  EXPECT_EQ(inline_run.state_hash, threaded_run.state_hash);
+  EXPECT_NE(inline_run.state_hash, run(false, false).state_hash);
 }
 
 TEST(TissueThread, ALateTickUsesTheNewestFinishedStep) {

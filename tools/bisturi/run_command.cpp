@@ -63,6 +63,19 @@ void add_run_command(CLI::App& app, RunOptions& options, int (*&run)(const RunOp
                   "haptic ticks the tissue thread may take for a step before a tick counts late")
       ->capture_default_str()
       ->check(CLI::Range(1u, 1000u));
+  cmd->add_option("--tissue-hz", options.tissue_hz,
+                  "soft-tissue step rate: `auto` starts at the haptic rate and halves it (down to "
+                  "an eighth) while the steps take more than 3/4 of their time on this machine, "
+                  "doubling it again when there is room; a number fixes it (it must divide the "
+                  "haptic rate); the haptic loop stays at its rate and corrects the force for the "
+                  "hand's motion in between")
+      ->capture_default_str();
+  cmd->add_option("--tissue-max-load", options.tissue_max_load,
+                  "with --tissue-hz auto: the share of the time a step covers that it may take on "
+                  "the tissue thread before the rate halves (the rest of the core is the "
+                  "renderer's)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.001, 1.0));
   cmd->add_flag("--print-default-scene", options.print_default_scene,
                 "print the embedded default scene (TOML) and exit");
   cmd->add_flag("--json", options.json, "write the report as one JSON object on stdout");
@@ -101,6 +114,25 @@ int run_run(const RunOptions& options) {
   so.openxr = !options.no_openxr;
   so.tissue_thread = !options.tissue_in_haptic_thread;
   so.tissue_lag_ticks = options.tissue_lag_ticks;
+  so.tissue_max_load = options.tissue_max_load;
+  if (options.tissue_hz != "auto") {
+    double hz = 0.0;
+    try {
+      std::size_t used = 0;
+      hz = std::stod(options.tissue_hz, &used);
+      if (used != options.tissue_hz.size()) hz = 0.0;
+    } catch (const std::exception&) {
+      hz = 0.0;
+    }
+    const double ratio = hz > 0.0 ? scene.rates.haptic_hz / hz : 0.0;
+    const long n = std::lround(ratio);
+    if (!(hz > 0.0) || n < 1 || n > 1000 || std::abs(ratio - static_cast<double>(n)) > 1e-9)
+      throw std::invalid_argument("--tissue-hz " + options.tissue_hz +
+                                  ": give `auto` or a rate that divides the haptic rate (" +
+                                  std::to_string(scene.rates.haptic_hz) + " Hz)");
+    so.tissue_ticks_per_step = static_cast<std::uint32_t>(n);
+    so.adaptive_tissue_rate = false;
+  }
   if (options.cpu) so.render_device = render::DevicePreference::Cpu;
   ProgressLine line;
   so.progress = [&line](const runtime::SessionProgress& p) {
@@ -174,6 +206,11 @@ int run_run(const RunOptions& options) {
       {"realtime_priority", r.realtime_priority},
       {"tissue_step_in_haptic_thread", r.tissue_in_haptic_thread},
       {"tissue_lag_ticks", r.tissue_lag_ticks},
+      {"tissue_rate",
+       {{"adaptive", r.adaptive_tissue_rate},
+        {"final_hz", r.haptic_hz / r.tissue_ticks_per_step},
+        {"lowest_hz", r.haptic_hz / r.max_tissue_ticks_per_step},
+        {"changes", r.tissue_rate_changes}}},
       {"devices", r.devices},
       {"solids", solids},
       {"ticks", r.ticks},
@@ -222,7 +259,10 @@ int run_run(const RunOptions& options) {
               << "  haptic period error p99 " << p.p99 << " ms, max " << p.max << " ms; "
               << r.missed_deadlines << " missed deadlines (" << r.missed_by_late_wakeup
               << " woken late), " << r.overruns << " overruns; step p99 " << r.step_ms.summary().p99
-              << " ms, " << r.late_ticks << " late ticks\n"
+              << " ms, " << r.late_ticks << " late ticks; tissue at "
+              << r.haptic_hz / r.tissue_ticks_per_step << " Hz ("
+              << (r.adaptive_tissue_rate ? "adaptive, " : "fixed, ") << r.tissue_rate_changes
+              << " changes)\n"
               << "  motion-to-photon p50 " << mtp.p50 << " ms, p99 " << mtp.p99
               << " ms; action-to-response p50 " << atr.p50 << " ms, max " << atr.max << " ms ("
               << atr.count << " events)\n"

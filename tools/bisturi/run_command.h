@@ -26,6 +26,8 @@ struct RunOptions {
   bool no_openxr = false;
   bool tissue_in_haptic_thread = false;
   std::uint32_t tissue_lag_ticks = 3;
+  std::string tissue_hz = "auto";
+  double tissue_max_load = 0.75;
   bool cpu = false;
   bool print_default_scene = false;
   bool json = false;

@@ -35,6 +35,7 @@
 #include "bisturi/scene/polygon_export.h"
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/sim/units.h"
+#include "step_schedule.h"
 #include "tissue_thread.h"
 
 namespace bisturi::runtime {
@@ -132,9 +133,19 @@ class MeasuringSink final : public render::FrameSink {
                 std::vector<double>& event_response_ms, std::vector<Nanoseconds>& event_times)
       : inner_(inner), report_(report), response_(event_response_ms), event_times_(event_times) {}
 
-  /// Events first shown by frame `frame`.
-  void shows(std::uint64_t frame, std::uint64_t event) { pending_.push_back({frame, event}); }
+  /// Events first shown by frame `frame`. The frame may have reached the sink already (with one
+  /// frame in flight the renderer hands it over before render() returns): then it counts now.
+  void shows(std::uint64_t frame, std::uint64_t event) {
+    if (any_ready_ && frame <= last_frame_) {
+      respond(event, last_ready_);
+    } else {
+      pending_.push_back({frame, event});
+    }
+  }
 
+  [[nodiscard]] bool wants_pixels(std::uint64_t index) const override {
+    return inner_ != nullptr && inner_->wants_pixels(index);
+  }
   void consume(const render::StereoFrame& frame) override {
     if (inner_ != nullptr) inner_->consume(frame);
     ++consumed_;
@@ -144,12 +155,13 @@ class MeasuringSink final : public render::FrameSink {
             .count());
     const Nanoseconds ready =
         std::chrono::duration_cast<Nanoseconds>(frame.ready_time.time_since_epoch());
+    any_ready_ = true;
+    last_frame_ = frame.index;
+    last_ready_ = ready;
     std::size_t kept = 0;
     for (const auto& [f, e] : pending_) {
       if (f <= frame.index) {
-        const double latency = ms(ready - event_times_[e]);
-        response_[e] = latency;
-        report_.action_to_response_ms.record(latency);
+        respond(e, ready);
       } else {
         pending_[kept++] = {f, e};
       }
@@ -159,12 +171,21 @@ class MeasuringSink final : public render::FrameSink {
   [[nodiscard]] std::uint64_t consumed() const { return consumed_; }
 
  private:
+  void respond(std::uint64_t event, Nanoseconds ready) {
+    const double latency = ms(ready - event_times_[event]);
+    response_[event] = latency;
+    report_.action_to_response_ms.record(latency);
+  }
+
   render::FrameSink* inner_;
   SessionReport& report_;
   std::vector<double>& response_;
   std::vector<Nanoseconds>& event_times_;
   std::vector<std::pair<std::uint64_t, std::uint64_t>> pending_;
   std::uint64_t consumed_ = 0;
+  bool any_ready_ = false;
+  std::uint64_t last_frame_ = 0;
+  Nanoseconds last_ready_{0};
 };
 
 glm::dmat4 instrument_pose(const glm::dvec3& from_mm, const glm::dvec3& to_mm) {
@@ -183,7 +204,8 @@ glm::dmat4 instrument_pose(const glm::dvec3& from_mm, const glm::dvec3& to_mm) {
 
 std::string session_trace_config(const std::string& scene_toml,
                                  const std::filesystem::path& base_dir, double haptic_hz,
-                                 std::uint16_t glove_device, std::uint32_t tissue_lag_ticks) {
+                                 std::uint16_t glove_device, std::uint32_t tissue_lag_ticks,
+                                 std::uint32_t tissue_ticks_per_step) {
   devices::ForceGuardConfig guard;
   guard.period = Nanoseconds{static_cast<std::int64_t>(std::llround(1e9 / haptic_hz))};
   nlohmann::json j = nlohmann::json::parse(devices::force_guard_config_json(guard));
@@ -192,6 +214,7 @@ std::string session_trace_config(const std::string& scene_toml,
                   {"haptic_hz", haptic_hz},
                   {"glove_device", glove_device},
                   {"tissue_lag_ticks", tissue_lag_ticks},
+                  {"tissue_ticks_per_step", tissue_ticks_per_step},
                   {"producer", std::string("bisturi ") + kVersion}};
   return j.dump();
 }
@@ -219,6 +242,10 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   const std::uint32_t lag = options.tissue_thread ? options.tissue_lag_ticks : 0;
   report.tissue_in_haptic_thread = !options.tissue_thread;
   report.tissue_lag_ticks = lag;
+  const std::uint32_t first_ticks_per_step = std::max(1u, options.tissue_ticks_per_step);
+  report.adaptive_tissue_rate = options.adaptive_tissue_rate;
+  report.tissue_ticks_per_step = first_ticks_per_step;
+  report.max_tissue_ticks_per_step = first_ticks_per_step;
   stage("build");
   std::vector<BuiltSolid> solids = build_solids(scene);
   for (const BuiltSolid& s : solids)
@@ -244,7 +271,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     // The haptic device is opened first, so it is device 0 of the trace.
     header.config = session_trace_config(
         toml, scene.file.empty() ? std::filesystem::path() : scene.file.parent_path(),
-        scene.rates.haptic_hz, 0, lag);
+        scene.rates.haptic_hz, 0, lag, first_ticks_per_step);
     writer = std::make_unique<devices::TraceWriter>(options.record, header);
     report.trace = options.record;
   }
@@ -486,6 +513,12 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
       bool first = true, lost = false;
       devices::HapticState last_state;
       std::vector<double> command(sim.command_size(), 0.0);
+      StepSchedule schedule(lag, first_ticks_per_step);
+      TissueRateController rate(
+          first_ticks_per_step,
+          options.adaptive_tissue_rate ? options.max_tissue_ticks_per_step : first_ticks_per_step,
+          ms(period), options.tissue_max_load);
+      std::uint64_t k = 0;
       while (!stop.load(std::memory_order_relaxed)) {
         if (spin.count() > 0) {
           clock.sleep_until(next - spin);
@@ -521,12 +554,23 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
         }
         if (!lost) last_state = glove->state();
 
-        // The state goes to the tissue thread; the command is the one of the step `lag` ticks
-        // back (or, when that step is late, the newest one, noted in the trace for the replay).
-        tissue.push(last_state);
-        const std::uint64_t k = tissue.pushed();
-        const TissueThread::TickStep use = tissue.step_for_tick(k, lag);
-        report.max_tissue_backlog = std::max(report.max_tissue_backlog, k - tissue.done());
+        // A hand-over tick gives its state to the tissue thread as the next step (and may change
+        // the steps' length, noted in the trace); every tick sends the command of the step due
+        // (or, when that step is late, the newest one, noted in the trace for the replay).
+        ++k;
+        if (schedule.hands_over(k)) {
+          tissue.push(last_state, schedule.handed_over_ticks());
+          const std::uint32_t n = rate.decide(tissue.median_step_ms());
+          if (n != schedule.ticks_per_step()) {
+            schedule.set_ticks_per_step(k, n);
+            ++report.tissue_rate_changes;
+            report.max_tissue_ticks_per_step = std::max(report.max_tissue_ticks_per_step, n);
+            if (writer) writer->note(clock.now().count(), tissue_rate_note(k, n));
+          }
+        }
+        const TissueThread::TickStep use = tissue.step_for(schedule.due(k));
+        report.max_tissue_backlog =
+            std::max(report.max_tissue_backlog, tissue.pushed() - tissue.done());
         if (use.late) {
           ++report.late_ticks;
           if (writer) writer->note(clock.now().count(), late_tick_note(k, use.step));
@@ -583,6 +627,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
         }
         ticks.store(k, std::memory_order_relaxed);
       }
+      report.tissue_ticks_per_step = schedule.ticks_per_step();
     } catch (...) {
       haptic_error = std::current_exception();
     }
@@ -617,7 +662,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
 
   // ---- The session ends: final state, devices closed (zero forces), trace closed ----
-  report.ticks = sim.ticks();
+  report.ticks = ticks.load();  // haptic ticks (the tissue may have stepped fewer times)
   report.overruns = overruns.load();
   report.realtime_priority = realtime.load();
   report.final_state_hash = sim.state_hash();

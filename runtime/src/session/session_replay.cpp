@@ -2,6 +2,7 @@
 
 #include "bisturi/runtime/session/session_replay.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <deque>
@@ -15,6 +16,7 @@
 #include "bisturi/devices/trace/trace_reader.h"
 #include "bisturi/runtime/session/scene_builder.h"
 #include "bisturi/runtime/session/session_sim.h"
+#include "step_schedule.h"
 #include "tissue_thread.h"
 
 namespace bisturi::runtime {
@@ -44,13 +46,16 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
                               "bisturi run --record)");
   std::string scene_toml, base_dir;
   std::uint16_t glove_index = 0;
-  std::uint32_t lag = 0;  // traces without the key ran the tissue step inside the tick
+  std::uint32_t lag = 0;             // traces without the key ran the tissue step inside the tick
+  std::uint32_t ticks_per_step = 1;  // and traces without this one stepped at every tick
   try {
     const nlohmann::json& s = config.at("session");
     scene_toml = s.at("scene_toml").get<std::string>();
     base_dir = s.at("base_dir").get<std::string>();
     glove_index = s.at("glove_device").get<std::uint16_t>();
     if (s.contains("tissue_lag_ticks")) lag = s.at("tissue_lag_ticks").get<std::uint32_t>();
+    if (s.contains("tissue_ticks_per_step"))
+      ticks_per_step = std::max(1u, s.at("tissue_ticks_per_step").get<std::uint32_t>());
   } catch (const nlohmann::json::exception& e) {
     throw devices::TraceError(reader.name() + ": session configuration: " + e.what());
   }
@@ -68,23 +73,33 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
   devices::HapticState state;
   bool lost = false;
 
-  // The lockstep of the live session (tissue_thread.h): tick k queues its glove state and uses
-  // step k - lag, or the step its late-tick note names; steps run when a tick needs them.
-  std::deque<devices::HapticState> queued;
+  // The lockstep of the live session (step_schedule.h): a hand-over tick queues its glove state
+  // as the next step, each tick uses the step due, or the one its late-tick note names, and the
+  // ticks per step change where a rate note says; steps run when a tick needs them.
+  StepSchedule schedule(lag, ticks_per_step);
+  std::deque<std::pair<devices::HapticState, std::uint32_t>> queued;
+  std::uint64_t steps_run = 0;
   const TickOutput* step_output = nullptr;
   std::optional<LateTick> late;
+  std::optional<TissueRateChange> rate;
   std::vector<double> command;
   const auto run_steps_to = [&](std::uint64_t j) {
-    while (sim->ticks() < j && !queued.empty()) {
-      step_output = &sim->tick(queued.front());
+    while (steps_run < j && !queued.empty()) {
+      step_output = &sim->tick(queued.front().first, queued.front().second);
       queued.pop_front();
+      ++steps_run;
     }
   };
   const auto haptic_tick = [&] {  // returns the step the tick's command comes from
-    queued.push_back(state);
     ++result.ticks;
-    std::uint64_t j = scheduled_step(result.ticks, lag);
-    if (late && late->tick == result.ticks) j = std::min(late->step, result.ticks);
+    const std::uint64_t k = result.ticks;
+    if (schedule.hands_over(k)) {
+      queued.emplace_back(state, schedule.handed_over_ticks());
+      if (rate && rate->tick == k) schedule.set_ticks_per_step(k, rate->ticks_per_step);
+    }
+    rate.reset();
+    std::uint64_t j = schedule.due(k);
+    if (late && late->tick == k) j = std::min(late->step, schedule.steps());
     late.reset();
     run_steps_to(j);
     return j;
@@ -106,6 +121,8 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
         (void)haptic_tick();
       } else if (auto l = parse_late_tick_note(text)) {
         late = l;
+      } else if (auto c = parse_tissue_rate_note(text)) {
+        rate = c;
       } else {
         const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
         if (!j.is_discarded() && j.is_object() && j.contains("session_end")) {
@@ -173,7 +190,7 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
   }
   if (device) device->close();
   if (sim) {
-    run_steps_to(result.ticks);  // the live session ran every queued step before its hash
+    run_steps_to(schedule.steps());  // the live session ran every queued step before its hash
     result.state_hash = sim->state_hash();
   }
   result.seconds =

@@ -70,7 +70,8 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   }
   world_.options().haptic.max_force_N = max_force_N_;
   coupling_N_per_m_ = world_.options().haptic.coupling_N_per_m;
-  world_.options().integrator.dt_s = 1.0 / scene.rates.haptic_hz;
+  haptic_hz_ = scene.rates.haptic_hz;
+  world_.options().integrator.dt_s = 1.0 / haptic_hz_;
   for (BuiltSolid& s : solids) {
     const SolidDescription& d = *s.description;
     sim::SoftBody body(std::move(s.mesh), to_material(d.material));
@@ -127,7 +128,12 @@ std::int32_t SessionSim::nearest_body(const glm::dvec3& p_m) {
   return best;
 }
 
-const TickOutput& SessionSim::tick(const devices::HapticState& state) {
+const TickOutput& SessionSim::tick(const devices::HapticState& state, std::uint32_t ticks) {
+  ticks = std::max(1u, ticks);
+  if (ticks != step_ticks_) {
+    step_ticks_ = ticks;
+    world_.options().integrator.dt_s = static_cast<double>(ticks) / haptic_hz_;
+  }
   out_.events = 0;
   out_.topology_changed = false;
   const devices::Pose pose =
@@ -222,7 +228,7 @@ const TickOutput& SessionSim::tick(const devices::HapticState& state) {
   out_.grasping = grasp_body_ >= 0;
   out_.cutting = cut_body_ >= 0;
   command_for(out_, tip_m, out_.command_N);
-  ++ticks_;
+  ticks_ += ticks;
   return out_;
 }
 

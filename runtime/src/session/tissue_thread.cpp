@@ -6,6 +6,7 @@
 #include <sched.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
@@ -19,6 +20,7 @@ TissueThread::TissueThread(SessionSim& sim, const devices::HapticState& shape, b
       after_step_(std::move(after_step)),
       capacity_(capacity),
       states_(capacity, shape),
+      ticks_(capacity, 1),
       outputs_(capacity) {
   for (TickOutput& o : outputs_)
     o.command_N.reserve(sim.command_size());  // no allocation when a step's output is copied
@@ -47,14 +49,15 @@ bool request_realtime_priority(int below) {
   return pthread_setschedparam(pthread_self(), SCHED_FIFO, &p) == 0;
 }
 
-void TissueThread::push(const devices::HapticState& state) {
+void TissueThread::push(const devices::HapticState& state, std::uint32_t ticks) {
   if (failed_.load(std::memory_order_acquire))
     throw std::runtime_error("session: the soft-tissue simulation failed");
   const std::uint64_t k = pushed_.load(std::memory_order_relaxed) + 1;
   if (k - done_.load(std::memory_order_acquire) >= capacity_)
     throw std::runtime_error("session: the soft-tissue simulation fell " +
-                             std::to_string(capacity_) + " ticks behind the haptic loop");
+                             std::to_string(capacity_) + " steps behind the haptic loop");
   states_[k % capacity_] = state;
+  ticks_[k % capacity_] = ticks;
   pushed_.store(k, std::memory_order_release);
   if (!thread_.joinable()) {
     step(k);
@@ -69,10 +72,10 @@ const TickOutput* TissueThread::output(std::uint64_t j) const {
   return &outputs_[j % capacity_];
 }
 
-TissueThread::TickStep TissueThread::step_for_tick(std::uint64_t k, std::uint32_t lag) const {
+TissueThread::TickStep TissueThread::step_for(std::uint64_t due) const {
   const std::uint64_t done = done_.load(std::memory_order_acquire);
   TickStep t;
-  t.step = scheduled_step(k, lag);
+  t.step = due;
   if (done < t.step) {
     t.step = done;
     t.late = true;
@@ -83,13 +86,23 @@ TissueThread::TickStep TissueThread::step_for_tick(std::uint64_t k, std::uint32_
 
 void TissueThread::step(std::uint64_t j) {
   const devices::HapticState& state = states_[j % capacity_];
+  const std::uint32_t ticks = ticks_[j % capacity_];
   const auto begin = std::chrono::steady_clock::now();
-  const TickOutput& out = sim_.tick(state);
+  const TickOutput& out = sim_.tick(state, ticks);
   const auto end = std::chrono::steady_clock::now();
   outputs_[j % capacity_] = out;
   if (after_step_)
     after_step_(out, state, std::chrono::duration<double, std::milli>(end - begin).count());
   done_.store(j, std::memory_order_release);
+  // The rate controller reads the median of the recent steps' busy times: a cut's long step, or
+  // a few steps the machine stole time from, do not move it.
+  recent_ms_[j % recent_ms_.size()] =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin).count();
+  const std::size_t n = std::min<std::size_t>(j, recent_ms_.size());
+  std::array<double, kRecentSteps> sorted{};
+  std::copy_n(recent_ms_.begin(), n, sorted.begin());
+  std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.begin() + n);
+  median_step_ms_.store(sorted[n / 2], std::memory_order_relaxed);
 }
 
 void TissueThread::run() {

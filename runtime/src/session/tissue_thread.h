@@ -1,16 +1,18 @@
 #pragma once
 // The soft-tissue step on its own thread, in lockstep with the haptic ticks without ever making
-// them wait. Tick k hands over the glove state it read (push); step k, the k-th SessionSim::tick,
-// runs on exactly that state as soon as it is there; tick k sends the command of step
-// k - lag, so the simulation has `lag` periods to finish a step. Which step a tick uses is
-// therefore fixed by the tick number, not by the threads' timing, and a replay in virtual time
-// pairs the same steps with the same ticks. A step that is not finished in time makes a late
-// tick: it uses the newest finished step, and the session notes which in its trace.
+// them wait. A hand-over tick (every tick, or every n-th: step_schedule.h) hands over the glove
+// state it read (push); step j, the j-th SessionSim::tick, runs on exactly that state as soon as
+// it is there; a later tick sends the command of the step its StepSchedule says is due, so the
+// simulation has a fixed number of periods to finish a step. Which step a tick uses is therefore
+// fixed by the tick number, not by the threads' timing, and a replay in virtual time pairs the
+// same steps with the same ticks. A step that is not finished in time makes a late tick: it uses
+// the newest finished step, and the session notes which in its trace.
 //
 // Lock-free: two single-producer single-consumer rings (states in, step outputs out) and
 // counters; the simulation thread sleeps on an atomic wait while no state is pending. Without a
 // thread (threaded = false, lag 0) push() runs the step at once: the tissue in the haptic thread.
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <exception>
@@ -24,6 +26,12 @@
 #include "bisturi/runtime/session/session_sim.h"
 
 namespace bisturi::runtime {
+
+/// The step whose command tick k sends when it is on time in the plain lockstep: k - lag (0,
+/// none, for the first ticks).
+constexpr std::uint64_t scheduled_step(std::uint64_t k, std::uint32_t lag) {
+  return k > lag ? k - lag : 0;
+}
 
 class TissueThread {
  public:
@@ -40,20 +48,30 @@ class TissueThread {
   TissueThread(const TissueThread&) = delete;
   TissueThread& operator=(const TissueThread&) = delete;
 
-  /// Haptic thread: hands over the next tick's glove state. Throws std::runtime_error when the
-  /// simulation is a whole ring (capacity ticks) behind, or has failed.
-  void push(const devices::HapticState& state);
+  /// Haptic thread: hands over the next step's glove state; the step covers `ticks` haptic
+  /// periods. Throws std::runtime_error when the simulation is a whole ring (capacity steps)
+  /// behind, or has failed.
+  void push(const devices::HapticState& state, std::uint32_t ticks = 1);
   /// Haptic thread: step j's output (1-based) once it is finished, else nullptr.
   [[nodiscard]] const TickOutput* output(std::uint64_t j) const;
 
-  /// The step tick k uses: scheduled_step(k, lag) when it is finished, else the newest finished
-  /// one (late; step 0 and no output when none has finished).
+  /// The step a tick uses: the due one when it is finished, else the newest finished one (late;
+  /// step 0 and no output when none has finished).
   struct TickStep {
     std::uint64_t step = 0;
     const TickOutput* output = nullptr;
     bool late = false;
   };
-  [[nodiscard]] TickStep step_for_tick(std::uint64_t k, std::uint32_t lag) const;
+  [[nodiscard]] TickStep step_for(std::uint64_t due) const;
+  /// The step tick k uses in the plain lockstep (one tick per step, lag ticks behind).
+  [[nodiscard]] TickStep step_for_tick(std::uint64_t k, std::uint32_t lag) const {
+    return step_for(scheduled_step(k, lag));
+  }
+  /// Median wall time of the last 32 steps on the simulation's thread (the step and after_step),
+  /// ms (0 before the first step).
+  [[nodiscard]] double median_step_ms() const {
+    return median_step_ms_.load(std::memory_order_relaxed);
+  }
   [[nodiscard]] std::uint64_t done() const { return done_.load(std::memory_order_acquire); }
   [[nodiscard]] std::uint64_t pushed() const { return pushed_.load(std::memory_order_relaxed); }
   /// Runs the steps still pending and joins the thread; rethrows what the simulation threw.
@@ -69,6 +87,10 @@ class TissueThread {
   AfterStep after_step_;
   std::size_t capacity_;
   std::vector<devices::HapticState> states_;
+  std::vector<std::uint32_t> ticks_;  ///< haptic periods each pending step covers
+  static constexpr std::size_t kRecentSteps = 32;
+  std::array<double, kRecentSteps> recent_ms_{};  ///< simulation thread only
+  std::atomic<double> median_step_ms_{0.0};
   std::vector<TickOutput> outputs_;
   std::atomic<std::uint64_t> pushed_{0};
   std::atomic<std::uint64_t> done_{0};
@@ -82,11 +104,6 @@ class TissueThread {
 /// Asks SCHED_FIFO for the calling thread at `below` levels under the haptic thread's priority
 /// (half the maximum); false when the system refuses (the thread keeps its priority).
 bool request_realtime_priority(int below);
-
-/// The step whose command tick k sends when it is on time: k - lag (0, none, for the first ticks).
-constexpr std::uint64_t scheduled_step(std::uint64_t k, std::uint32_t lag) {
-  return k > lag ? k - lag : 0;
-}
 
 /// The trace note a late tick writes before its force command: {"late_tick": {"tick": k,
 /// "step": j}} (step 0: no step had finished, the command was zero).

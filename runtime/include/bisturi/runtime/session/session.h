@@ -67,6 +67,16 @@ struct SessionOptions {
   /// loop; false: inside the haptic tick (lag 0), for comparison.
   bool tissue_thread = true;
   std::uint32_t tissue_lag_ticks = 3;
+  /// Haptic ticks one tissue step covers at the start (its time step is that many periods; the
+  /// step runs on the glove state of its last tick). See step_schedule.h.
+  std::uint32_t tissue_ticks_per_step = 1;
+  /// Let the session double the ticks per step (up to max_tissue_ticks_per_step) when the steps
+  /// take longer than 3/4 of the time they cover, and halve it again when there is room; each
+  /// change is written into the trace. false: the ticks per step stay fixed.
+  bool adaptive_tissue_rate = true;
+  std::uint32_t max_tissue_ticks_per_step = 8;
+  /// The share of the time a step covers that it may take before the rate halves.
+  double tissue_max_load = 0.75;
   /// The session's clock; nullptr: devices::steady_clock().
   devices::Clock* clock = nullptr;
   /// Called from the calling thread about ten times a second, and for start-up stages.
@@ -112,6 +122,11 @@ struct SessionReport {
   std::uint64_t late_ticks = 0;
   /// Most steps the tissue thread was behind the haptic loop at a tick.
   std::uint64_t max_tissue_backlog = 0;
+  bool adaptive_tissue_rate = false;
+  /// Haptic ticks per tissue step: at the end, the most used, and how often it changed.
+  std::uint32_t tissue_ticks_per_step = 1;
+  std::uint32_t max_tissue_ticks_per_step = 1;
+  std::uint64_t tissue_rate_changes = 0;
   std::vector<SolidReport> solids;
   std::vector<std::string> devices;  ///< "glove: hid-glove (simulated)"
 
@@ -156,6 +171,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
 /// scene's TOML text, so a replay rebuilds the same session from the trace alone.
 std::string session_trace_config(const std::string& scene_toml,
                                  const std::filesystem::path& base_dir, double haptic_hz,
-                                 std::uint16_t glove_device, std::uint32_t tissue_lag_ticks);
+                                 std::uint16_t glove_device, std::uint32_t tissue_lag_ticks,
+                                 std::uint32_t tissue_ticks_per_step = 1);
 
 }  // namespace bisturi::runtime

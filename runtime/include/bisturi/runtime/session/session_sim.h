@@ -71,8 +71,10 @@ class SessionSim {
              std::vector<devices::ForceChannel> glove_channels,
              const SessionSimOptions& options = {});
 
-  /// One haptic tick with the glove in `state`.
-  const TickOutput& tick(const devices::HapticState& state);
+  /// One simulation step with the glove in `state`, covering `ticks` haptic periods (its time
+  /// step; the tissue may step at a fraction of the haptic rate, see step_schedule.h).
+  const TickOutput& tick(const devices::HapticState& state, std::uint32_t ticks = 1);
+  [[nodiscard]] double haptic_period_ms() const { return 1000.0 / haptic_hz_; }
 
   /// The glove's command for a step's output with the tip now at tip_now_m (the step may be a
   /// few ticks old when the tissue runs on its own thread): the proxy force corrected by the
@@ -89,6 +91,7 @@ class SessionSim {
   [[nodiscard]] std::size_t body_count() const { return world_.body_count(); }
   sim::SimWorld& world() { return world_; }
   [[nodiscard]] const std::string& body_name(std::size_t i) const { return names_[i]; }
+  /// Haptic ticks simulated so far (the sum of the steps' ticks).
   [[nodiscard]] std::uint64_t ticks() const { return ticks_; }
   [[nodiscard]] const std::vector<SessionEvent>& events() const { return events_; }
   /// Divergence events of the integrator (rollbacks, frozen bodies) so far.
@@ -122,6 +125,8 @@ class SessionSim {
   bool contact_ = false;
   std::uint64_t last_contact_tick_ = 0;
   std::uint64_t ticks_ = 0;
+  double haptic_hz_ = 1000.0;
+  std::uint32_t step_ticks_ = 1;  ///< ticks the integrator's time step now covers
   std::uint64_t divergence_events_ = 0;
   std::vector<SessionEvent> events_;
   TickOutput out_;

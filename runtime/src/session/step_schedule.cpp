@@ -1,0 +1,75 @@
+// Multi-rate lockstep of haptic ticks and tissue steps (see step_schedule.h).
+
+#include "step_schedule.h"
+
+#include <algorithm>
+#include <nlohmann/json.hpp>
+
+namespace bisturi::runtime {
+
+StepSchedule::StepSchedule(std::uint32_t base_lag, std::uint32_t ticks_per_step)
+    : base_lag_(base_lag), n_(std::max(1u, ticks_per_step)), next_hand_over_(n_) {}
+
+bool StepSchedule::hands_over(std::uint64_t k) {
+  if (k != next_hand_over_) return false;
+  handed_over_ticks_ = n_;
+  ++steps_;
+  due_ticks_.push_back(k + base_lag_ + n_ - 1);
+  next_hand_over_ = k + n_;
+  return true;
+}
+
+void StepSchedule::set_ticks_per_step(std::uint64_t k, std::uint32_t n) {
+  n_ = std::max(1u, n);
+  next_hand_over_ = k + n_;
+}
+
+std::uint64_t StepSchedule::due(std::uint64_t k) {
+  while (!due_ticks_.empty() && due_ticks_.front() <= k) {
+    due_ticks_.pop_front();
+    ++due_;
+  }
+  return due_;
+}
+
+TissueRateController::TissueRateController(std::uint32_t ticks_per_step, std::uint32_t max_ticks,
+                                           double haptic_period_ms, double max_load)
+    : n_(std::max(1u, ticks_per_step)),
+      max_(std::max(n_, max_ticks)),
+      period_ms_(haptic_period_ms),
+      max_load_(max_load) {}
+
+std::uint32_t TissueRateController::decide(double median_step_ms) {
+  ++since_change_;
+  // 48 steps after a change the median (of 32, TissueThread::median_step_ms) holds steps of the
+  // new length only. Going down waits longer: a step that just fits is worse than a longer one.
+  const double covered_ms = n_ * period_ms_;
+  if (since_change_ >= 48 && median_step_ms > max_load_ * covered_ms && n_ < max_) {
+    n_ = std::min(max_, 2 * n_);
+    since_change_ = 0;
+  } else if (since_change_ >= 256 && n_ > 1 &&
+             median_step_ms < 0.5 * max_load_ * (covered_ms / 2)) {
+    n_ /= 2;
+    since_change_ = 0;
+  }
+  return n_;
+}
+
+std::string tissue_rate_note(std::uint64_t tick, std::uint32_t ticks_per_step) {
+  return nlohmann::json{{"tissue_rate", {{"tick", tick}, {"ticks_per_step", ticks_per_step}}}}
+      .dump();
+}
+
+std::optional<TissueRateChange> parse_tissue_rate_note(const std::string& text) {
+  const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
+  if (j.is_discarded() || !j.is_object() || !j.contains("tissue_rate")) return std::nullopt;
+  const nlohmann::json& r = j["tissue_rate"];
+  if (!r.is_object() || !r.contains("tick") || !r.contains("ticks_per_step") ||
+      !r["tick"].is_number_unsigned() || !r["ticks_per_step"].is_number_unsigned())
+    return std::nullopt;
+  const std::uint64_t n = r["ticks_per_step"].get<std::uint64_t>();
+  if (n < 1 || n > 1000) return std::nullopt;
+  return TissueRateChange{r["tick"].get<std::uint64_t>(), static_cast<std::uint32_t>(n)};
+}
+
+}  // namespace bisturi::runtime
