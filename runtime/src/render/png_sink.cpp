@@ -81,7 +81,7 @@ PngSink::PngSink(std::filesystem::path directory, const PngSinkOptions& options)
 
 void PngSink::consume(const StereoFrame& frame) {
   std::string image;
-  if (frame.index % options_.every == 0) {
+  if (frame.index % options_.every == 0 && !frame.pixels.empty()) {
     const std::uint32_t w = frame.eye_width;
     const std::uint32_t h = frame.eye_height;
     if (options_.layout == PngLayout::PerEye) {

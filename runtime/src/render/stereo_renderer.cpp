@@ -44,7 +44,8 @@ struct FrameSlot {
   vk::Buffer stream;    ///< vertex data of this frame
   vk::Buffer readback;  ///< both eyes' pixels, when there is a sink
   bool pending = false;
-  bool read_back = false;
+  bool read_back = false;    ///< the frame goes to the sink
+  bool copy_pixels = false;  ///< with its pixels
   std::uint64_t frame = 0;
   HeadPose pose;
   Clock::time_point submit_time{};
@@ -99,8 +100,8 @@ struct StereoRenderer::Impl {
     if (options.headset.eye_width == 0 || options.headset.eye_height == 0) {
       throw RenderError("the eye resolution must be at least 1 x 1");
     }
-    if (options.frames_in_flight == 0) options.frames_in_flight = 1;
     context = std::make_unique<vk::Context>(options.validation, options.device);
+    if (options.frames_in_flight == 0) options.frames_in_flight = context->is_cpu() ? 1 : 2;
     try {
       create();
     } catch (...) {
@@ -215,13 +216,15 @@ struct StereoRenderer::Impl {
     vk::check(vkResetFences(context->device(), 1, &slot.fence), "vkResetFences");
     slot.pending = false;
     if (slot.read_back && sink != nullptr) {
-      slot.readback.invalidate();
       StereoFrame out;
       out.index = slot.frame;
       out.eye_width = options.headset.eye_width;
       out.eye_height = options.headset.eye_height;
-      out.pixels = {reinterpret_cast<const std::uint8_t*>(slot.readback.data()),
-                    std::size_t{out.eye_width} * out.eye_height * 4 * 2};
+      if (slot.copy_pixels) {
+        slot.readback.invalidate();
+        out.pixels = {reinterpret_cast<const std::uint8_t*>(slot.readback.data()),
+                      std::size_t{out.eye_width} * out.eye_height * 4 * 2};
+      }
       out.pose = slot.pose;
       out.submit_time = slot.submit_time;
       out.ready_time = Clock::now();
@@ -229,16 +232,22 @@ struct StereoRenderer::Impl {
     }
   }
 
-  void flush() {
-    // Oldest first: frames go to the sink in order.
+  void flush() { deliver(true); }
+
+  /// Hands the frames the device has finished to the sink, oldest first (frames go to the sink in
+  /// order): all of them when `wait`, else those whose fence is already signalled, so a finished
+  /// frame reaches the sink (and the headset) now rather than when its slot comes round again.
+  void deliver(bool wait) {
     std::vector<FrameSlot*> pending;
     for (FrameSlot& s : slots) {
       if (s.pending) pending.push_back(&s);
     }
     std::sort(pending.begin(), pending.end(),
               [](const FrameSlot* a, const FrameSlot* b) { return a->frame < b->frame; });
-    for (FrameSlot* s : pending)
+    for (FrameSlot* s : pending) {
+      if (!wait && vkGetFenceStatus(context->device(), s->fence) != VK_SUCCESS) break;
       complete(*s);
+    }
   }
 
   /// Chunks of `level` visible in either eye, as merged index ranges.
@@ -422,7 +431,8 @@ struct StereoRenderer::Impl {
     vkCmdEndRenderPass(cmd);
 
     slot.read_back = sink != nullptr;
-    if (slot.read_back) {
+    slot.copy_pixels = slot.read_back && sink->wants_pixels(frame);
+    if (slot.copy_pixels) {
       const VkDeviceSize bytes =
           VkDeviceSize{options.headset.eye_width} * options.headset.eye_height * 4 * 2;
       if (slot.readback.size() < bytes) {
@@ -454,6 +464,8 @@ struct StereoRenderer::Impl {
     slot.submit_time = Clock::now();
     stats.cpu_ms = std::chrono::duration<double, std::milli>(slot.submit_time - cpu_start).count();
     ++frame;
+    // With one frame in flight nothing is recorded meanwhile: wait for it here.
+    deliver(slots.size() == 1);
     return stats;
   }
 };

@@ -15,7 +15,8 @@ struct StereoFrame {
   std::uint64_t index = 0;
   std::uint32_t eye_width = 0;
   std::uint32_t eye_height = 0;
-  /// Left eye then right eye, each eye_width * eye_height * 4 bytes.
+  /// Left eye then right eye, each eye_width * eye_height * 4 bytes; empty when the sink did not
+  /// want this frame's pixels (FrameSink::wants_pixels).
   std::span<const std::uint8_t> pixels;
   HeadPose pose;                        ///< pose.sample_time: when the tracker sampled it
   PoseClock::time_point submit_time{};  ///< when the frame's commands were submitted
@@ -32,6 +33,10 @@ class FrameSink {
   virtual ~FrameSink() = default;
   /// Takes a finished frame (called on the render thread, in frame order).
   virtual void consume(const StereoFrame& frame) = 0;
+  /// Whether frame `index` needs its pixels read back from the device. A sink that keeps only
+  /// some frames says no to the others: they still come to consume(), with no pixels, for their
+  /// timing, and the device skips copying them out (8 MB a frame at 2 x 1024 x 1024).
+  [[nodiscard]] virtual bool wants_pixels(std::uint64_t /*index*/) const { return true; }
 };
 
 }  // namespace bisturi::render

@@ -31,6 +31,10 @@ class PngSink : public FrameSink {
   explicit PngSink(std::filesystem::path directory, const PngSinkOptions& options = {});
   ~PngSink() override;
   void consume(const StereoFrame& frame) override;
+  /// Only the frames written as images (every n-th).
+  [[nodiscard]] bool wants_pixels(std::uint64_t index) const override {
+    return index % options_.every == 0;
+  }
   /// Waits until every image is written and frames.csv flushed; throws RenderError on a failure.
   void finish();
 

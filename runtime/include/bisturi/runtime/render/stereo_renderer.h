@@ -47,7 +47,10 @@ struct RendererOptions {
   bool level_of_detail = true;
   /// The coarsest level whose error projects to at most this many pixels is drawn.
   double max_error_px = 1.0;
-  std::uint32_t frames_in_flight = 2;
+  /// Frames recorded ahead of the one the device draws. 0: 2 on a GPU, 1 on a CPU device
+  /// (lavapipe draws on the same cores that would record the next frame, so a second frame in
+  /// flight adds a frame of latency and no throughput).
+  std::uint32_t frames_in_flight = 0;
   glm::vec3 clear_colour{0.0f, 0.0f, 0.0f};
   LevelOptions levels;
 };
