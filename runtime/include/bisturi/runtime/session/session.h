@@ -2,13 +2,15 @@
 // The headset session (the seed's figure 33 as threads):
 //  - haptic thread, at the scene's haptic rate: simulated twins send their reports (they stand in
 //    for hardware that sends on its own), the drivers read them over the virtual transport, or
-//    over hidapi/libusb for real devices (SessionDevices) -> the glove state goes to the tissue
-//    thread -> the command of the step `tissue_lag_ticks` ticks back, its proxy force corrected
-//    for the tip's motion since (SessionSim::command_for) -> GuardedHaptic (force guard) -> the
-//    glove's driver -> the trace; the head pose goes to the renderer through a TripleBuffer;
-//  - tissue thread (TissueThread): SessionSim::tick on every tick's glove state in order
-//    (instruments, collision, proxy, soft-tissue step), then a snapshot (positions per solid,
-//    topology, instrument poses, events) into a TripleBuffer;
+//    over hidapi/libusb for real devices (SessionDevices) -> on a hand-over tick the glove state
+//    goes to the tissue thread as the next step (StepSchedule: every tick, or every n-th when
+//    the tissue steps at a fraction of the haptic rate) -> the command of the step due
+//    (`tissue_lag_ticks` ticks back, plus n - 1), its proxy force corrected for the tip's motion
+//    since (SessionSim::command_for) -> GuardedHaptic (force guard) -> the glove's driver -> the
+//    trace; the head pose goes to the renderer through a TripleBuffer;
+//  - tissue thread (TissueThread): SessionSim::tick on every handed-over glove state in order
+//    (instruments, collision, proxy, soft-tissue step over n periods), then a snapshot
+//    (positions per solid, topology, instrument poses, events) into a TripleBuffer;
 //  - render thread, at the headset's rate: takes the newest snapshot and head pose ->
 //    StereoRenderer -> sink (OpenXR when a runtime is there, PNG files otherwise);
 //  - the calling thread only starts, watches (progress callback) and stops them.
@@ -16,6 +18,9 @@
 // own thread (measured on the 2-core machine with the renderer running): the step alone is
 // 0.2-0.6 ms, but a cut's topology change costs 2-6 ms and steps near contacts reach 1-5 ms
 // when the renderer's threads compete, so inside the tick they missed 14-65 deadlines in 10 s.
+// On a slower machine (a 2-core Zen 1 VM: the default scene's step takes 0.8-1.0 ms) 1 kHz steps
+// could not keep up at all (the tissue fell 1.2 s behind); the rate controller
+// (TissueRateController) settles there at 250-500 Hz.
 // All times come from one injectable devices::Clock (SteadyClock live).
 
 #include <cstdint>
