@@ -1,6 +1,7 @@
 #include "bisturi/sim/integrator.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -9,6 +10,7 @@
 #include <glm/geometric.hpp>
 
 #include "bisturi/sim/errors.h"
+#include "step_threads.h"
 
 namespace bisturi::sim {
 namespace {
@@ -17,6 +19,7 @@ constexpr std::uint32_t kIndexMask = (1u << 30) - 1u;
 constexpr std::uint32_t kNotFree = std::numeric_limits<std::uint32_t>::max();
 constexpr std::size_t kMaxStructures = 16;
 constexpr double kNeverQuiet = std::numeric_limits<double>::infinity();
+constexpr unsigned kMaxThreads = 64;
 /// Springs per block of the spring passes: gathered into small arrays, computed in a loop the
 /// compiler vectorises (sqrt and division four or two at a time), then scattered.
 constexpr std::size_t kChunk = 64;
@@ -146,6 +149,9 @@ struct CgData {
   const T* chol = nullptr;
   T *rc = nullptr, *xc = nullptr;
   double stop2 = 0.0;  ///< squared residual that ends a solve once it has started
+  // Threads (team != nullptr): member t multiplies rows [part[t], part[t + 1]).
+  StepThreads* team = nullptr;
+  const std::uint32_t* part = nullptr;
 };
 
 /// One free vertex's four lanes as a GCC/Clang vector (SSE for float, two SSE or one AVX
@@ -168,12 +174,13 @@ typedef double D4 __attribute__((vector_size(32)));
 /// sum w (in_i - in_j): differences of neighbours instead of the diagonal minus a sum of
 /// neighbours, so that float keeps its precision where the two nearly cancel (smooth vectors).
 template <class T>
-BISTURI_INLINE double product(const CgData<T>& d, const T* in, T* out) {
+BISTURI_INLINE void product_rows(const CgData<T>& d, const T* in, T* out, std::size_t first,
+                                 std::size_t last, D4& acc) {
   using V = typename Lanes<T>::V;
-  D4 acc = {0.0, 0.0, 0.0, 0.0};
+  acc = D4{0.0, 0.0, 0.0, 0.0};
   const std::uint32_t* row = d.row;
   const std::uint32_t* col = d.col;
-  for (std::size_t i = 0; i < d.nf; ++i) {
+  for (std::size_t i = first; i < last; ++i) {
     V pi, s;
     std::memcpy(&pi, in + 4 * i, sizeof(V));
     s = pi * d.self[i];
@@ -188,7 +195,31 @@ BISTURI_INLINE double product(const CgData<T>& d, const T* in, T* out) {
     std::memcpy(out + 4 * i, &s, sizeof(V));
     acc += __builtin_convertvector(pi * s, D4);
   }
-  double in_out = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+}
+
+template <class T>
+BISTURI_INLINE double product(const CgData<T>& d, const T* in, T* out) {
+  double in_out = 0.0;
+  if (d.team == nullptr) {
+    D4 acc;
+    product_rows(d, in, out, 0, d.nf, acc);
+    in_out = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+  } else {
+    // Each member its rows and its partial sum, added in member order.
+    std::array<D4, kMaxThreads> parts;
+    struct Job {
+      const CgData<T>& d;
+      const T* in;
+      T* out;
+      std::array<D4, kMaxThreads>& parts;
+      void operator()(unsigned t) const {
+        product_rows(d, in, out, d.part[t], d.part[t + 1], parts[t]);
+      }
+    } job{d, in, out, parts};
+    d.team->run([&job](unsigned t) { job(t); });
+    for (unsigned t = 0; t < d.team->size(); ++t)
+      in_out += (parts[t][0] + parts[t][1]) + (parts[t][2] + parts[t][3]);
+  }
   for (std::size_t c = 0; c < d.contacts; ++c) {
     const double* ct = d.contact + 5 * c;
     const std::size_t ci = static_cast<std::size_t>(ct[0]);
@@ -659,6 +690,7 @@ StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& opti
                                    std::vector<SimEvent>& events, std::uint32_t body_index,
                                    std::uint64_t step_index) {
   StepStats stats;
+  step_team_ = team(options);
   body.refresh_topology();
   if (body.frozen()) {
     body.clear_forces();
@@ -760,8 +792,29 @@ std::string ImplicitIntegrator::check(const SoftBody& body, System& st,
   if (!energy_check) return {};
   // Springs between constrained vertices did not move: their energy is the start state's.
   const System::SpringSet& sa = st.active;
-  double elastic = fixed_energy(st, body) + spring_energy(sa.a.data(), sa.b.data(), sa.rest.data(),
-                                                          sa.k.data(), sa.a.size(), x.data());
+  double elastic = fixed_energy(st, body);
+  if (step_team_ == nullptr) {
+    elastic +=
+        spring_energy(sa.a.data(), sa.b.data(), sa.rest.data(), sa.k.data(), sa.a.size(), x.data());
+  } else {
+    const unsigned members = step_team_->size();
+    std::array<double, kMaxThreads> partial{};
+    struct Energy {
+      const System::SpringSet& sa;
+      const glm::dvec3* x;
+      unsigned members;
+      std::array<double, kMaxThreads>& partial;
+      void operator()(unsigned t) const {
+        const Range r = part_of(sa.a.size(), members, t, kChunk);
+        partial[t] =
+            spring_energy(sa.a.data() + r.begin, sa.b.data() + r.begin, sa.rest.data() + r.begin,
+                          sa.k.data() + r.begin, r.end - r.begin, x);
+      }
+    } job{sa, x.data(), members, partial};
+    step_team_->run([&job](unsigned t) { job(t); });
+    for (unsigned t = 0; t < members; ++t)
+      elastic += partial[t];
+  }
   if (body.closed() && body.rest_volume_m3() > 0.0) {
     const double dv = body.volume_m3() - body.rest_volume_m3();
     elastic += 0.5 * body.material().bulk_modulus_Pa * dv * dv / body.rest_volume_m3();
@@ -790,6 +843,22 @@ void ImplicitIntegrator::solve(const System& st, const double (&w)[4], int max_i
     d.w[k] = static_cast<T>(w[k]);
   d.contact = contacts_.data();
   d.contacts = contacts_.size() / 5;
+  if (step_team_ != nullptr) {
+    // Rows split by their entries, so each member gathers about as much.
+    const unsigned n = step_team_->size();
+    row_parts_.resize(n + 1);
+    const std::uint32_t entries = nf > 0 ? st.prow[nf] : 0;
+    for (unsigned t = 0; t <= n; ++t) {
+      const std::uint64_t goal = std::uint64_t{entries} * t / n;
+      row_parts_[t] = static_cast<std::uint32_t>(
+          std::lower_bound(st.prow.begin(), st.prow.begin() + static_cast<std::ptrdiff_t>(nf),
+                           goal) -
+          st.prow.begin());
+    }
+    row_parts_[n] = static_cast<std::uint32_t>(nf);
+    d.team = step_team_;
+    d.part = row_parts_.data();
+  }
   double b2 = 0.0;
   {
     double b24[4] = {0.0, 0.0, 0.0, 0.0};
@@ -886,7 +955,10 @@ double ImplicitIntegrator::spring_pass(System& sys, const SoftBody& body, double
   f_.assign(x.size(), glm::dvec3(0.0));
   const System::SpringSet& sa = sys.active;
   double elastic = 0.0;
-  if (energy) {
+  if (step_team_ != nullptr) {
+    elastic = spring_pass_parts(sa, x, v, c, h, energy);
+    if (energy) elastic += fixed_energy(sys, body);
+  } else if (energy) {
     elastic = spring_forces_energy(sa.a.data(), sa.b.data(), sa.rest.data(), sa.k.data(),
                                    sa.a.size(), sa.count, x.data(), v.data(), c, h, f_.data()) +
               fixed_energy(sys, body);
@@ -901,6 +973,70 @@ double ImplicitIntegrator::spring_pass(System& sys, const SoftBody& body, double
                   x.data(), v.data(), c, h, f_.data());
   }
   return elastic;
+}
+
+double ImplicitIntegrator::spring_pass_parts(const System::SpringSet& sa,
+                                             const std::vector<glm::dvec3>& x,
+                                             const std::vector<glm::dvec3>& v, double c, double h,
+                                             bool energy) {
+  // Member t takes a run of the springs into its own force array (member 0 into f_), then the
+  // arrays are added in member order, each member a run of vertices.
+  const unsigned n = step_team_->size();
+  f_parts_.resize(n - 1);
+  std::array<double, kMaxThreads> partial{};
+  struct Springs {
+    ImplicitIntegrator& self;
+    const System::SpringSet& sa;
+    const glm::dvec3* x;
+    const glm::dvec3* v;
+    double c, h;
+    bool energy;
+    unsigned n;
+    std::array<double, kMaxThreads>& partial;
+    void operator()(unsigned t) const {
+      glm::dvec3* f = self.f_.data();
+      if (t > 0) {
+        self.f_parts_[t - 1].assign(self.f_.size(), glm::dvec3(0.0));
+        f = self.f_parts_[t - 1].data();
+      }
+      const Range r = part_of(sa.a.size(), n, t, kChunk);
+      const std::size_t real = sa.count > r.begin ? std::min(sa.count, r.end) - r.begin : 0;
+      const std::size_t b = r.begin, m = r.end - r.begin;
+      if (energy) {
+        partial[t] = spring_forces_energy(sa.a.data() + b, sa.b.data() + b, sa.rest.data() + b,
+                                          sa.k.data() + b, m, real, x, v, c, h, f);
+      } else {
+        spring_forces(sa.a.data() + b, sa.b.data() + b, sa.rest.data() + b, sa.k.data() + b, m,
+                      real, x, v, c, h, f);
+      }
+    }
+  } springs{*this, sa, x.data(), v.data(), c, h, energy, n, partial};
+  step_team_->run([&springs](unsigned t) { springs(t); });
+  struct Sum {
+    ImplicitIntegrator& self;
+    unsigned n;
+    void operator()(unsigned t) const {
+      const Range r = part_of(self.f_.size(), n, t);
+      for (std::size_t i = r.begin; i < r.end; ++i) {
+        glm::dvec3 s = self.f_[i];
+        for (unsigned p = 0; p + 1 < n; ++p)
+          s += self.f_parts_[p][i];
+        self.f_[i] = s;
+      }
+    }
+  } sum{*this, n};
+  step_team_->run([&sum](unsigned t) { sum(t); });
+  double elastic = 0.0;
+  for (unsigned t = 0; t < n; ++t)
+    elastic += partial[t];
+  return elastic;
+}
+
+StepThreads* ImplicitIntegrator::team(const IntegratorOptions& options) {
+  const unsigned want = std::min(options.threads, kMaxThreads);
+  if (want <= 1) return nullptr;
+  if (!team_ || team_->size() != want) team_ = std::make_shared<StepThreads>(want);
+  return team_.get();
 }
 
 ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structure& st,
@@ -963,15 +1099,25 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
     const auto& tri = body.triangles();
     const std::uint32_t* idx = tri.indices.data();
     const std::size_t nt = tri.size();
+    // Plain scalars: with glm temporaries GCC spilled the cross product to the stack as one
+    // 16-byte and one 8-byte store and read it back across both (a failed store-to-load
+    // forward, about a fifth of this function's time on the Zen 1 machine).
+    static_assert(sizeof(glm::dvec3) == 3 * sizeof(double));
+    const double* xs = &x[0].x;
+    double* gs = &grad_[0].x;
     double six_v = 0.0;
     for (std::size_t t = 0; t < nt; ++t) {
-      const std::uint32_t i0 = idx[3 * t], i1 = idx[3 * t + 1], i2 = idx[3 * t + 2];
-      const glm::dvec3 x0 = x[i0];
-      const glm::dvec3 area = glm::cross(x[i1] - x0, x[i2] - x0);
-      six_v += glm::dot(x0, area);
-      grad_[i0] += area;
-      grad_[i1] += area;
-      grad_[i2] += area;
+      const std::size_t i0 = 3 * std::size_t(idx[3 * t]), i1 = 3 * std::size_t(idx[3 * t + 1]),
+                        i2 = 3 * std::size_t(idx[3 * t + 2]);
+      const double ax = xs[i1] - xs[i0], ay = xs[i1 + 1] - xs[i0 + 1], az = xs[i1 + 2] - xs[i0 + 2];
+      const double bx = xs[i2] - xs[i0], by = xs[i2 + 1] - xs[i0 + 1], bz = xs[i2 + 2] - xs[i0 + 2];
+      const double nx = ay * bz - az * by, ny = az * bx - ax * bz, nz = ax * by - ay * bx;
+      six_v += xs[i0] * nx + xs[i0 + 1] * ny + xs[i0 + 2] * nz;
+      for (const std::size_t i : {i0, i1, i2}) {
+        gs[i] += nx;
+        gs[i + 1] += ny;
+        gs[i + 2] += nz;
+      }
     }
     const double volume = body.orientation() * (six_v / 6.0);  // as SoftBody::volume_m3()
     const double v0 = body.rest_volume_m3();

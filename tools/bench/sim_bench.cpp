@@ -15,6 +15,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <thread>
 #include <vector>
 
 #include "bisturi/scene/oriented_builder.h"
@@ -72,11 +73,15 @@ double percentile(std::vector<double> v, double q) {
 }
 
 // Full step: the probe presses 0..3 mm into the top of the sphere and back (a 2 Hz sine), the
-// lower third is anchored, gravity on, default material and integrator options.
+// lower third is anchored, gravity on, default material and integrator options. The second
+// argument is the thread count (1: single thread; 0: every core for the integrator and Embree).
 void BM_FullStep(benchmark::State& state) {
   const Shape& shape = sphere(radius_for(state.range(0)));
   WorldOptions options;
-  options.embree_threads = 1;
+  const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+  const bool all = state.range(1) == 0;
+  options.embree_threads = all ? 0 : 1;
+  options.integrator.threads = all ? cores : 1;
   SimWorld world(options);
   const std::uint32_t id =
       world.add_body(SoftBody(build_oriented_manifold(shape.polygons), Material{}));
@@ -127,9 +132,12 @@ void BM_FullStep(benchmark::State& state) {
   state.counters["awake"] = awake / double(std::max<std::size_t>(samples.size(), 1));
 }
 BENCHMARK(BM_FullStep)
-    ->Arg(2000)
-    ->Arg(20000)
-    ->Arg(100000)
+    ->Args({2000, 1})
+    ->Args({20000, 1})
+    ->Args({100000, 1})
+    ->Args({2000, 0})
+    ->Args({20000, 0})
+    ->Args({100000, 0})
     ->UseManualTime()
     ->Unit(benchmark::kMicrosecond)
     ->Iterations(3000);

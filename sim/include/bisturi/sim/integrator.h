@@ -19,9 +19,11 @@
 // (SoftBody::add_contact) add their k n n^T blocks to it. a is the mass-proportional drag. The
 // volume term is explicit. Anchored, kinematic and massless vertices are constraints: the solve
 // runs over the free vertices only, in a compact numbering with four lanes (x, y, z, pad) per
-// vertex. Every loop runs in a fixed order on one thread (reductions keep one partial sum per lane,
-// combined in a fixed order, and the AVX2 and baseline clones of the hot loops round alike): the
-// same inputs give bit-identical states.
+// vertex. Every loop runs in a fixed order (reductions keep one partial sum per lane, combined in
+// a fixed order, and the AVX2 and baseline clones of the hot loops round alike): the same inputs
+// give bit-identical states. With IntegratorOptions::threads > 1 the spring passes and the
+// solve's matrix products are split over a team of threads in parts fixed by the thread count,
+// their partial sums added in member order: still bit-identical run to run for that count.
 //
 // Sleeping (IntegratorOptions::sleeping): the free vertices are grouped into the coarse level's
 // aggregates. An aggregate whose residual force, and the force one more step of its motion would
@@ -41,6 +43,7 @@
 // forces). Every rollback and freeze is reported as a SimEvent; nothing is thrown.
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -78,6 +81,10 @@ struct IntegratorOptions {
   bool sleeping = true;
   /// Steps in a row an aggregate must stay under the sleep thresholds before it sleeps.
   int sleep_steps = 10;
+  /// Threads for the spring pass and the solve's matrix products (the integrator keeps a team
+  /// of threads - 1 helpers). The parts are fixed by the thread count, so a run is bit-identical
+  /// to another with the same count; different counts round differently (reductions split).
+  unsigned threads = 1;
 };
 
 enum class SimEventKind : std::uint8_t { RolledBack, Frozen };
@@ -99,6 +106,8 @@ struct StepStats {
   std::uint32_t free_vertices = 0;   ///< neither anchored, kinematic nor massless
   std::uint32_t awake_vertices = 0;  ///< free vertices that were solved (not sleeping)
 };
+
+class StepThreads;
 
 class ImplicitIntegrator {
  public:
@@ -222,6 +231,9 @@ class ImplicitIntegrator {
   /// The spring forces of sys (and of its halo) into f_ (zeroed first); when energy is set,
   /// returns the elastic energy of every spring (the fixed ones' is kept in sys).
   double spring_pass(System& sys, const SoftBody& body, double h, bool energy);
+  /// spring_pass's active springs split over the team; returns their energy when asked.
+  double spring_pass_parts(const System::SpringSet& sa, const std::vector<glm::dvec3>& x,
+                           const std::vector<glm::dvec3>& v, double c, double h, bool energy);
   /// The energy of sys's fixed springs (which do not move while sys is in use), taken once.
   static double fixed_energy(System& sys, const SoftBody& body);
   /// The CG over the free vertices in T (float: half the memory traffic; double for tolerances
@@ -237,6 +249,13 @@ class ImplicitIntegrator {
   std::vector<Structure> structures_;
   std::vector<glm::dvec3> saved_x_, saved_v_;
   std::vector<glm::dvec3> f_, grad_;  ///< per vertex: spring forces, volume gradient (x 6)
+  /// The thread team (options.threads > 1) and the spring forces of its members 1..n-1.
+  std::shared_ptr<StepThreads> team_;
+  StepThreads* step_team_ = nullptr;  ///< the team of the step in progress
+  std::vector<std::vector<glm::dvec3>> f_parts_;
+  std::vector<std::uint32_t> row_parts_;  ///< first row of each member's part of the product
+  /// The team for options.threads (created or resized here); nullptr for one thread.
+  StepThreads* team(const IntegratorOptions& options);
   std::vector<std::uint8_t> free_, mask_;
   std::vector<std::uint32_t> loaded_;  ///< vertices with an external force this step
   double p6_ = 0.0;                    ///< the last substep's pressure factor
