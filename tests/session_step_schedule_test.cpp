@@ -1,6 +1,6 @@
 // The multi-rate lockstep of haptic ticks and tissue steps (issue 10, runtime/src/session/
 // step_schedule.h): which ticks hand a step over, which step each tick sends, the rate
-// controller, and the trace note of a rate change.
+// controller, and the trace notes that let a replay follow (lockstep_notes.h).
 
 #include <gtest/gtest.h>
 
@@ -8,6 +8,7 @@
 #include <random>
 #include <vector>
 
+#include "session/lockstep_notes.h"
 #include "session/step_schedule.h"
 #include "session/tissue_thread.h"
 
@@ -108,16 +109,24 @@ TEST(TissueRateController, ALowerLoadLimitHalvesSooner) {
   EXPECT_EQ(b, 1u);
 }
 
-TEST(TissueRateNote, RoundTrips) {
+TEST(LockstepNotes, RoundTripAndRefuseWhatTheyAreNot) {
+  const auto l = parse_late_tick_note(late_tick_note(1234, 1229));
+  ASSERT_TRUE(l.has_value());
+  EXPECT_EQ(l->tick, 1234u);
+  EXPECT_EQ(l->step, 1229u);
   const auto c = parse_tissue_rate_note(tissue_rate_note(4096, 4));
   ASSERT_TRUE(c.has_value());
   EXPECT_EQ(c->tick, 4096u);
   EXPECT_EQ(c->ticks_per_step, 4u);
-  EXPECT_FALSE(parse_tissue_rate_note("tick").has_value());
+  for (const char* other : {"tick", R"({"session_end": {"ticks": 3}})", "{", "[1, 2]"}) {
+    EXPECT_FALSE(parse_late_tick_note(other).has_value()) << other;
+    EXPECT_FALSE(parse_tissue_rate_note(other).has_value()) << other;
+  }
+  EXPECT_FALSE(parse_late_tick_note(tissue_rate_note(4096, 4)).has_value());
   EXPECT_FALSE(parse_tissue_rate_note(late_tick_note(3, 2)).has_value());
+  EXPECT_FALSE(parse_late_tick_note(R"({"late_tick": {"tick": -1, "step": 2}})").has_value());
   EXPECT_FALSE(parse_tissue_rate_note(R"({"tissue_rate": {"tick": 5, "ticks_per_step": 0}})"));
   EXPECT_FALSE(parse_tissue_rate_note(R"({"tissue_rate": {"tick": -5, "ticks_per_step": 2}})"));
-  EXPECT_FALSE(parse_late_tick_note(tissue_rate_note(4096, 4)).has_value());
 }
 
 }  // namespace

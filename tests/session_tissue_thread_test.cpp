@@ -1,5 +1,5 @@
 // The tissue thread's lockstep with the haptic ticks (issue 10, runtime/src/session/
-// tissue_thread.h): which step a tick uses, the late-tick note, and that the threaded simulation
+// tissue_thread.h): which step a tick uses, and that the threaded simulation
 // runs exactly the steps the inline one runs (same commands, same final state).
 
 #include <gtest/gtest.h>
@@ -74,16 +74,6 @@ TEST(TissueThread, ScheduledStepIsTheTickMinusTheLag) {
   EXPECT_EQ(scheduled_step(3, 3), 0u);
   EXPECT_EQ(scheduled_step(4, 3), 1u);
   EXPECT_EQ(scheduled_step(7, 0), 7u);
-}
-
-TEST(TissueThread, LateTickNoteRoundTrips) {
-  const auto l = parse_late_tick_note(late_tick_note(1234, 1229));
-  ASSERT_TRUE(l.has_value());
-  EXPECT_EQ(l->tick, 1234u);
-  EXPECT_EQ(l->step, 1229u);
-  EXPECT_FALSE(parse_late_tick_note("tick").has_value());
-  EXPECT_FALSE(parse_late_tick_note(R"({"late_tick": {"tick": -1, "step": 2}})").has_value());
-  EXPECT_FALSE(parse_late_tick_note(R"({"session_end": {"ticks": 3}})").has_value());
 }
 
 TEST(TissueThread, ThreadedStepsEqualInlineSteps) {

@@ -35,6 +35,7 @@
 #include "bisturi/scene/polygon_export.h"
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/sim/units.h"
+#include "lockstep_notes.h"
 #include "step_schedule.h"
 #include "tissue_thread.h"
 

@@ -16,6 +16,7 @@
 #include "bisturi/devices/trace/trace_reader.h"
 #include "bisturi/runtime/session/scene_builder.h"
 #include "bisturi/runtime/session/session_sim.h"
+#include "lockstep_notes.h"
 #include "step_schedule.h"
 #include "tissue_thread.h"
 

@@ -3,7 +3,6 @@
 #include "step_schedule.h"
 
 #include <algorithm>
-#include <nlohmann/json.hpp>
 
 namespace bisturi::runtime {
 
@@ -53,23 +52,6 @@ std::uint32_t TissueRateController::decide(double median_step_ms) {
     since_change_ = 0;
   }
   return n_;
-}
-
-std::string tissue_rate_note(std::uint64_t tick, std::uint32_t ticks_per_step) {
-  return nlohmann::json{{"tissue_rate", {{"tick", tick}, {"ticks_per_step", ticks_per_step}}}}
-      .dump();
-}
-
-std::optional<TissueRateChange> parse_tissue_rate_note(const std::string& text) {
-  const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
-  if (j.is_discarded() || !j.is_object() || !j.contains("tissue_rate")) return std::nullopt;
-  const nlohmann::json& r = j["tissue_rate"];
-  if (!r.is_object() || !r.contains("tick") || !r.contains("ticks_per_step") ||
-      !r["tick"].is_number_unsigned() || !r["ticks_per_step"].is_number_unsigned())
-    return std::nullopt;
-  const std::uint64_t n = r["ticks_per_step"].get<std::uint64_t>();
-  if (n < 1 || n > 1000) return std::nullopt;
-  return TissueRateChange{r["tick"].get<std::uint64_t>(), static_cast<std::uint32_t>(n)};
 }
 
 }  // namespace bisturi::runtime

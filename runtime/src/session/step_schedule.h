@@ -12,8 +12,6 @@
 
 #include <cstdint>
 #include <deque>
-#include <optional>
-#include <string>
 
 namespace bisturi::runtime {
 
@@ -63,15 +61,5 @@ class TissueRateController {
   double max_load_;
   std::uint64_t since_change_ = 0;
 };
-
-/// The trace note of a change of the ticks per step at hand-over tick k:
-/// {"tissue_rate": {"tick": k, "ticks_per_step": n}}.
-std::string tissue_rate_note(std::uint64_t tick, std::uint32_t ticks_per_step);
-struct TissueRateChange {
-  std::uint64_t tick = 0;
-  std::uint32_t ticks_per_step = 1;
-};
-/// The change a note's text holds, if it is one (ticks_per_step >= 1).
-std::optional<TissueRateChange> parse_tissue_rate_note(const std::string& text);
 
 }  // namespace bisturi::runtime

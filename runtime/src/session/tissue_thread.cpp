@@ -8,7 +8,6 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
-#include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
 
@@ -126,20 +125,6 @@ void TissueThread::run() {
 void TissueThread::finish() {
   stop_thread();
   if (error_) std::rethrow_exception(error_);
-}
-
-std::string late_tick_note(std::uint64_t tick, std::uint64_t step) {
-  return nlohmann::json{{"late_tick", {{"tick", tick}, {"step", step}}}}.dump();
-}
-
-std::optional<LateTick> parse_late_tick_note(const std::string& text) {
-  const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
-  if (j.is_discarded() || !j.is_object() || !j.contains("late_tick")) return std::nullopt;
-  const nlohmann::json& l = j["late_tick"];
-  if (!l.is_object() || !l.contains("tick") || !l.contains("step") ||
-      !l["tick"].is_number_unsigned() || !l["step"].is_number_unsigned())
-    return std::nullopt;
-  return LateTick{l["tick"].get<std::uint64_t>(), l["step"].get<std::uint64_t>()};
 }
 
 }  // namespace bisturi::runtime

@@ -17,8 +17,6 @@
 #include <cstdint>
 #include <exception>
 #include <functional>
-#include <optional>
-#include <string>
 #include <thread>
 #include <vector>
 
@@ -104,15 +102,5 @@ class TissueThread {
 /// Asks SCHED_FIFO for the calling thread at `below` levels under the haptic thread's priority
 /// (half the maximum); false when the system refuses (the thread keeps its priority).
 bool request_realtime_priority(int below);
-
-/// The trace note a late tick writes before its force command: {"late_tick": {"tick": k,
-/// "step": j}} (step 0: no step had finished, the command was zero).
-std::string late_tick_note(std::uint64_t tick, std::uint64_t step);
-struct LateTick {
-  std::uint64_t tick = 0;
-  std::uint64_t step = 0;
-};
-/// The late tick a note's text holds, if it is one.
-std::optional<LateTick> parse_late_tick_note(const std::string& text);
 
 }  // namespace bisturi::runtime

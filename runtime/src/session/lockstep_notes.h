@@ -1,0 +1,32 @@
+#pragma once
+// The notes a live session writes into its trace so that its replay pairs the same tissue steps
+// with the same haptic ticks (tissue_thread.h, step_schedule.h). Each is one JSON object with one
+// key, written just before the tick's force command.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace bisturi::runtime {
+
+/// A late tick: {"late_tick": {"tick": k, "step": j}}: tick k used step j, the newest finished
+/// one, because its due step was not finished (step 0: none had, the command was zero).
+std::string late_tick_note(std::uint64_t tick, std::uint64_t step);
+struct LateTick {
+  std::uint64_t tick = 0;
+  std::uint64_t step = 0;
+};
+/// The late tick a note's text holds, if it is one.
+std::optional<LateTick> parse_late_tick_note(const std::string& text);
+
+/// A change of the ticks per tissue step at hand-over tick k:
+/// {"tissue_rate": {"tick": k, "ticks_per_step": n}}.
+std::string tissue_rate_note(std::uint64_t tick, std::uint32_t ticks_per_step);
+struct TissueRateChange {
+  std::uint64_t tick = 0;
+  std::uint32_t ticks_per_step = 1;
+};
+/// The change a note's text holds, if it is one (ticks_per_step 1 to 1000).
+std::optional<TissueRateChange> parse_tissue_rate_note(const std::string& text);
+
+}  // namespace bisturi::runtime
