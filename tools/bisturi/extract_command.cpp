@@ -17,16 +17,11 @@
 #include "bisturi/scene/volume/marching_cubes.h"
 #include "bisturi/scene/volume/volume_io.h"
 #include "progress_line.h"
+#include "stopwatch.h"
 
 namespace bisturi::cli {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double milliseconds_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 /// The field whose isosurface is the surface of one label: 1 inside, 0 outside, cut at 0.5.
 Grid<float> label_field(const Volume& volume, long long label, const std::string& file) {

@@ -17,16 +17,11 @@
 #include "bisturi/scene/volume/marching_cubes.h"
 #include "bisturi/scene/volume/volume_io.h"
 #include "progress_line.h"
+#include "stopwatch.h"
 
 namespace bisturi::cli {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double milliseconds_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 bool is_mesh_file(const std::string& path) {
   std::string ext = std::filesystem::path(path).extension().string();

@@ -10,16 +10,11 @@
 #include "bisturi/scene/volume/segmentation.h"
 #include "bisturi/scene/volume/volume_io.h"
 #include "progress_line.h"
+#include "stopwatch.h"
 
 namespace bisturi::cli {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double milliseconds_since(Clock::time_point start) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-}
 
 /// The label map as a volume the readers and `extract --label` understand (float32 holds every
 /// label below 2^24 exactly).
