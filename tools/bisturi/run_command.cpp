@@ -129,7 +129,7 @@ int run_run(const RunOptions& options) {
     if (!(hz > 0.0) || n < 1 || n > 1000 || std::abs(ratio - static_cast<double>(n)) > 1e-9)
       throw std::invalid_argument("--tissue-hz " + options.tissue_hz +
                                   ": give `auto` or a rate that divides the haptic rate (" +
-                                  std::to_string(scene.rates.haptic_hz) + " Hz)");
+                                  (std::ostringstream() << scene.rates.haptic_hz).str() + " Hz)");
     so.tissue_ticks_per_step = static_cast<std::uint32_t>(n);
     so.adaptive_tissue_rate = false;
   }

@@ -515,10 +515,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
       devices::HapticState last_state;
       std::vector<double> command(sim.command_size(), 0.0);
       StepSchedule schedule(lag, first_ticks_per_step);
-      TissueRateController rate(
-          first_ticks_per_step,
-          options.adaptive_tissue_rate ? options.max_tissue_ticks_per_step : first_ticks_per_step,
-          ms(period), options.tissue_max_load);
+      TissueRateController rate(first_ticks_per_step, options.max_tissue_ticks_per_step, ms(period),
+                                options.tissue_max_load);
       std::uint64_t k = 0;
       while (!stop.load(std::memory_order_relaxed)) {
         if (spin.count() > 0) {
@@ -561,7 +559,10 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
         ++k;
         if (schedule.hands_over(k)) {
           tissue.push(last_state, schedule.handed_over_ticks());
-          const std::uint32_t n = rate.decide(tissue.median_step_ms());
+          // A fixed rate stays fixed (the controller would also lower a rate given too low).
+          const std::uint32_t n = options.adaptive_tissue_rate
+                                      ? rate.decide(tissue.median_step_ms())
+                                      : schedule.ticks_per_step();
           if (n != schedule.ticks_per_step()) {
             schedule.set_ticks_per_step(k, n);
             ++report.tissue_rate_changes;
