@@ -144,13 +144,13 @@ TEST(TissueThread, ALateTickUsesTheNewestFinishedStep) {
   for (const devices::HapticState& s : states)
     tissue.push(s);
   EXPECT_EQ(tissue.output(3), nullptr);
-  const TissueThread::TickStep t = tissue.step_for_tick(12, 2);
+  const TissueThread::TickStep t = tissue.step_for(scheduled_step(12, 2));
   EXPECT_TRUE(t.late);
   EXPECT_LE(t.step, 2u);
   EXPECT_EQ(t.output == nullptr, t.step == 0);
   release.store(true);
   tissue.finish();
-  const TissueThread::TickStep on_time = tissue.step_for_tick(12, 2);
+  const TissueThread::TickStep on_time = tissue.step_for(scheduled_step(12, 2));
   EXPECT_FALSE(on_time.late);
   EXPECT_EQ(on_time.step, 10u);
   EXPECT_NE(on_time.output, nullptr);

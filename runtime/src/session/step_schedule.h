@@ -15,6 +15,12 @@
 
 namespace bisturi::runtime {
 
+/// The step whose command tick k sends when it is on time in the plain lockstep: k - lag (0,
+/// none, for the first ticks).
+constexpr std::uint64_t scheduled_step(std::uint64_t k, std::uint32_t lag) {
+  return k > lag ? k - lag : 0;
+}
+
 class StepSchedule {
  public:
   StepSchedule(std::uint32_t base_lag, std::uint32_t ticks_per_step);

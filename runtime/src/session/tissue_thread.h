@@ -25,12 +25,6 @@
 
 namespace bisturi::runtime {
 
-/// The step whose command tick k sends when it is on time in the plain lockstep: k - lag (0,
-/// none, for the first ticks).
-constexpr std::uint64_t scheduled_step(std::uint64_t k, std::uint32_t lag) {
-  return k > lag ? k - lag : 0;
-}
-
 class TissueThread {
  public:
   /// Called on the simulation's thread after each step with its output, the glove state it ran
@@ -61,10 +55,6 @@ class TissueThread {
     bool late = false;
   };
   [[nodiscard]] TickStep step_for(std::uint64_t due) const;
-  /// The step tick k uses in the plain lockstep (one tick per step, lag ticks behind).
-  [[nodiscard]] TickStep step_for_tick(std::uint64_t k, std::uint32_t lag) const {
-    return step_for(scheduled_step(k, lag));
-  }
   /// Median wall time of the last 32 steps on the simulation's thread (the step and after_step),
   /// ms (0 before the first step).
   [[nodiscard]] double median_step_ms() const {
