@@ -238,15 +238,14 @@ struct StereoRenderer::Impl {
   /// order): all of them when `wait`, else those whose fence is already signalled, so a finished
   /// frame reaches the sink (and the headset) now rather than when its slot comes round again.
   void deliver(bool wait) {
-    std::vector<FrameSlot*> pending;
-    for (FrameSlot& s : slots) {
-      if (s.pending) pending.push_back(&s);
-    }
-    std::sort(pending.begin(), pending.end(),
-              [](const FrameSlot* a, const FrameSlot* b) { return a->frame < b->frame; });
-    for (FrameSlot* s : pending) {
-      if (!wait && vkGetFenceStatus(context->device(), s->fence) != VK_SUCCESS) break;
-      complete(*s);
+    // Slots are used in turn (frame % count): the pending ones are among the last `count`
+    // frames, visited here oldest first.
+    const std::uint64_t count = slots.size();
+    for (std::uint64_t f = frame > count ? frame - count : 0; f < frame; ++f) {
+      FrameSlot& s = slots[f % count];
+      if (!s.pending || s.frame != f) continue;
+      if (!wait && vkGetFenceStatus(context->device(), s.fence) != VK_SUCCESS) break;
+      complete(s);
     }
   }
 
