@@ -90,12 +90,16 @@ TOML
     # The tissue step inside the haptic tick (for comparison); on its own thread with a lag of one
     # tick (steps often finish late, so late-tick notes get written); at a fixed quarter of the
     # haptic rate; and adapting its rate with a load limit so low that it halves three times
-    # (rate-change notes in the trace): all replay exactly.
+    # (rate-change notes in the trace): all replay exactly. The fixed rate runs 2 s: the rate
+    # controller's first decision comes after 256 steps (1.02 s at 250 Hz), and a fixed rate must
+    # never reach it (it once did, and raised 250 Hz to 500 where steps were fast).
     for variant in "--tissue-in-haptic-thread" "--tissue-lag 1" "--tissue-hz 250" \
                    "--tissue-max-load 0.001"; do
       name=$(echo "$variant" | tr -d ' -')
+      duration=1
+      [ "$variant" = "--tissue-hz 250" ] && duration=2
       # shellcheck disable=SC2086
-      "$bisturi" run --duration 1 --eye-width 128 --eye-height 128 --no-openxr $variant \
+      "$bisturi" run --duration $duration --eye-width 128 --eye-height 128 --no-openxr $variant \
         --out "$work/$name" --record "$work/$name.btrace" > "$work/$name.txt" 2>&1 ||
         { cat "$work/$name.txt"; fail "bisturi run $variant exited with $?"; }
       for key in late_ticks max_tissue_backlog missed_by_late_wakeup tissue_lag_ticks; do
@@ -108,6 +112,8 @@ TOML
       fail "the inline run does not say so"
     grep -q '"final_hz": 250.0' "$work/tissuehz250/report.json" ||
       fail "the fixed-rate run does not step at 250 Hz"
+    grep -q '"changes": 0' "$work/tissuehz250/report.json" ||
+      fail "the fixed-rate run changed its tissue rate"
     grep -q '"lowest_hz": 125.0' "$work/tissuemaxload0.001/report.json" ||
       fail "the low load limit did not bring the tissue rate down to an eighth"
     echo "lockstep: ok"
