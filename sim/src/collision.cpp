@@ -94,7 +94,9 @@ struct SurfaceBvh::Impl {
   void build(const SoftBody& b) {
     release();
     scene = rtcNewScene(device);
-    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST);
+    // COMPACT keeps indexed triangles in the leaves instead of copies of their vertices: a refit
+    // then only recomputes bounds (19.4k-vertex sphere, Zen 1: 0.43-0.49 ms against 0.75-1.2 ms).
+    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_COMPACT | RTC_SCENE_FLAG_ROBUST);
     rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_LOW);
     geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
     rtcSetGeometryBuildQuality(geometry, RTC_BUILD_QUALITY_REFIT);
