@@ -5,7 +5,7 @@
 // iterations and the last relative residual. And the time to apply one 5 cm cut (blade points
 // along an arc over the top of the 20k-vertex sphere), BVH rebuild included. BM_TwoBodies: the
 // headset session's shape of work (first step with and without SimWorld::prepare(), steady
-// step, a cut tick and the step after it).
+// step, a cut tick and the step after it). BM_Refit: the Embree refit of a sphere on its own.
 // Run by hand: build/bin/sim_bench [--benchmark_filter=...]. Goal: p99 <= 1 ms at 20k.
 
 #include <benchmark/benchmark.h>
@@ -21,6 +21,7 @@
 #include "bisturi/scene/oriented_builder.h"
 #include "bisturi/scene/volume/marching_cubes.h"
 #include "bisturi/scene/volume/phantoms.h"
+#include "bisturi/sim/collision.h"
 #include "bisturi/sim/world.h"
 
 namespace {
@@ -141,6 +142,25 @@ BENCHMARK(BM_FullStep)
     ->UseManualTime()
     ->Unit(benchmark::kMicrosecond)
     ->Iterations(3000);
+
+// The Embree refit alone (part of BM_FullStep): every vertex moves by 1 um, then the surface BVH
+// of the sphere is refitted (single thread).
+void BM_Refit(benchmark::State& state) {
+  const Shape& shape = sphere(radius_for(state.range(0)));
+  SoftBody body(build_oriented_manifold(shape.polygons), Material{});
+  CollisionDevice device(1);
+  SurfaceBvh bvh(device, body);
+  bvh.update(body);  // the first refit after a build costs more than later ones
+  double dz = 1e-6;
+  for (auto _ : state) {
+    for (auto& p : body.positions())
+      p.z += dz;
+    dz = -dz;
+    bvh.update(body);
+  }
+  state.counters["triangles"] = double(body.triangles().size());
+}
+BENCHMARK(BM_Refit)->Arg(2000)->Arg(20000)->Arg(100000)->Unit(benchmark::kMicrosecond);
 
 // The headset session's shape of work: two small bodies (an organ of about 800 vertices under
 // the probe, a second body of about 800 vertices beside it), lower thirds anchored. Reports the
