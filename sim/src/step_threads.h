@@ -14,6 +14,9 @@
 
 namespace bisturi::sim {
 
+/// The most members a team has (passes keep their partial sums in arrays of this size).
+constexpr unsigned kMaxThreads = 64;
+
 class StepThreads {
  public:
   explicit StepThreads(unsigned threads);

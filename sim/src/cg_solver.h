@@ -1,0 +1,47 @@
+#pragma once
+// The conjugate gradient of the implicit step (integrator.cpp builds its data): a weighted
+// graph Laplacian plus a diagonal and contact blocks, four lanes (x, y, z, zero pad) per free
+// vertex, Jacobi plus an optional coarse level (aggregates, packed Cholesky factor), optionally
+// split over the step's thread team.
+
+#include <cstddef>
+#include <cstdint>
+
+#include "step_threads.h"
+
+namespace bisturi::sim {
+
+/// Neighbour entries of the rows: the index in the low 30 bits, the stiffness class above.
+constexpr std::uint32_t kIndexMask = (1u << 30) - 1u;
+
+/// The CG's data, four lanes (x, y, z, zero pad) per free vertex.
+template <class T>
+struct CgData {
+  std::size_t nf = 0;
+  const std::uint32_t* row = nullptr;  ///< nf + 1 offsets into col
+  const std::uint32_t* col = nullptr;  ///< neighbour | class << 30, even count per row
+  const T* self = nullptr;             ///< per row: the diagonal less the free neighbours' weights
+  const T* inv = nullptr;              ///< Jacobi: inverse of the diagonal, contact blocks included
+  const T* b = nullptr;                ///< right-hand side
+  T w[4] = {};                         ///< class weights
+  const double* contact = nullptr;     ///< 5 per contact: compact index, nx, ny, nz, k
+  std::size_t contacts = 0;
+  T *dv = nullptr, *r = nullptr, *p = nullptr, *ap = nullptr;
+  // Coarse level (nc = 0: Jacobi alone): row -> aggregate, packed Cholesky factor (inverted
+  // diagonal), and two 4-lane vectors of nc aggregates.
+  std::size_t nc = 0;
+  const std::uint32_t* agg = nullptr;
+  const T* chol = nullptr;
+  T *rc = nullptr, *xc = nullptr;
+  double stop2 = 0.0;  ///< squared residual that ends a solve once it has started
+  // Threads (team != nullptr): member t multiplies rows [part[t], part[t + 1]).
+  StepThreads* team = nullptr;
+  const std::uint32_t* part = nullptr;
+};
+
+/// Runs the CG from the start value in d.dv; returns the iterations, r2 the last squared
+/// residual. It stops once r2 <= tol2 before the first iteration, or r2 <= d.stop2 after one.
+int run_cg(const CgData<float>& d, int max_iterations, double tol2, double& r2);
+int run_cg(const CgData<double>& d, int max_iterations, double tol2, double& r2);
+
+}  // namespace bisturi::sim

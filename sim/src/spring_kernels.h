@@ -1,0 +1,30 @@
+#pragma once
+// The spring passes over arrays of spring ends, rest lengths and stiffnesses (SoA, padded with
+// null springs to a multiple of 4): forces for the right-hand side of the implicit step, and
+// elastic energies for the divergence guard.
+
+#include <cstddef>
+#include <cstdint>
+
+#include <glm/vec3.hpp>
+
+namespace bisturi::sim {
+
+/// Springs per block of the spring passes: gathered into small arrays, computed in a loop the
+/// compiler vectorises (sqrt and division four or two at a time), then scattered.
+constexpr std::size_t kChunk = 64;
+
+/// Spring forces (with the h^2 H v term of the right-hand side divided by h) accumulated into
+/// f, which must start at zero. ns is a multiple of 4; only the first `real` are scattered.
+double spring_forces(const std::uint32_t* a, const std::uint32_t* b, const double* rest,
+                     const double* k, std::size_t ns, std::size_t real, const glm::dvec3* x,
+                     const glm::dvec3* v, double c, double h, glm::dvec3* f);
+/// spring_forces, returning the springs' elastic energy too.
+double spring_forces_energy(const std::uint32_t* a, const std::uint32_t* b, const double* rest,
+                            const double* k, std::size_t ns, std::size_t real, const glm::dvec3* x,
+                            const glm::dvec3* v, double c, double h, glm::dvec3* f);
+/// The springs' elastic energy at x (ns a multiple of 4, null springs add nothing).
+double spring_energy(const std::uint32_t* a, const std::uint32_t* b, const double* rest,
+                     const double* k, std::size_t ns, const glm::dvec3* x);
+
+}  // namespace bisturi::sim
