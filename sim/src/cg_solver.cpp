@@ -32,9 +32,9 @@ typedef double D4 __attribute__((vector_size(32)));
 /// neighbours, so that float keeps its precision where the two nearly cancel (smooth vectors).
 template <class T>
 BISTURI_INLINE void product_rows(const CgData<T>& d, const T* in, T* out, std::size_t first,
-                                 std::size_t last, D4& acc) {
+                                 std::size_t last, D4& acc_out) {
   using V = typename Lanes<T>::V;
-  acc = D4{0.0, 0.0, 0.0, 0.0};
+  D4 acc = {0.0, 0.0, 0.0, 0.0};  // in a register: the members' outputs share a cache line
   const std::uint32_t* row = d.row;
   const std::uint32_t* col = d.col;
   for (std::size_t i = first; i < last; ++i) {
@@ -52,6 +52,7 @@ BISTURI_INLINE void product_rows(const CgData<T>& d, const T* in, T* out, std::s
     std::memcpy(out + 4 * i, &s, sizeof(V));
     acc += __builtin_convertvector(pi * s, D4);
   }
+  acc_out = acc;
 }
 
 template <class T>
@@ -134,102 +135,169 @@ BISTURI_INLINE double coarse_solve(const CgData<T>& d) {
   return (acc[0] + acc[1]) + (acc[2] + acc[3]);
 }
 
-/// Jacobi-preconditioned CG from the start value in d.dv; returns the iterations, r2 the last
-/// squared residual. Three passes per iteration: A p (with p . A p), the update of dv and r (with
-/// r . z and r . r), the new direction.
+/// Calls rows(first, last, t) for every member's rows (all rows as member 0 without a team).
+template <class T, class Rows>
+BISTURI_INLINE void over_rows(const CgData<T>& d, const Rows& rows) {
+  if (d.team == nullptr) {
+    rows(std::size_t{0}, d.nf, 0u);
+    return;
+  }
+  auto job = [&](unsigned t) { rows(std::size_t{d.part[t]}, std::size_t{d.part[t + 1]}, t); };
+  d.team->run([&job](unsigned t) { job(t); });
+}
+
+/// The passes of one CG iteration over rows [first, last). Those that restrict the residual to
+/// the coarse level add into rc (the member's own copy with a team) and return r . inv r and
+/// r . r per lane.
 template <class T>
-BISTURI_INLINE int cg_impl(const CgData<T>& d, int max_iterations, double tol2, double& r2) {
+struct CgRows {
   using V = typename Lanes<T>::V;
-  constexpr std::size_t kV = sizeof(V);
-  const std::size_t nf = d.nf;
-  const bool two_level = d.nc > 0;
-  T* r = d.r;
-  T* p = d.p;
-  T* ap = d.ap;
-  T* dv = d.dv;
-  const T* inv = d.inv;
-  const std::uint32_t* agg = d.agg;
-  auto sum = [](const D4& a) { return (a[0] + a[1]) + (a[2] + a[3]); };
-  // z = inv r + P xc is never stored: r . z is r . inv r plus rc . xc, and the direction pass
-  // adds P xc itself.
-  auto add_restricted = [&](std::size_t i, const V& ri) {
+  static constexpr std::size_t kV = sizeof(V);
+  const CgData<T>& d;
+  bool two_level;
+
+  BISTURI_INLINE void restrict_to(T* rc, std::size_t i, const V& ri) const {
     V c;
-    std::memcpy(&c, d.rc + 4 * agg[i], kV);
+    std::memcpy(&c, rc + 4 * d.agg[i], kV);
     c += ri;
-    std::memcpy(d.rc + 4 * agg[i], &c, kV);
-  };
-  double rz = 0.0;
-  product(d, dv, ap);
-  {
-    if (two_level) std::fill(d.rc, d.rc + 4 * d.nc, T(0));
-    D4 rz4 = {}, r24 = {};
-    for (std::size_t i = 0; i < nf; ++i) {
+    std::memcpy(rc + 4 * d.agg[i], &c, kV);
+  }
+  /// r = b - A dv, p = inv r.
+  BISTURI_INLINE void first_residual(std::size_t first, std::size_t last, T* rc, D4& rz4_out,
+                                     D4& r24_out) const {
+    D4 rz4 = {}, r24 = {};  // in registers: the members' outputs share cache lines
+    for (std::size_t i = first; i < last; ++i) {
       V bi, api, invi;
       std::memcpy(&bi, d.b + 4 * i, kV);
-      std::memcpy(&api, ap + 4 * i, kV);
-      std::memcpy(&invi, inv + 4 * i, kV);
+      std::memcpy(&api, d.ap + 4 * i, kV);
+      std::memcpy(&invi, d.inv + 4 * i, kV);
       const V ri = bi - api, zi = ri * invi;
-      std::memcpy(r + 4 * i, &ri, kV);
-      std::memcpy(p + 4 * i, &zi, kV);
+      std::memcpy(d.r + 4 * i, &ri, kV);
+      std::memcpy(d.p + 4 * i, &zi, kV);
       rz4 += __builtin_convertvector(ri * zi, D4);
       r24 += __builtin_convertvector(ri * ri, D4);
-      if (two_level) add_restricted(i, ri);
+      if (two_level) restrict_to(rc, i, ri);
     }
-    rz = sum(rz4);
-    r2 = sum(r24);
-    if (two_level) {
-      rz += coarse_solve(d);
-      for (std::size_t i = 0; i < nf; ++i) {
-        V pi, xi;
-        std::memcpy(&pi, p + 4 * i, kV);
-        std::memcpy(&xi, d.xc + 4 * agg[i], kV);
+    rz4_out = rz4;
+    r24_out = r24;
+  }
+  /// p += P xc.
+  BISTURI_INLINE void add_coarse(std::size_t first, std::size_t last) const {
+    for (std::size_t i = first; i < last; ++i) {
+      V pi, xi;
+      std::memcpy(&pi, d.p + 4 * i, kV);
+      std::memcpy(&xi, d.xc + 4 * d.agg[i], kV);
+      pi += xi;
+      std::memcpy(d.p + 4 * i, &pi, kV);
+    }
+  }
+  /// dv += alpha p, r -= alpha A p.
+  BISTURI_INLINE void update(std::size_t first, std::size_t last, T alpha, T* rc, D4& rz4_out,
+                             D4& r24_out) const {
+    D4 rz4 = {}, r24 = {};
+    for (std::size_t i = first; i < last; ++i) {
+      V dvi, ri, pi, api, invi;
+      std::memcpy(&dvi, d.dv + 4 * i, kV);
+      std::memcpy(&ri, d.r + 4 * i, kV);
+      std::memcpy(&pi, d.p + 4 * i, kV);
+      std::memcpy(&api, d.ap + 4 * i, kV);
+      std::memcpy(&invi, d.inv + 4 * i, kV);
+      dvi += pi * alpha;
+      ri -= api * alpha;
+      std::memcpy(d.dv + 4 * i, &dvi, kV);
+      std::memcpy(d.r + 4 * i, &ri, kV);
+      rz4 += __builtin_convertvector(ri * ri * invi, D4);
+      r24 += __builtin_convertvector(ri * ri, D4);
+      if (two_level) restrict_to(rc, i, ri);
+    }
+    rz4_out = rz4;
+    r24_out = r24;
+  }
+  /// p = inv r + P xc + beta p.
+  BISTURI_INLINE void direction(std::size_t first, std::size_t last, T beta) const {
+    for (std::size_t i = first; i < last; ++i) {
+      V ri, pi, invi;
+      std::memcpy(&ri, d.r + 4 * i, kV);
+      std::memcpy(&pi, d.p + 4 * i, kV);
+      std::memcpy(&invi, d.inv + 4 * i, kV);
+      pi = ri * invi + pi * beta;
+      if (two_level) {
+        V xi;
+        std::memcpy(&xi, d.xc + 4 * d.agg[i], kV);
         pi += xi;
-        std::memcpy(p + 4 * i, &pi, kV);
       }
+      std::memcpy(d.p + 4 * i, &pi, kV);
     }
+  }
+};
+
+/// Runs a restricting pass (first_residual or update) over the members' rows: each member
+/// restricts into its own coarse vector (member 0 into d.rc) and keeps its own sums; the
+/// members' coarse vectors and sums are added in member order.
+template <class T, class Pass>
+BISTURI_INLINE void restricting_pass(const CgData<T>& d, bool two_level, const Pass& pass,
+                                     double& rz, double& r2) {
+  const unsigned members = d.team == nullptr ? 1u : d.team->size();
+  const std::size_t n4c = 4 * d.nc;
+  std::array<D4, kMaxThreads> rz4, r24;
+  over_rows(d, [&](std::size_t first, std::size_t last, unsigned t) {
+    T* rc = t == 0 ? d.rc : d.rc_parts + (t - 1) * n4c;
+    if (two_level) std::fill(rc, rc + n4c, T(0));
+    pass(first, last, rc, rz4[t], r24[t]);
+  });
+  for (unsigned t = 1; t < members; ++t) {
+    rz4[0] += rz4[t];
+    r24[0] += r24[t];
+    if (!two_level) continue;
+    const T* part = d.rc_parts + (t - 1) * n4c;
+    for (std::size_t e = 0; e < n4c; ++e)
+      d.rc[e] += part[e];
+  }
+  rz = (rz4[0][0] + rz4[0][1]) + (rz4[0][2] + rz4[0][3]);
+  r2 = (r24[0][0] + r24[0][1]) + (r24[0][2] + r24[0][3]);
+}
+
+/// Jacobi-preconditioned CG from the start value in d.dv; returns the iterations, r2 the last
+/// squared residual. Three passes per iteration: A p (with p . A p), the update of dv and r (with
+/// r . z and r . r), the new direction. z = inv r + P xc is never stored: r . z is r . inv r plus
+/// rc . xc, and the direction pass adds P xc itself.
+template <class T>
+BISTURI_INLINE int cg_impl(const CgData<T>& d, int max_iterations, double tol2, double& r2) {
+  const bool two_level = d.nc > 0;
+  const CgRows<T> rows{d, two_level};
+  double rz = 0.0;
+  product(d, d.dv, d.ap);
+  restricting_pass(
+      d, two_level,
+      [&](std::size_t first, std::size_t last, T* rc, D4& rz4, D4& r24) {
+        rows.first_residual(first, last, rc, rz4, r24);
+      },
+      rz, r2);
+  if (two_level) {
+    rz += coarse_solve(d);
+    over_rows(d,
+              [&](std::size_t first, std::size_t last, unsigned) { rows.add_coarse(first, last); });
   }
   int it = 0;
   while (it < max_iterations && r2 > tol2) {  // tol2 starts the solve, d.stop2 ends it
-    const double pap = product(d, p, ap);
+    const double pap = product(d, d.p, d.ap);
     if (!(pap > 0.0)) break;
     const T alpha = static_cast<T>(rz / pap);
-    if (two_level) std::fill(d.rc, d.rc + 4 * d.nc, T(0));
-    D4 rz4 = {}, r24 = {};
-    for (std::size_t i = 0; i < nf; ++i) {
-      V dvi, ri, pi, api, invi;
-      std::memcpy(&dvi, dv + 4 * i, kV);
-      std::memcpy(&ri, r + 4 * i, kV);
-      std::memcpy(&pi, p + 4 * i, kV);
-      std::memcpy(&api, ap + 4 * i, kV);
-      std::memcpy(&invi, inv + 4 * i, kV);
-      dvi += pi * alpha;
-      ri -= api * alpha;
-      std::memcpy(dv + 4 * i, &dvi, kV);
-      std::memcpy(r + 4 * i, &ri, kV);
-      rz4 += __builtin_convertvector(ri * ri * invi, D4);
-      r24 += __builtin_convertvector(ri * ri, D4);
-      if (two_level) add_restricted(i, ri);
-    }
-    double rz_new = sum(rz4);
-    r2 = sum(r24);
+    double rz_new = 0.0;
+    restricting_pass(
+        d, two_level,
+        [&](std::size_t first, std::size_t last, T* rc, D4& rz4, D4& r24) {
+          rows.update(first, last, alpha, rc, rz4, r24);
+        },
+        rz_new, r2);
     ++it;
     if (it >= max_iterations || r2 <= d.stop2) break;  // no direction needed
     if (two_level) rz_new += coarse_solve(d);
     const T beta = static_cast<T>(rz_new / rz);
     rz = rz_new;
-    for (std::size_t i = 0; i < nf; ++i) {
-      V ri, pi, invi;
-      std::memcpy(&ri, r + 4 * i, kV);
-      std::memcpy(&pi, p + 4 * i, kV);
-      std::memcpy(&invi, inv + 4 * i, kV);
-      pi = ri * invi + pi * beta;
-      if (two_level) {
-        V xi;
-        std::memcpy(&xi, d.xc + 4 * agg[i], kV);
-        pi += xi;
-      }
-      std::memcpy(p + 4 * i, &pi, kV);
-    }
+    over_rows(d, [&](std::size_t first, std::size_t last, unsigned) {
+      rows.direction(first, last, beta);
+    });
   }
   return it;
 }

@@ -34,9 +34,11 @@ struct CgData {
   const T* chol = nullptr;
   T *rc = nullptr, *xc = nullptr;
   double stop2 = 0.0;  ///< squared residual that ends a solve once it has started
-  // Threads (team != nullptr): member t multiplies rows [part[t], part[t + 1]).
+  // Threads (team != nullptr): member t takes rows [part[t], part[t + 1]) of every pass, and
+  // members 1.. restrict their rows' residuals into their own coarse vectors (4 nc each).
   StepThreads* team = nullptr;
   const std::uint32_t* part = nullptr;
+  T* rc_parts = nullptr;
 };
 
 /// Runs the CG from the start value in d.dv; returns the iterations, r2 the last squared

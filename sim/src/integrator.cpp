@@ -547,16 +547,20 @@ void ImplicitIntegrator::solve(const System& st, const double (&w)[4], int max_i
     } else {
       d.chol = st.coarse_f.data();
     }
+    // rc, xc, and a coarse vector for each member after the first.
+    const std::size_t members = step_team_ != nullptr ? step_team_->size() : 1;
+    const std::size_t size = 4 * d.nc * (members + 1);
     T* cbuf = nullptr;
     if constexpr (std::is_same_v<T, double>) {
-      cbuf_d_.assign(8 * d.nc, 0.0);
+      cbuf_d_.assign(size, 0.0);
       cbuf = cbuf_d_.data();
     } else {
-      cbuf_f_.assign(8 * d.nc, 0.0f);
+      cbuf_f_.assign(size, 0.0f);
       cbuf = cbuf_f_.data();
     }
     d.rc = cbuf;
     d.xc = d.rc + 4 * d.nc;
+    d.rc_parts = d.xc + 4 * d.nc;
   }
   double r2 = 0.0;
   const int it = run_cg(d, max_iterations, tol2, r2);
