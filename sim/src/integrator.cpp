@@ -13,6 +13,7 @@
 #include "cg_solver.h"
 #include "spring_kernels.h"
 #include "step_threads.h"
+#include "volume_kernels.h"
 
 namespace bisturi::sim {
 namespace {
@@ -446,7 +447,7 @@ std::string ImplicitIntegrator::check(const SoftBody& body, System& st,
       elastic += partial[t];
   }
   if (body.closed() && body.rest_volume_m3() > 0.0) {
-    const double dv = body.volume_m3() - body.rest_volume_m3();
+    const double dv = volume_now(body) - body.rest_volume_m3();
     elastic += 0.5 * body.material().bulk_modulus_Pa * dv * dv / body.rest_volume_m3();
   }
   const double energy_after = kinetic + potential + elastic;
@@ -646,24 +647,84 @@ double ImplicitIntegrator::spring_pass_parts(const System::SpringSet& sa,
     }
   } springs{*this, sa, x.data(), v.data(), c, h, energy, n, partial};
   step_team_->run([&springs](unsigned t) { springs(t); });
-  struct Sum {
-    ImplicitIntegrator& self;
-    unsigned n;
-    void operator()(unsigned t) const {
-      const Range r = part_of(self.f_.size(), n, t);
-      for (std::size_t i = r.begin; i < r.end; ++i) {
-        glm::dvec3 s = self.f_[i];
-        for (unsigned p = 0; p + 1 < n; ++p)
-          s += self.f_parts_[p][i];
-        self.f_[i] = s;
-      }
-    }
-  } sum{*this, n};
-  step_team_->run([&sum](unsigned t) { sum(t); });
+  add_parts(f_, f_parts_);
   double elastic = 0.0;
   for (unsigned t = 0; t < n; ++t)
     elastic += partial[t];
   return elastic;
+}
+
+void ImplicitIntegrator::add_parts(std::vector<glm::dvec3>& into,
+                                   const std::vector<std::vector<glm::dvec3>>& parts) {
+  // Each member a run of vertices; the arrays are added in member order.
+  struct Sum {
+    std::vector<glm::dvec3>& into;
+    const std::vector<std::vector<glm::dvec3>>& parts;
+    unsigned n;
+    void operator()(unsigned t) const {
+      const Range r = part_of(into.size(), n, t);
+      for (std::size_t i = r.begin; i < r.end; ++i) {
+        glm::dvec3 s = into[i];
+        for (const auto& part : parts)
+          s += part[i];
+        into[i] = s;
+      }
+    }
+  } sum{into, parts, step_team_->size()};
+  step_team_->run([&sum](unsigned t) { sum(t); });
+}
+
+double ImplicitIntegrator::volume_pass(const SoftBody& body) {
+  const auto& x = body.positions();
+  const std::uint32_t* idx = body.triangles().indices.data();
+  const std::size_t nt = body.triangles().size();
+  grad_.assign(x.size(), glm::dvec3(0.0));
+  if (step_team_ == nullptr) return volume_gradient(idx, 0, nt, x.data(), grad_.data());
+  // Member t takes a run of the triangles into its own gradient array (member 0 into grad_).
+  const unsigned n = step_team_->size();
+  grad_parts_.resize(n - 1);
+  std::array<double, kMaxThreads> partial{};
+  struct Triangles {
+    ImplicitIntegrator& self;
+    const std::uint32_t* idx;
+    std::size_t nt;
+    const glm::dvec3* x;
+    unsigned n;
+    std::array<double, kMaxThreads>& partial;
+    void operator()(unsigned t) const {
+      glm::dvec3* g = self.grad_.data();
+      if (t > 0) {
+        self.grad_parts_[t - 1].assign(self.grad_.size(), glm::dvec3(0.0));
+        g = self.grad_parts_[t - 1].data();
+      }
+      const Range r = part_of(nt, n, t);
+      partial[t] = volume_gradient(idx, r.begin, r.end, x, g);
+    }
+  } triangles{*this, idx, nt, x.data(), n, partial};
+  step_team_->run([&triangles](unsigned t) { triangles(t); });
+  add_parts(grad_, grad_parts_);
+  double six_v = 0.0;
+  for (unsigned t = 0; t < n; ++t)
+    six_v += partial[t];
+  return six_v;
+}
+
+double ImplicitIntegrator::volume_now(const SoftBody& body) const {
+  if (step_team_ == nullptr) return body.volume_m3();
+  const unsigned n = step_team_->size();
+  const std::uint32_t* idx = body.triangles().indices.data();
+  const std::size_t nt = body.triangles().size();
+  const glm::dvec3* x = body.positions().data();
+  std::array<double, kMaxThreads> partial{};
+  auto job = [&](unsigned t) {
+    const Range r = part_of(nt, n, t);
+    partial[t] = six_volume(idx, r.begin, r.end, x);
+  };
+  step_team_->run([&job](unsigned t) { job(t); });
+  double six_v = 0.0;
+  for (unsigned t = 0; t < n; ++t)
+    six_v += partial[t];
+  return body.orientation() * six_v / 6.0;
 }
 
 StepThreads* ImplicitIntegrator::team(const IntegratorOptions& options) {
@@ -729,30 +790,7 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
   double p6 = 0.0, volume_energy = 0.0;
   const bool volume_term = body.closed() && body.rest_volume_m3() > 0.0;
   if (volume_term) {
-    grad_.assign(n, glm::dvec3(0.0));
-    const auto& tri = body.triangles();
-    const std::uint32_t* idx = tri.indices.data();
-    const std::size_t nt = tri.size();
-    // Plain scalars: with glm temporaries GCC spilled the cross product to the stack as one
-    // 16-byte and one 8-byte store and read it back across both (a failed store-to-load
-    // forward, about a fifth of this function's time on the Zen 1 machine).
-    static_assert(sizeof(glm::dvec3) == 3 * sizeof(double));
-    const double* xs = &x[0].x;
-    double* gs = &grad_[0].x;
-    double six_v = 0.0;
-    for (std::size_t t = 0; t < nt; ++t) {
-      const std::size_t i0 = 3 * std::size_t(idx[3 * t]), i1 = 3 * std::size_t(idx[3 * t + 1]),
-                        i2 = 3 * std::size_t(idx[3 * t + 2]);
-      const double ax = xs[i1] - xs[i0], ay = xs[i1 + 1] - xs[i0 + 1], az = xs[i1 + 2] - xs[i0 + 2];
-      const double bx = xs[i2] - xs[i0], by = xs[i2 + 1] - xs[i0 + 1], bz = xs[i2 + 2] - xs[i0 + 2];
-      const double nx = ay * bz - az * by, ny = az * bx - ax * bz, nz = ax * by - ay * bx;
-      six_v += xs[i0] * nx + xs[i0 + 1] * ny + xs[i0 + 2] * nz;
-      for (const std::size_t i : {i0, i1, i2}) {
-        gs[i] += nx;
-        gs[i + 1] += ny;
-        gs[i + 2] += nz;
-      }
-    }
+    const double six_v = volume_pass(body);
     const double volume = body.orientation() * (six_v / 6.0);  // as SoftBody::volume_m3()
     const double v0 = body.rest_volume_m3();
     // volume_m3() is measured outward whatever the faces' winding; the gradient follows it.

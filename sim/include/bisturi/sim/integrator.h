@@ -234,6 +234,12 @@ class ImplicitIntegrator {
   /// spring_pass's active springs split over the team; returns their energy when asked.
   double spring_pass_parts(const System::SpringSet& sa, const std::vector<glm::dvec3>& x,
                            const std::vector<glm::dvec3>& v, double c, double h, bool energy);
+  /// Adds the team members' arrays to `into` (in member order, each member a run of items).
+  void add_parts(std::vector<glm::dvec3>& into, const std::vector<std::vector<glm::dvec3>>& parts);
+  /// The volume term's gradient (6 dV/dx) into grad_, split over the team; returns 6 V.
+  double volume_pass(const SoftBody& body);
+  /// The body's enclosed volume (as SoftBody::volume_m3, split over the team).
+  double volume_now(const SoftBody& body) const;
   /// The energy of sys's fixed springs (which do not move while sys is in use), taken once.
   static double fixed_energy(System& sys, const SoftBody& body);
   /// The CG over the free vertices in T (float: half the memory traffic; double for tolerances
@@ -249,10 +255,11 @@ class ImplicitIntegrator {
   std::vector<Structure> structures_;
   std::vector<glm::dvec3> saved_x_, saved_v_;
   std::vector<glm::dvec3> f_, grad_;  ///< per vertex: spring forces, volume gradient (x 6)
-  /// The thread team (options.threads > 1) and the spring forces of its members 1..n-1.
+  /// The thread team (options.threads > 1), and the spring forces and volume gradients of its
+  /// members 1..n-1.
   std::shared_ptr<StepThreads> team_;
   StepThreads* step_team_ = nullptr;  ///< the team of the step in progress
-  std::vector<std::vector<glm::dvec3>> f_parts_;
+  std::vector<std::vector<glm::dvec3>> f_parts_, grad_parts_;
   std::vector<std::uint32_t> row_parts_;  ///< first row of each member's part of the product
   /// The team for options.threads (created or resized here); nullptr for one thread.
   StepThreads* team(const IntegratorOptions& options);
