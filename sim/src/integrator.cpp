@@ -819,41 +819,56 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
   const std::size_t n4 = 4 * nf;
   const std::uint32_t* row = sys->row.data();
   const std::uint32_t* fixed = sys->fixed_count.data();
-  rhs_.assign(n4, 0.0);
+  rhs_.resize(n4);
   diag_.resize(nf);
   self_.resize(nf);
-  inv_diag_.assign(n4, 1.0);
-  double weight2 = 0.0;  // sum of the free vertices' squared masses, for the absolute tolerance
+  inv_diag_.resize(n4);
+  row_residual_.resize(nf);
+  row_gradient_.resize(nf);
+  // The rows split over the team: per row its residual force and pressure gradient (squared),
+  // summed per aggregate below in row order; per member the sum of the free vertices' squared
+  // masses, for the absolute tolerance.
+  std::array<double, kMaxThreads> weight2_part{};
+  run_parts(step_team_, nf, [&](std::size_t first, std::size_t last, unsigned t) {
+    double weight2 = 0.0;
+    for (std::size_t ci = first; ci < last; ++ci) {
+      const std::uint32_t i = vertex[ci];
+      glm::dvec3 f = m[i] * g + fext[i] - drag * m[i] * v[i] + f_[i];
+      if (volume_term) f += p6 * grad_[i];
+      // A loaded vertex does not sleep (the load is applied again step after step).
+      row_residual_[ci] = fext[i] != glm::dvec3(0.0) ? kNeverQuiet : glm::dot(f, f);
+      row_gradient_[ci] = volume_term ? glm::dot(grad_[i], grad_[i]) : 0.0;
+      rhs_[4 * ci] = h * f.x;
+      rhs_[4 * ci + 1] = h * f.y;
+      rhs_[4 * ci + 2] = h * f.z;
+      rhs_[4 * ci + 3] = 0.0;
+      double self = m[i] * (1.0 + h * drag), nbr = 0.0;
+      for (std::size_t k = 0; k < 4; ++k) {
+        self += double(fixed[4 * ci + k]) * w[k];
+        nbr += double(row[4 * ci + k + 1] - row[4 * ci + k]) * w[k];
+      }
+      const double d = self + nbr;
+      self_[ci] = self;
+      diag_[ci] = d;
+      inv_diag_[4 * ci] = d;  // scratch: the diagonal with the contact blocks, inverted below
+      inv_diag_[4 * ci + 1] = d;
+      inv_diag_[4 * ci + 2] = d;
+      inv_diag_[4 * ci + 3] = 1.0;
+      weight2 += m[i] * m[i];
+    }
+    weight2_part[t] = weight2;
+  });
+  double weight2 = 0.0;
+  for (const double w2 : weight2_part)
+    weight2 += w2;
   // Per aggregate, for sleeping: the sums over its vertices of the squared residual force and
   // pressure gradient.
   std::fill(st.step_residual.begin(), st.step_residual.end(), 0.0);
   std::fill(st.step_gradient.begin(), st.step_gradient.end(), 0.0);
   for (std::size_t ci = 0; ci < nf; ++ci) {
-    const std::uint32_t i = vertex[ci];
-    glm::dvec3 f = m[i] * g + fext[i] - drag * m[i] * v[i] + f_[i];
-    if (volume_term) f += p6 * grad_[i];
-    {
-      const std::uint32_t A = full_agg[full_compact[i]];
-      st.step_residual[A] += glm::dot(f, f);
-      if (volume_term) st.step_gradient[A] += glm::dot(grad_[i], grad_[i]);
-      // A loaded vertex does not sleep (the load is applied again step after step).
-      if (fext[i] != glm::dvec3(0.0)) st.step_residual[A] = kNeverQuiet;
-    }
-    rhs_[4 * ci] = h * f.x;
-    rhs_[4 * ci + 1] = h * f.y;
-    rhs_[4 * ci + 2] = h * f.z;
-    double self = m[i] * (1.0 + h * drag), nbr = 0.0;
-    for (std::size_t k = 0; k < 4; ++k) {
-      self += double(fixed[4 * ci + k]) * w[k];
-      nbr += double(row[4 * ci + k + 1] - row[4 * ci + k]) * w[k];
-    }
-    const double d = self + nbr;
-    self_[ci] = self;
-    diag_[ci] = d;
-    inv_diag_[4 * ci] = d;  // scratch: the diagonal with the contact blocks, inverted below
-    inv_diag_[4 * ci + 1] = d;
-    inv_diag_[4 * ci + 2] = d;
-    weight2 += m[i] * m[i];
+    const std::uint32_t A = full_agg[full_compact[vertex[ci]]];
+    st.step_residual[A] += row_residual_[ci];
+    if (volume_term) st.step_gradient[A] += row_gradient_[ci];
   }
   // Contacts: k n n^T blocks on the diagonal, their h^2 H v term on the right-hand side.
   contacts_.clear();
@@ -873,24 +888,25 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
     inv_diag_[4 * ci + 1] += kc * nn.y * nn.y;
     inv_diag_[4 * ci + 2] += kc * nn.z * nn.z;
   }
-  for (std::size_t ci = 0; ci < nf; ++ci) {
-    double* di = &inv_diag_[4 * ci];
-    const bool ok = di[0] > 0.0 && di[1] > 0.0 && di[2] > 0.0;
-    di[0] = ok ? 1.0 / di[0] : 1.0;
-    di[1] = ok ? 1.0 / di[1] : 1.0;
-    di[2] = ok ? 1.0 / di[2] : 1.0;
-  }
-
-  // The solve, warm-started with the last step's dv. It stops at the relative tolerance or when
-  // the residual force is below the absolute one (see IntegratorOptions).
+  // The diagonal inverted, and the solve's start: the warm start, the last step's dv. The solve
+  // stops at the relative tolerance or when the residual force is below the absolute one (see
+  // IntegratorOptions).
   auto& warm = body.warm_start();
-  dv_.assign(n4, 0.0);
-  for (std::size_t ci = 0; ci < nf; ++ci) {
-    const glm::dvec3 w0 = warm[vertex[ci]];
-    dv_[4 * ci] = w0.x;
-    dv_[4 * ci + 1] = w0.y;
-    dv_[4 * ci + 2] = w0.z;
-  }
+  dv_.resize(n4);
+  run_parts(step_team_, nf, [&](std::size_t first, std::size_t last, unsigned) {
+    for (std::size_t ci = first; ci < last; ++ci) {
+      double* di = &inv_diag_[4 * ci];
+      const bool ok = di[0] > 0.0 && di[1] > 0.0 && di[2] > 0.0;
+      di[0] = ok ? 1.0 / di[0] : 1.0;
+      di[1] = ok ? 1.0 / di[1] : 1.0;
+      di[2] = ok ? 1.0 / di[2] : 1.0;
+      const glm::dvec3 w0 = warm[vertex[ci]];
+      dv_[4 * ci] = w0.x;
+      dv_[4 * ci + 1] = w0.y;
+      dv_[4 * ci + 2] = w0.z;
+      dv_[4 * ci + 3] = 0.0;
+    }
+  });
   const double g2 = glm::dot(g, g);
   const double frac2 = options.cg_weight_fraction * options.cg_weight_fraction;
   const double floor2 = options.cg_force_floor_N * options.cg_force_floor_N;
@@ -913,21 +929,28 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
   // Per aggregate, for sleeping: the sum over its vertices of the squared force that one more
   // step at their speed would add to their residual (the diagonal, inertia and springs, times
   // the speed over h): a vertex stopped while it moves that much was not at rest.
-  std::fill(warm.begin(), warm.end(), glm::dvec3(0.0));
+  row_speed_.resize(nf);
+  run_parts(step_team_, nf, [&](std::size_t first, std::size_t last, unsigned) {
+    for (std::size_t ci = first; ci < last; ++ci) {
+      const std::uint32_t i = vertex[ci];
+      const glm::dvec3 d(dv_[4 * ci], dv_[4 * ci + 1], dv_[4 * ci + 2]);
+      warm[i] = d;
+      v[i] += d;
+      const double stop = diag_[ci] / h;
+      row_speed_[ci] = stop * stop * glm::dot(v[i], v[i]);
+    }
+  });
+  // Vertices outside the solve keep no warm start.
+  const std::uint32_t* compact = sys->compact.data();
+  run_parts(step_team_, n, [&](std::size_t first, std::size_t last, unsigned) {
+    for (std::size_t i = first; i < last; ++i) {
+      if (compact[i] == kNotFree) warm[i] = glm::dvec3(0.0);
+      if (m[i] > 0.0) x[i] += h * v[i];
+    }
+  });
   std::fill(st.step_speed.begin(), st.step_speed.end(), 0.0);
-  for (std::size_t ci = 0; ci < nf; ++ci) {
-    const std::uint32_t i = vertex[ci];
-    const glm::dvec3 d(dv_[4 * ci], dv_[4 * ci + 1], dv_[4 * ci + 2]);
-    warm[i] = d;
-    v[i] += d;
-    const std::uint32_t A = full_agg[full_compact[i]];
-    const double stop = diag_[ci] / h;
-    st.step_speed[A] += stop * stop * glm::dot(v[i], v[i]);
-  }
-  for (std::size_t i = 0; i < n; ++i) {
-    if (m[i] <= 0.0) continue;
-    x[i] += h * v[i];
-  }
+  for (std::size_t ci = 0; ci < nf; ++ci)
+    st.step_speed[full_agg[full_compact[vertex[ci]]]] += row_speed_[ci];
   return *sys;
 }
 

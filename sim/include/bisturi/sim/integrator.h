@@ -270,6 +270,9 @@ class ImplicitIntegrator {
   // right-hand side, the diagonal and its inverse (contact blocks included), and the part of the
   // diagonal that is not a free neighbour's weight (mass, drag, springs to constrained vertices).
   std::vector<double> rhs_, diag_, self_, inv_diag_, dv_;
+  /// Per free vertex, summed per aggregate for sleeping: the squared residual force, pressure
+  /// gradient and stopping force of the last substep.
+  std::vector<double> row_residual_, row_gradient_, row_speed_;
   std::vector<float> fbuf_;       ///< float CG vectors (r, p, ap and copies of the above)
   std::vector<double> dbuf_;      ///< double CG vectors
   std::vector<float> cbuf_f_;     ///< coarse vectors (rc, xc) of the float solve
