@@ -203,7 +203,7 @@ void ImplicitIntegrator::aggregate(System& sys) {
     while (size < target && !ring.empty()) {
       next.clear();
       for (std::uint32_t i : ring) {
-        for (std::uint32_t e = row[4 * i]; e < row[4 * i + 4]; ++e) {
+        for (std::uint32_t e = row[4 * std::size_t{i}]; e < row[4 * std::size_t{i} + 4]; ++e) {
           if (sys.agg[col[e]] != kNone) continue;
           sys.agg[col[e]] = count;
           next.push_back(col[e]);
@@ -218,7 +218,7 @@ void ImplicitIntegrator::aggregate(System& sys) {
     changed = false;
     for (std::size_t i = 0; i < nf; ++i) {
       if (sys.agg[i] != kNone) continue;
-      for (std::uint32_t e = row[4 * i]; e < row[4 * i + 4]; ++e) {
+      for (std::uint32_t e = row[4 * std::size_t{i}]; e < row[4 * std::size_t{i} + 4]; ++e) {
         if (sys.agg[col[e]] != kNone) {
           sys.agg[i] = sys.agg[col[e]];
           changed = true;
@@ -875,7 +875,7 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
   for (const SoftBody::ContactTerm& ct : body.contacts()) {
     const std::uint32_t i = ct.vertex;
     if (i >= n || !free_[i]) continue;
-    const std::uint32_t ci = sys->compact[i];
+    const std::size_t ci = sys->compact[i];
     st.step_residual[full_agg[full_compact[i]]] = kNeverQuiet;
     const double kc = h2 * ct.stiffness_N_per_m;
     const glm::dvec3 nn = ct.normal;
