@@ -22,6 +22,15 @@ constexpr std::uint32_t kNotFree = std::numeric_limits<std::uint32_t>::max();
 constexpr std::size_t kMaxStructures = 16;
 constexpr double kNeverQuiet = std::numeric_limits<double>::infinity();
 
+/// The array team member t accumulates into: `first` (zeroed by the caller) for member 0, its
+/// own zeroed array of the same size for the others.
+glm::dvec3* member_array(std::vector<glm::dvec3>& first,
+                         std::vector<std::vector<glm::dvec3>>& others, unsigned t) {
+  if (t == 0) return first.data();
+  others[t - 1].assign(first.size(), glm::dvec3(0.0));
+  return others[t - 1].data();
+}
+
 }  // namespace
 
 ImplicitIntegrator::Structure& ImplicitIntegrator::structure(const SoftBody& body) {
@@ -629,11 +638,7 @@ double ImplicitIntegrator::spring_pass_parts(const System::SpringSet& sa,
     unsigned n;
     std::array<double, kMaxThreads>& partial;
     void operator()(unsigned t) const {
-      glm::dvec3* f = self.f_.data();
-      if (t > 0) {
-        self.f_parts_[t - 1].assign(self.f_.size(), glm::dvec3(0.0));
-        f = self.f_parts_[t - 1].data();
-      }
+      glm::dvec3* f = member_array(self.f_, self.f_parts_, t);
       const Range r = part_of(sa.a.size(), n, t, kChunk);
       const std::size_t real = sa.count > r.begin ? std::min(sa.count, r.end) - r.begin : 0;
       const std::size_t b = r.begin, m = r.end - r.begin;
@@ -692,11 +697,7 @@ double ImplicitIntegrator::volume_pass(const SoftBody& body) {
     unsigned n;
     std::array<double, kMaxThreads>& partial;
     void operator()(unsigned t) const {
-      glm::dvec3* g = self.grad_.data();
-      if (t > 0) {
-        self.grad_parts_[t - 1].assign(self.grad_.size(), glm::dvec3(0.0));
-        g = self.grad_parts_[t - 1].data();
-      }
+      glm::dvec3* g = member_array(self.grad_, self.grad_parts_, t);
       const Range r = part_of(nt, n, t);
       partial[t] = volume_gradient(idx, r.begin, r.end, x, g);
     }
