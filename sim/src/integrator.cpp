@@ -433,28 +433,16 @@ std::string ImplicitIntegrator::check(const SoftBody& body, System& st,
   // Springs between constrained vertices did not move: their energy is the start state's.
   const System::SpringSet& sa = st.active;
   double elastic = fixed_energy(st, body);
-  if (step_team_ == nullptr) {
-    elastic +=
-        spring_energy(sa.a.data(), sa.b.data(), sa.rest.data(), sa.k.data(), sa.a.size(), x.data());
-  } else {
-    const unsigned members = step_team_->size();
-    std::array<double, kMaxThreads> partial{};
-    struct Energy {
-      const System::SpringSet& sa;
-      const glm::dvec3* x;
-      unsigned members;
-      std::array<double, kMaxThreads>& partial;
-      void operator()(unsigned t) const {
-        const Range r = part_of(sa.a.size(), members, t, kChunk);
-        partial[t] =
-            spring_energy(sa.a.data() + r.begin, sa.b.data() + r.begin, sa.rest.data() + r.begin,
-                          sa.k.data() + r.begin, r.end - r.begin, x);
-      }
-    } job{sa, x.data(), members, partial};
-    step_team_->run([&job](unsigned t) { job(t); });
-    for (unsigned t = 0; t < members; ++t)
-      elastic += partial[t];
-  }
+  std::array<double, kMaxThreads> partial{};
+  run_parts(
+      step_team_, sa.a.size(),
+      [&](std::size_t first, std::size_t last, unsigned t) {
+        partial[t] = spring_energy(sa.a.data() + first, sa.b.data() + first, sa.rest.data() + first,
+                                   sa.k.data() + first, last - first, x.data());
+      },
+      kChunk);
+  for (unsigned t = 0; t < members(); ++t)
+    elastic += partial[t];
   if (body.closed() && body.rest_volume_m3() > 0.0) {
     const double dv = volume_now(body) - body.rest_volume_m3();
     elastic += 0.5 * body.material().bulk_modulus_Pa * dv * dv / body.rest_volume_m3();
@@ -597,18 +585,33 @@ double ImplicitIntegrator::spring_pass(System& sys, const SoftBody& body, double
   const auto& v = body.velocities();
   const double c = body.material().spring_damping_N_s_per_m;
   f_.assign(x.size(), glm::dvec3(0.0));
+  // Member t takes a run of the springs into its own force array (member 0 into f_), then the
+  // arrays are added in member order, each member a run of vertices.
   const System::SpringSet& sa = sys.active;
+  f_parts_.resize(members() - 1);
+  std::array<double, kMaxThreads> partial{};
+  run_parts(
+      step_team_, sa.a.size(),
+      [&](std::size_t first, std::size_t last, unsigned t) {
+        glm::dvec3* f = member_array(f_, f_parts_, t);
+        const std::size_t real = sa.count > first ? std::min(sa.count, last) - first : 0;
+        const std::size_t m = last - first;
+        if (energy) {
+          partial[t] =
+              spring_forces_energy(sa.a.data() + first, sa.b.data() + first, sa.rest.data() + first,
+                                   sa.k.data() + first, m, real, x.data(), v.data(), c, h, f);
+        } else {
+          spring_forces(sa.a.data() + first, sa.b.data() + first, sa.rest.data() + first,
+                        sa.k.data() + first, m, real, x.data(), v.data(), c, h, f);
+        }
+      },
+      kChunk);
+  add_parts(f_, f_parts_);
   double elastic = 0.0;
-  if (step_team_ != nullptr) {
-    elastic = spring_pass_parts(sa, x, v, c, h, energy);
-    if (energy) elastic += fixed_energy(sys, body);
-  } else if (energy) {
-    elastic = spring_forces_energy(sa.a.data(), sa.b.data(), sa.rest.data(), sa.k.data(),
-                                   sa.a.size(), sa.count, x.data(), v.data(), c, h, f_.data()) +
-              fixed_energy(sys, body);
-  } else {
-    spring_forces(sa.a.data(), sa.b.data(), sa.rest.data(), sa.k.data(), sa.a.size(), sa.count,
-                  x.data(), v.data(), c, h, f_.data());
+  if (energy) {
+    for (unsigned t = 0; t < members(); ++t)
+      elastic += partial[t];
+    elastic += fixed_energy(sys, body);
   }
   // The halo completes the spring forces on the border of the awake region (for waking).
   const System::SpringSet& sb = sys.halo;
@@ -619,64 +622,18 @@ double ImplicitIntegrator::spring_pass(System& sys, const SoftBody& body, double
   return elastic;
 }
 
-double ImplicitIntegrator::spring_pass_parts(const System::SpringSet& sa,
-                                             const std::vector<glm::dvec3>& x,
-                                             const std::vector<glm::dvec3>& v, double c, double h,
-                                             bool energy) {
-  // Member t takes a run of the springs into its own force array (member 0 into f_), then the
-  // arrays are added in member order, each member a run of vertices.
-  const unsigned n = step_team_->size();
-  f_parts_.resize(n - 1);
-  std::array<double, kMaxThreads> partial{};
-  struct Springs {
-    ImplicitIntegrator& self;
-    const System::SpringSet& sa;
-    const glm::dvec3* x;
-    const glm::dvec3* v;
-    double c, h;
-    bool energy;
-    unsigned n;
-    std::array<double, kMaxThreads>& partial;
-    void operator()(unsigned t) const {
-      glm::dvec3* f = member_array(self.f_, self.f_parts_, t);
-      const Range r = part_of(sa.a.size(), n, t, kChunk);
-      const std::size_t real = sa.count > r.begin ? std::min(sa.count, r.end) - r.begin : 0;
-      const std::size_t b = r.begin, m = r.end - r.begin;
-      if (energy) {
-        partial[t] = spring_forces_energy(sa.a.data() + b, sa.b.data() + b, sa.rest.data() + b,
-                                          sa.k.data() + b, m, real, x, v, c, h, f);
-      } else {
-        spring_forces(sa.a.data() + b, sa.b.data() + b, sa.rest.data() + b, sa.k.data() + b, m,
-                      real, x, v, c, h, f);
-      }
-    }
-  } springs{*this, sa, x.data(), v.data(), c, h, energy, n, partial};
-  step_team_->run([&springs](unsigned t) { springs(t); });
-  add_parts(f_, f_parts_);
-  double elastic = 0.0;
-  for (unsigned t = 0; t < n; ++t)
-    elastic += partial[t];
-  return elastic;
-}
-
 void ImplicitIntegrator::add_parts(std::vector<glm::dvec3>& into,
                                    const std::vector<std::vector<glm::dvec3>>& parts) {
+  if (parts.empty()) return;  // one thread: `into` has everything
   // Each member a run of vertices; the arrays are added in member order.
-  struct Sum {
-    std::vector<glm::dvec3>& into;
-    const std::vector<std::vector<glm::dvec3>>& parts;
-    unsigned n;
-    void operator()(unsigned t) const {
-      const Range r = part_of(into.size(), n, t);
-      for (std::size_t i = r.begin; i < r.end; ++i) {
-        glm::dvec3 s = into[i];
-        for (const auto& part : parts)
-          s += part[i];
-        into[i] = s;
-      }
+  run_parts(step_team_, into.size(), [&](std::size_t first, std::size_t last, unsigned) {
+    for (std::size_t i = first; i < last; ++i) {
+      glm::dvec3 s = into[i];
+      for (const auto& part : parts)
+        s += part[i];
+      into[i] = s;
     }
-  } sum{into, parts, step_team_->size()};
-  step_team_->run([&sum](unsigned t) { sum(t); });
+  });
 }
 
 double ImplicitIntegrator::volume_pass(const SoftBody& body) {
@@ -684,25 +641,13 @@ double ImplicitIntegrator::volume_pass(const SoftBody& body) {
   const std::uint32_t* idx = body.triangles().indices.data();
   const std::size_t nt = body.triangles().size();
   grad_.assign(x.size(), glm::dvec3(0.0));
-  if (step_team_ == nullptr) return volume_gradient(idx, 0, nt, x.data(), grad_.data());
   // Member t takes a run of the triangles into its own gradient array (member 0 into grad_).
-  const unsigned n = step_team_->size();
+  const unsigned n = members();
   grad_parts_.resize(n - 1);
   std::array<double, kMaxThreads> partial{};
-  struct Triangles {
-    ImplicitIntegrator& self;
-    const std::uint32_t* idx;
-    std::size_t nt;
-    const glm::dvec3* x;
-    unsigned n;
-    std::array<double, kMaxThreads>& partial;
-    void operator()(unsigned t) const {
-      glm::dvec3* g = member_array(self.grad_, self.grad_parts_, t);
-      const Range r = part_of(nt, n, t);
-      partial[t] = volume_gradient(idx, r.begin, r.end, x, g);
-    }
-  } triangles{*this, idx, nt, x.data(), n, partial};
-  step_team_->run([&triangles](unsigned t) { triangles(t); });
+  run_parts(step_team_, nt, [&](std::size_t first, std::size_t last, unsigned t) {
+    partial[t] = volume_gradient(idx, first, last, x.data(), member_array(grad_, grad_parts_, t));
+  });
   add_parts(grad_, grad_parts_);
   double six_v = 0.0;
   for (unsigned t = 0; t < n; ++t)
@@ -711,21 +656,22 @@ double ImplicitIntegrator::volume_pass(const SoftBody& body) {
 }
 
 double ImplicitIntegrator::volume_now(const SoftBody& body) const {
-  if (step_team_ == nullptr) return body.volume_m3();
-  const unsigned n = step_team_->size();
+  const unsigned n = members();
   const std::uint32_t* idx = body.triangles().indices.data();
   const std::size_t nt = body.triangles().size();
   const glm::dvec3* x = body.positions().data();
   std::array<double, kMaxThreads> partial{};
-  auto job = [&](unsigned t) {
-    const Range r = part_of(nt, n, t);
-    partial[t] = six_volume(idx, r.begin, r.end, x);
-  };
-  step_team_->run([&job](unsigned t) { job(t); });
+  run_parts(step_team_, nt, [&](std::size_t first, std::size_t last, unsigned t) {
+    partial[t] = six_volume(idx, first, last, x);
+  });
   double six_v = 0.0;
   for (unsigned t = 0; t < n; ++t)
     six_v += partial[t];
   return body.orientation() * six_v / 6.0;
+}
+
+unsigned ImplicitIntegrator::members() const {
+  return step_team_ != nullptr ? step_team_->size() : 1;
 }
 
 StepThreads* ImplicitIntegrator::team(const IntegratorOptions& options) {

@@ -10,6 +10,7 @@
 #include "bisturi/sim/errors.h"
 #include "bisturi/sim/units.h"
 #include "vertex_corners.h"
+#include "volume_kernels.h"
 
 namespace bisturi::sim {
 namespace {
@@ -17,14 +18,7 @@ namespace {
 std::atomic<std::uint64_t> g_generation{0};
 
 double signed_volume(const SurfaceTriangles& t, const std::vector<glm::dvec3>& x) {
-  double six_v = 0.0;
-  for (std::size_t i = 0; i < t.size(); ++i) {
-    const glm::dvec3& a = x[t.indices[3 * i]];
-    const glm::dvec3& b = x[t.indices[3 * i + 1]];
-    const glm::dvec3& c = x[t.indices[3 * i + 2]];
-    six_v += glm::dot(a, glm::cross(b, c));
-  }
-  return six_v / 6.0;
+  return six_volume(t.indices.data(), 0, t.size(), x.data()) / 6.0;
 }
 
 }  // namespace

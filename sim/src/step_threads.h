@@ -50,17 +50,18 @@ inline Range part_of(std::size_t n, unsigned parts, unsigned t, std::size_t alig
   return {cut(t), cut(t + 1)};
 }
 
-/// Calls part(begin, end, t) for every member t of the team on its run of n items, or
-/// part(0, n, 0) on the calling thread when there is no team.
+/// Calls part(begin, end, t) for every member t of the team on its run of n items (each run
+/// starting at a multiple of `align`), or part(0, n, 0) on the calling thread when there is no
+/// team.
 template <class Part>
-void run_parts(StepThreads* team, std::size_t n, const Part& part) {
+void run_parts(StepThreads* team, std::size_t n, const Part& part, std::size_t align = 1) {
   if (team == nullptr) {
     part(std::size_t{0}, n, 0u);
     return;
   }
   const unsigned members = team->size();
   auto job = [&](unsigned t) {
-    const Range r = part_of(n, members, t);
+    const Range r = part_of(n, members, t, align);
     part(r.begin, r.end, t);
   };
   team->run([&job](unsigned t) { job(t); });

@@ -14,7 +14,7 @@ namespace bisturi::sim {
 /// (sum of x0 . area vector).
 double volume_gradient(const std::uint32_t* indices, std::size_t first, std::size_t last,
                        const glm::dvec3* x, glm::dvec3* grad);
-/// 6 V of the triangles in [first, last), as SoftBody::volume_m3 sums it: x0 . (x1 x x2).
+/// 6 V of the triangles in [first, last): the sum of x0 . (x1 x x2) (SoftBody::volume_m3).
 double six_volume(const std::uint32_t* indices, std::size_t first, std::size_t last,
                   const glm::dvec3* x);
 

@@ -231,14 +231,12 @@ class ImplicitIntegrator {
   /// The spring forces of sys (and of its halo) into f_ (zeroed first); when energy is set,
   /// returns the elastic energy of every spring (the fixed ones' is kept in sys).
   double spring_pass(System& sys, const SoftBody& body, double h, bool energy);
-  /// spring_pass's active springs split over the team; returns their energy when asked.
-  double spring_pass_parts(const System::SpringSet& sa, const std::vector<glm::dvec3>& x,
-                           const std::vector<glm::dvec3>& v, double c, double h, bool energy);
   /// Adds the team members' arrays to `into` (in member order, each member a run of items).
   void add_parts(std::vector<glm::dvec3>& into, const std::vector<std::vector<glm::dvec3>>& parts);
   /// The volume term's gradient (6 dV/dx) into grad_, split over the team; returns 6 V.
   double volume_pass(const SoftBody& body);
-  /// The body's enclosed volume (as SoftBody::volume_m3, split over the team).
+  /// The body's enclosed volume, as SoftBody::volume_m3 (the same sum with one thread), split
+  /// over the team.
   double volume_now(const SoftBody& body) const;
   /// The energy of sys's fixed springs (which do not move while sys is in use), taken once.
   static double fixed_energy(System& sys, const SoftBody& body);
@@ -259,6 +257,8 @@ class ImplicitIntegrator {
   /// members 1..n-1.
   std::shared_ptr<StepThreads> team_;
   StepThreads* step_team_ = nullptr;  ///< the team of the step in progress
+  /// The members of the step's team (1 without one).
+  [[nodiscard]] unsigned members() const;
   std::vector<std::vector<glm::dvec3>> f_parts_, grad_parts_;
   std::vector<std::uint32_t> row_parts_;  ///< first row of each member's part of the product
   /// The team for options.threads (created or resized here); nullptr for one thread.
