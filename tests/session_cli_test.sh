@@ -92,9 +92,10 @@ TOML
     # haptic rate; and adapting its rate with a load limit so low that it halves three times
     # (rate-change notes in the trace): all replay exactly. The fixed rate runs 2 s: the rate
     # controller's first decision comes after 256 steps (1.02 s at 250 Hz), and a fixed rate must
-    # never reach it (it once did, and raised 250 Hz to 500 where steps were fast).
+    # never reach it (it once did, and raised 250 Hz to 500 where steps were fast). Two tissue
+    # threads: the trace records the count and the replay steps on as many.
     for variant in "--tissue-in-haptic-thread" "--tissue-lag 1" "--tissue-hz 250" \
-                   "--tissue-max-load 0.001"; do
+                   "--tissue-max-load 0.001" "--tissue-threads 2"; do
       name=$(echo "$variant" | tr -d ' -')
       duration=1
       [ "$variant" = "--tissue-hz 250" ] && duration=2
@@ -107,7 +108,14 @@ TOML
       done
       out=$("$bisturi" replay "$work/$name.btrace" --json) || { echo "$out"; fail "replay $name"; }
       echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "$name did not replay"; }
+      if [ "$name" = "tissuethreads2" ]; then
+        echo "$out" | grep -q '"tissue_threads": 2' || { echo "$out"; fail "replay not on 2 threads"; }
+      fi
     done
+    grep -q '"tissue_threads": 2' "$work/tissuethreads2/report.json" ||
+      fail "the two-thread run does not say so"
+    grep -q '"tissue_threads": 1' "$work/tissuelag1/report.json" ||
+      fail "auto did not pick one tissue thread for the small default scene"
     grep -q '"tissue_step_in_haptic_thread": true' "$work/tissueinhapticthread/report.json" ||
       fail "the inline run does not say so"
     grep -q '"final_hz": 250.0' "$work/tissuehz250/report.json" ||

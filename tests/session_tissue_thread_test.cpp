@@ -15,6 +15,7 @@
 #include "bisturi/runtime/session/procedure.h"
 #include "bisturi/runtime/session/scene_builder.h"
 #include "bisturi/runtime/session/scene_description.h"
+#include "bisturi/runtime/session/session.h"
 #include "bisturi/runtime/session/session_sim.h"
 #include "session/step_schedule.h"
 #include "session/tissue_thread.h"
@@ -154,6 +155,34 @@ TEST(TissueThread, ALateTickUsesTheNewestFinishedStep) {
   EXPECT_FALSE(on_time.late);
   EXPECT_EQ(on_time.step, 10u);
   EXPECT_NE(on_time.output, nullptr);
+}
+
+TEST(SessionSim, AutoTissueThreadsFollowCoresAndSize) {
+  EXPECT_EQ(auto_tissue_threads(1800, 64), 1u);     // the default scene: hand-offs cost more
+  EXPECT_EQ(auto_tissue_threads(20000, 2), 1u);     // this project's 2-vCPU machine
+  EXPECT_EQ(auto_tissue_threads(20000, 3), 1u);     // haptic, renderer, tissue: nothing left
+  EXPECT_EQ(auto_tissue_threads(20000, 4), 2u);     // one free core
+  EXPECT_EQ(auto_tissue_threads(20000, 16), 5u);    // one per 4000 vertices
+  EXPECT_EQ(auto_tissue_threads(1000000, 64), 8u);  // at most 8
+  EXPECT_EQ(auto_tissue_threads(20000, 0), 1u);     // hardware_concurrency() may say 0
+}
+
+TEST(SessionSim, TissueThreadsReachTheIntegratorAndRepeat) {
+  // Two tissue threads: the integrator gets them, and two runs give the same bits (the trace's
+  // replay relies on it).
+  const std::vector<devices::HapticState> states = procedure_states(300);
+  const SceneDescription scene = default_scene();
+  SessionSimOptions options;
+  options.tissue_threads = 2;
+  std::uint64_t hashes[2] = {0, 0};
+  for (std::uint64_t& hash : hashes) {
+    SessionSim sim(scene, build_solids(scene), glove_channels(), options);
+    EXPECT_EQ(sim.world().options().integrator.threads, 2u);
+    for (const devices::HapticState& s : states)
+      sim.tick(s);
+    hash = sim.state_hash();
+  }
+  EXPECT_EQ(hashes[0], hashes[1]);
 }
 
 TEST(SessionSim, CommandForTheStepsOwnTipIsTheStepsCommand) {

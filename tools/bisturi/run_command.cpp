@@ -76,6 +76,12 @@ void add_run_command(CLI::App& app, RunOptions& options, int (*&run)(const RunOp
                   "renderer's)")
       ->capture_default_str()
       ->check(CLI::Range(0.001, 1.0));
+  cmd->add_option("--tissue-threads", options.tissue_threads,
+                  "threads of the soft-tissue step: `auto` gives it the cores that the haptic "
+                  "loop, the renderer and the tissue thread leave free, one per 4000 vertices "
+                  "(1 on this kind of 2-core machine); a number (1-64) fixes it. The trace "
+                  "records it, and the replay uses the same count: the state's bits depend on it")
+      ->capture_default_str();
   cmd->add_flag("--print-default-scene", options.print_default_scene,
                 "print the embedded default scene (TOML) and exit");
   cmd->add_flag("--json", options.json, "write the report as one JSON object on stdout");
@@ -132,6 +138,21 @@ int run_run(const RunOptions& options) {
                                   (std::ostringstream() << scene.rates.haptic_hz).str() + " Hz)");
     so.tissue_ticks_per_step = static_cast<std::uint32_t>(n);
     so.adaptive_tissue_rate = false;
+  }
+  if (options.tissue_threads != "auto") {
+    unsigned long n = 0;
+    std::size_t used = 0;
+    try {
+      n = std::stoul(options.tissue_threads, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != options.tissue_threads.size() || n < 1 ||
+        n > runtime::kMaxTissueThreads)
+      throw std::invalid_argument("--tissue-threads " + options.tissue_threads +
+                                  ": give `auto` or a number from 1 to " +
+                                  std::to_string(runtime::kMaxTissueThreads));
+    so.tissue_threads = static_cast<std::uint32_t>(n);
   }
   if (options.cpu) so.render_device = render::DevicePreference::Cpu;
   ProgressLine line;
@@ -211,6 +232,7 @@ int run_run(const RunOptions& options) {
         {"final_hz", r.haptic_hz / r.tissue_ticks_per_step},
         {"lowest_hz", r.haptic_hz / r.max_tissue_ticks_per_step},
         {"changes", r.tissue_rate_changes}}},
+      {"tissue_threads", r.tissue_threads},
       {"devices", r.devices},
       {"solids", solids},
       {"ticks", r.ticks},
@@ -296,6 +318,7 @@ int run_replay(const ReplayOptions& options) {
   const nlohmann::json j = {
       {"trace", options.trace},
       {"scene", r.scene},
+      {"tissue_threads", r.tissue_threads},
       {"ticks", r.ticks},
       {"force_commands", r.force_commands},
       {"force_mismatches", r.force_mismatches},

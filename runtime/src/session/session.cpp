@@ -206,7 +206,8 @@ glm::dmat4 instrument_pose(const glm::dvec3& from_mm, const glm::dvec3& to_mm) {
 std::string session_trace_config(const std::string& scene_toml,
                                  const std::filesystem::path& base_dir, double haptic_hz,
                                  std::uint16_t glove_device, std::uint32_t tissue_lag_ticks,
-                                 std::uint32_t tissue_ticks_per_step) {
+                                 std::uint32_t tissue_ticks_per_step,
+                                 std::uint32_t tissue_threads) {
   devices::ForceGuardConfig guard;
   guard.period = Nanoseconds{static_cast<std::int64_t>(std::llround(1e9 / haptic_hz))};
   nlohmann::json j = nlohmann::json::parse(devices::force_guard_config_json(guard));
@@ -216,8 +217,19 @@ std::string session_trace_config(const std::string& scene_toml,
                   {"glove_device", glove_device},
                   {"tissue_lag_ticks", tissue_lag_ticks},
                   {"tissue_ticks_per_step", tissue_ticks_per_step},
+                  {"tissue_threads", tissue_threads},
                   {"producer", std::string("bisturi ") + kVersion}};
   return j.dump();
+}
+
+std::uint32_t auto_tissue_threads(std::size_t simulated_vertices, unsigned cores) {
+  constexpr unsigned kBusyThreads = 3;  // haptic loop, renderer, tissue thread
+  constexpr std::size_t kVerticesPerThread = 4000;
+  constexpr std::uint32_t kMostThreads = 8;
+  const std::uint32_t free_cores = cores > kBusyThreads ? cores - kBusyThreads : 0;
+  const std::size_t by_size = simulated_vertices / kVerticesPerThread;
+  return std::clamp<std::uint32_t>(
+      static_cast<std::uint32_t>(std::min<std::size_t>(by_size, free_cores + 1)), 1, kMostThreads);
 }
 
 SessionReport run_session(const SceneDescription& scene, const SessionOptions& options) {
@@ -249,9 +261,16 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   report.max_tissue_ticks_per_step = first_ticks_per_step;
   stage("build");
   std::vector<BuiltSolid> solids = build_solids(scene);
-  for (const BuiltSolid& s : solids)
+  std::size_t simulated_vertices = 0;
+  for (const BuiltSolid& s : solids) {
     report.solids.push_back(
         {s.description->name, s.mesh.num_vertices(), s.mesh.num_faces(), s.build_ms});
+    if (s.description->simulate) simulated_vertices += s.mesh.num_vertices();
+  }
+  report.tissue_threads =
+      options.tissue_threads > 0
+          ? options.tissue_threads
+          : auto_tissue_threads(simulated_vertices, std::thread::hardware_concurrency());
   const auto duration =
       Nanoseconds{static_cast<std::int64_t>(std::llround(report.duration_s * 1e9))};
   const Procedure procedure =
@@ -272,7 +291,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     // The haptic device is opened first, so it is device 0 of the trace.
     header.config = session_trace_config(
         toml, scene.file.empty() ? std::filesystem::path() : scene.file.parent_path(),
-        scene.rates.haptic_hz, 0, lag, first_ticks_per_step);
+        scene.rates.haptic_hz, 0, lag, first_ticks_per_step, report.tissue_threads);
     writer = std::make_unique<devices::TraceWriter>(options.record, header);
     report.trace = options.record;
   }
@@ -287,7 +306,9 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   devices::GuardedHaptic guarded(*glove, guard, clock, writer.get(), glove_index);
   report.max_force_N = choice.haptic->max_force_N;
 
-  SessionSim sim(scene, std::move(solids), glove->capabilities().force_channels);
+  SessionSimOptions sim_options;
+  sim_options.tissue_threads = report.tissue_threads;
+  SessionSim sim(scene, std::move(solids), glove->capabilities().force_channels, sim_options);
 
   // ---- The hand-off ----
   Snapshot initial;

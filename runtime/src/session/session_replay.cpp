@@ -49,6 +49,7 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
   std::uint16_t glove_index = 0;
   std::uint32_t lag = 0;             // traces without the key ran the tissue step inside the tick
   std::uint32_t ticks_per_step = 1;  // and traces without this one stepped at every tick
+  std::uint32_t tissue_threads = 1;  // and on one thread
   try {
     const nlohmann::json& s = config.at("session");
     scene_toml = s.at("scene_toml").get<std::string>();
@@ -57,9 +58,15 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
     if (s.contains("tissue_lag_ticks")) lag = s.at("tissue_lag_ticks").get<std::uint32_t>();
     if (s.contains("tissue_ticks_per_step"))
       ticks_per_step = std::max(1u, s.at("tissue_ticks_per_step").get<std::uint32_t>());
+    if (s.contains("tissue_threads")) tissue_threads = s.at("tissue_threads").get<std::uint32_t>();
   } catch (const nlohmann::json::exception& e) {
     throw devices::TraceError(reader.name() + ": session configuration: " + e.what());
   }
+  if (tissue_threads < 1 || tissue_threads > kMaxTissueThreads)
+    throw devices::TraceError(reader.name() + ": session configuration: tissue_threads " +
+                              std::to_string(tissue_threads) + " is not between 1 and " +
+                              std::to_string(kMaxTissueThreads));
+  result.tissue_threads = tissue_threads;
   const SceneDescription scene =
       parse_scene(scene_toml, reader.name() + " (recorded scene)", base_dir);
   result.scene = scene.name;
@@ -146,9 +153,12 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
         glove = devices::as_haptic(device.get());
         if (glove == nullptr)
           throw devices::TraceError(reader.name() + ": the recorded glove is not a haptic device");
-        if (!sim)
+        if (!sim) {
+          SessionSimOptions sim_options;
+          sim_options.tissue_threads = tissue_threads;
           sim = std::make_unique<SessionSim>(scene, std::move(solids),
-                                             glove->capabilities().force_channels);
+                                             glove->capabilities().force_channels, sim_options);
+        }
         lost = false;
         break;
       }

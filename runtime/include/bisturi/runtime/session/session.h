@@ -82,6 +82,9 @@ struct SessionOptions {
   std::uint32_t max_tissue_ticks_per_step = 8;
   /// The share of the time a step covers that it may take before the rate halves.
   double tissue_max_load = 0.75;
+  /// Threads of the soft-tissue step (the tissue thread plus helpers); 0: auto_tissue_threads.
+  /// Recorded in the trace: the state's bits depend on it.
+  std::uint32_t tissue_threads = 0;
   /// The session's clock; nullptr: devices::steady_clock().
   devices::Clock* clock = nullptr;
   /// Called from the calling thread about ten times a second, and for start-up stages.
@@ -132,6 +135,7 @@ struct SessionReport {
   std::uint32_t tissue_ticks_per_step = 1;
   std::uint32_t max_tissue_ticks_per_step = 1;
   std::uint64_t tissue_rate_changes = 0;
+  std::uint32_t tissue_threads = 1;
   std::vector<SolidReport> solids;
   std::vector<std::string> devices;  ///< "glove: hid-glove (simulated)"
 
@@ -168,6 +172,12 @@ struct SessionReport {
   std::filesystem::path trace;
 };
 
+/// The soft-tissue step's thread count for solids of `simulated_vertices` vertices in all on a
+/// machine with `cores` hardware threads: the cores the haptic loop (which spins), the renderer and
+/// the tissue thread leave free become helpers, one per 4000 vertices (smaller bodies lose more to
+/// the hand-offs than the parts save), at most 8. 1 on a machine with 3 cores or fewer.
+std::uint32_t auto_tissue_threads(std::size_t simulated_vertices, unsigned cores);
+
 /// Runs a live session of `scene`. Throws SceneFileError, render::RenderError (no Vulkan device),
 /// devices::DeviceError / TraceError from the layers below.
 SessionReport run_session(const SceneDescription& scene, const SessionOptions& options);
@@ -177,6 +187,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
 std::string session_trace_config(const std::string& scene_toml,
                                  const std::filesystem::path& base_dir, double haptic_hz,
                                  std::uint16_t glove_device, std::uint32_t tissue_lag_ticks,
-                                 std::uint32_t tissue_ticks_per_step = 1);
+                                 std::uint32_t tissue_ticks_per_step = 1,
+                                 std::uint32_t tissue_threads = 1);
 
 }  // namespace bisturi::runtime

@@ -36,6 +36,7 @@ struct SessionReplayResult {
   }
 
   std::string scene;
+  std::uint32_t tissue_threads = 1;  ///< the recorded thread count the steps ran on
   std::uint64_t ticks = 0;
   std::uint64_t force_commands = 0;
   std::uint64_t force_mismatches = 0;

@@ -52,6 +52,9 @@ struct TickOutput {
   std::size_t events = 0;  ///< events added by this tick (the last ones of events())
 };
 
+/// Most threads a tissue step may use (the integrator's team limit).
+constexpr std::uint32_t kMaxTissueThreads = 64;
+
 struct SessionSimOptions {
   double grasp_close_rad = 0.7;
   double grasp_open_rad = 0.4;
@@ -62,6 +65,9 @@ struct SessionSimOptions {
   double grasp_force_N = 0.8;
   /// Haptics intensity (0-1) while the scalpel cuts.
   double cut_vibration = 0.3;
+  /// Threads of the soft-tissue step (sim::IntegratorOptions::threads). The bits of the state
+  /// depend on it, so a trace records it and its replay uses the same count.
+  unsigned tissue_threads = 1;
 };
 
 class SessionSim {
