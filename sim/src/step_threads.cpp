@@ -14,17 +14,20 @@ void relax() {
 #endif
 }
 
+constexpr std::uint64_t kPartMask = 0xffffffffu;
+
 }  // namespace
 
 StepThreads::StepThreads(unsigned threads) {
+  claim_.store(kPartMask, std::memory_order_relaxed);  // generation 0: no part to claim
   for (unsigned t = 1; t < std::max(1u, threads); ++t)
-    workers_.emplace_back([this, t] { work(t); });
+    workers_.emplace_back([this] { work(); });
 }
 
 StepThreads::~StepThreads() {
   stop_.store(true, std::memory_order_release);
-  generation_.fetch_add(1, std::memory_order_release);
-  generation_.notify_all();
+  claim_.fetch_add(std::uint64_t{1} << 32, std::memory_order_release);
+  claim_.notify_all();
   for (std::thread& w : workers_)
     w.join();
 }
@@ -35,26 +38,56 @@ void StepThreads::run(const std::function<void(unsigned)>& job) {
     return;
   }
   job_ = &job;
-  pending_.store(static_cast<unsigned>(workers_.size()), std::memory_order_relaxed);
-  generation_.fetch_add(1, std::memory_order_release);
-  generation_.notify_all();
+  unfinished_.store(size() - 1, std::memory_order_relaxed);
+  // A new generation with part 1 next (part 0 is the caller's); the release publishes job_.
+  const std::uint64_t generation = (claim_.load(std::memory_order_relaxed) >> 32) + 1;
+  claim_.store((generation << 32) | 1u, std::memory_order_release);
+  claim_.notify_all();
   job(0);
-  while (pending_.load(std::memory_order_acquire) != 0)
-    relax();
+  run_claimed_parts();
+  // Parts a helper claimed and is still running. The yield lets a helper that shares this
+  // core finish instead of spinning through its time slice.
+  for (unsigned spin = 0; unfinished_.load(std::memory_order_acquire) != 0; ++spin) {
+    if (spin < 4096) {
+      relax();
+    } else {
+      std::this_thread::yield();
+    }
+  }
 }
 
-void StepThreads::work(unsigned member) {
-  std::uint32_t seen = 0;
+void StepThreads::run_claimed_parts() {
+  const unsigned parts = size();
+  std::uint64_t c = claim_.load(std::memory_order_acquire);
+  while ((c & kPartMask) < parts) {
+    if (!claim_.compare_exchange_weak(c, c + 1, std::memory_order_acq_rel,
+                                      std::memory_order_acquire))
+      continue;
+    // The claim succeeded: the job of this generation cannot end before this part is done, so
+    // job_ is still its job.
+    (*job_)(static_cast<unsigned>(c & kPartMask));
+    unfinished_.fetch_sub(1, std::memory_order_release);
+    c = claim_.load(std::memory_order_acquire);
+  }
+}
+
+void StepThreads::work() {
   for (;;) {
-    // About 50-100 us of spinning before sleeping: the passes of one step follow each other
-    // closely, and a wake-up from sleep costs tens of microseconds.
-    for (int spin = 0; spin < 20000 && generation_.load(std::memory_order_acquire) == seen; ++spin)
+    std::uint64_t c = claim_.load(std::memory_order_acquire);
+    // Nothing to claim: spin about 50-100 us (the passes of one step follow each other closely,
+    // and a wake-up from sleep costs tens of microseconds), then sleep until the value changes.
+    for (int spin = 0;
+         spin < 20000 && (c & kPartMask) >= size() && !stop_.load(std::memory_order_relaxed);
+         ++spin) {
       relax();
-    generation_.wait(seen, std::memory_order_acquire);
-    seen = generation_.load(std::memory_order_acquire);
+      c = claim_.load(std::memory_order_acquire);
+    }
     if (stop_.load(std::memory_order_acquire)) return;
-    (*job_)(member);
-    pending_.fetch_sub(1, std::memory_order_release);
+    if ((c & kPartMask) >= size()) {
+      claim_.wait(c, std::memory_order_acquire);
+      continue;
+    }
+    run_claimed_parts();
   }
 }
 

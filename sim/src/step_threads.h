@@ -1,10 +1,12 @@
 #pragma once
 // A fixed team of threads for the parallel passes of one soft-tissue step
-// (IntegratorOptions::threads). run(job) calls job(t) for every member t, member 0 on the calling
-// thread, and returns when all are done. Members wait for the next job spinning for a short
-// while (a step's passes come microseconds apart), then sleeping on an atomic wait. Which member
-// does which part is fixed by t alone, so a pass that combines its members' partial sums in
-// member order gives the same bits run after run.
+// (IntegratorOptions::threads). run(job) calls job(t) once for every part t < size() and returns
+// when all are done: the calling thread does part 0, then every thread of the team, the caller
+// included, claims the parts left. Helpers wait for the next job spinning for a short while (a
+// step's passes come microseconds apart), then sleeping on an atomic wait. What a part computes
+// depends on t alone, not on the thread that runs it, so a pass that combines its parts' partial
+// sums in part order gives the same bits run after run; and when a helper is not scheduled
+// (more runnable threads than cores), the caller does its parts instead of waiting for it.
 
 #include <atomic>
 #include <cstdint>
@@ -28,12 +30,17 @@ class StepThreads {
   void run(const std::function<void(unsigned)>& job);
 
  private:
-  void work(unsigned member);
+  void work();
+  /// Claims and runs parts of the current job until none is left.
+  void run_claimed_parts();
 
   std::vector<std::thread> workers_;
   const std::function<void(unsigned)>* job_ = nullptr;
-  std::atomic<std::uint32_t> generation_{0};
-  std::atomic<unsigned> pending_{0};
+  /// The job's generation (high 32 bits) and the next part to claim (low 32): a claim is a
+  /// compare-and-swap on both, so a helper that wakes late cannot claim a part of a newer job
+  /// under an older job's pointer.
+  std::atomic<std::uint64_t> claim_{0};
+  std::atomic<unsigned> unfinished_{0};  ///< parts claimed or not, not done yet
   std::atomic<bool> stop_{false};
 };
 
