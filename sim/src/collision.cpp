@@ -11,6 +11,7 @@
 #include <glm/geometric.hpp>
 
 #include "bisturi/sim/errors.h"
+#include "bvh_patches.h"
 
 namespace bisturi::sim {
 
@@ -61,34 +62,98 @@ glm::dvec3 closest_point_on_triangle(const glm::dvec3& p, const glm::dvec3& a, c
   return a + ab * v + ac * w;
 }
 
+/// One patch's Embree geometry (a triangle mesh over the shared vertex buffer), the indices of
+/// its triangles in the body's SurfaceTriangles (Embree's primID -> the body's triangle) and the
+/// corners Embree holds.
+struct PatchGeometry {
+  RTCScene scene = nullptr;        // the patch's own BVH (owned here)
+  RTCGeometry geometry = nullptr;  // its triangles (owned by its scene)
+  RTCGeometry instance = nullptr;  // its instance in the top level (owned by the top scene)
+  std::vector<std::uint32_t> triangles;
+  std::vector<std::uint32_t> corners;
+};
+
 struct SurfaceBvh::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
-  RTCGeometry geometry = nullptr;
+  std::vector<PatchGeometry> patches;  // geomID = patch index
+  SurfacePatches patch_map;
+  std::vector<float> vertices;  // shared by every patch; capacity for a cut's new vertices
+  std::size_t vertex_capacity = 0;
   RTCScene user_scene = nullptr;  // for rtcCollide
   RTCGeometry user_geometry = nullptr;
   const SoftBody* body = nullptr;  // for the bounds callback during a commit only
   double margin = 0.0;
   std::uint64_t version = 0;
   std::uint64_t rebuilds = 0, refits = 0;
+  std::size_t last_rebuilt_patches = 0;
   std::vector<std::uint32_t> indices;  // copy of the body's triangles at the last build
 
   ~Impl() { release(); }
   void release() {
+    release_user();
     if (scene) rtcReleaseScene(scene);
+    scene = nullptr;
+    for (PatchGeometry& g : patches)
+      if (g.scene) rtcReleaseScene(g.scene);
+    patches.clear();
+  }
+  void release_user() {
     if (user_scene) rtcReleaseScene(user_scene);
-    scene = user_scene = nullptr;
-    geometry = user_geometry = nullptr;
+    user_scene = nullptr;
+    user_geometry = nullptr;
+  }
+
+  /// The body's triangle behind Embree's (geomID, primID).
+  [[nodiscard]] std::uint32_t triangle_of(unsigned geom, unsigned prim) const {
+    return patches[geom].triangles[prim];
   }
 
   void fill_vertices(const SoftBody& b) {
-    auto* vb = static_cast<float*>(rtcGetGeometryBufferData(geometry, RTC_BUFFER_TYPE_VERTEX, 0));
     const auto& x = b.positions();
     for (std::size_t i = 0; i < x.size(); ++i) {
-      vb[3 * i] = static_cast<float>(x[i].x);
-      vb[3 * i + 1] = static_cast<float>(x[i].y);
-      vb[3 * i + 2] = static_cast<float>(x[i].z);
+      vertices[3 * i] = static_cast<float>(x[i].x);
+      vertices[3 * i + 1] = static_cast<float>(x[i].y);
+      vertices[3 * i + 2] = static_cast<float>(x[i].z);
     }
+  }
+
+  /// Gives patch p's corners to Embree (a new index buffer; an empty patch is disabled).
+  void set_corners(std::size_t p, std::vector<std::uint32_t> corners) {
+    PatchGeometry& g = patches[p];
+    g.corners = std::move(corners);
+    const std::size_t nt = g.corners.size() / 3;
+    if (nt == 0) {
+      rtcDisableGeometry(g.instance);
+      return;
+    }
+    rtcEnableGeometry(g.instance);
+    auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+        g.geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), nt));
+    std::copy(g.corners.begin(), g.corners.end(), ib);
+  }
+
+  [[nodiscard]] std::vector<std::uint32_t> corners_of(
+      const std::vector<std::uint32_t>& triangles) const {
+    std::vector<std::uint32_t> c(3 * triangles.size());
+    for (std::size_t k = 0; k < triangles.size(); ++k)
+      for (std::size_t j = 0; j < 3; ++j)
+        c[3 * k + j] = indices[3 * std::size_t{triangles[k]} + j];
+    return c;
+  }
+
+  /// Marks every patch's vertices as changed and commits: Embree refits the patches it did not
+  /// rebuild, and the top level over them.
+  void commit_all() {
+    for (PatchGeometry& g : patches) {
+      if (g.corners.empty()) continue;
+      rtcUpdateGeometryBuffer(g.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
+      rtcCommitGeometry(g.geometry);
+      rtcCommitScene(g.scene);
+      rtcCommitGeometry(g.instance);  // the top level takes the patch's new bounds
+    }
+    rtcCommitScene(scene);
+    if (rtcGetDeviceError(device) != RTC_ERROR_NONE) throw CollisionError("embree: build failed");
   }
 
   void build(const SoftBody& b) {
@@ -96,25 +161,69 @@ struct SurfaceBvh::Impl {
     scene = rtcNewScene(device);
     // COMPACT keeps indexed triangles in the leaves instead of copies of their vertices: a refit
     // then only recomputes bounds (19.4k-vertex sphere, Zen 1: 0.43-0.49 ms against 0.75-1.2 ms).
+    // DYNAMIC with several geometries gives Embree's two-level BVH: one per patch, refitted or
+    // rebuilt on its own, and a top level over them.
     rtcSetSceneFlags(scene,
                      RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_COMPACT | RTC_SCENE_FLAG_ROBUST);
     rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_LOW);
-    geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    rtcSetGeometryBuildQuality(geometry, RTC_BUILD_QUALITY_REFIT);
-    const std::size_t nv = std::max<std::size_t>(b.positions().size(), 1);
-    rtcSetNewGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                            3 * sizeof(float), nv);
     indices = b.triangles().indices;
-    const std::size_t nt = indices.size() / 3;
-    auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
-        geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), nt));
-    std::copy(indices.begin(), indices.end(), ib);
+    patch_map.assign(b.triangles(), b.positions());
+    // Room for the vertices of a few cuts; Embree reads the last vertex with a 16-byte load.
+    const std::size_t nv = b.positions().size();
+    vertex_capacity = nv + nv / 4 + 64;
+    vertices.assign(3 * vertex_capacity + 1, 0.0f);
     fill_vertices(b);
-    rtcCommitGeometry(geometry);
-    rtcAttachGeometry(scene, geometry);
-    rtcReleaseGeometry(geometry);  // the scene holds it
-    rtcCommitScene(scene);
-    if (rtcGetDeviceError(device) != RTC_ERROR_NONE) throw CollisionError("embree: build failed");
+    std::vector<std::vector<std::uint32_t>> split = patch_map.split(b.triangles());
+    patches.resize(split.size());
+    static constexpr float kIdentity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
+    for (std::size_t p = 0; p < split.size(); ++p) {
+      RTCScene ps = rtcNewScene(device);
+      rtcSetSceneFlags(ps, RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_COMPACT | RTC_SCENE_FLAG_ROBUST);
+      rtcSetSceneBuildQuality(ps, RTC_BUILD_QUALITY_LOW);
+      RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
+      rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, vertices.data(),
+                                 0, 3 * sizeof(float), vertex_capacity);
+      rtcAttachGeometryByID(ps, g, 0);
+      rtcReleaseGeometry(g);  // the patch's scene holds it
+      RTCGeometry inst = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+      rtcSetGeometryInstancedScene(inst, ps);
+      rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, kIdentity);
+      rtcAttachGeometryByID(scene, inst, static_cast<unsigned>(p));
+      rtcReleaseGeometry(inst);  // the top scene holds it
+      patches[p].scene = ps;
+      patches[p].geometry = g;
+      patches[p].instance = inst;
+      patches[p].triangles = std::move(split[p]);
+      set_corners(p, corners_of(patches[p].triangles));
+    }
+    commit_all();
+    version = b.topology_version();
+    last_rebuilt_patches = patches.size();
+    ++rebuilds;
+  }
+
+  /// After a topology change: rebuilds the patches whose triangles changed, keeps the others
+  /// (a full build when the new vertices do not fit the shared buffer).
+  void rebuild_changed(const SoftBody& b) {
+    if (scene == nullptr || b.positions().size() > vertex_capacity) {
+      build(b);
+      return;
+    }
+    release_user();  // its primitive count changed
+    indices = b.triangles().indices;
+    patch_map.assign_new_faces(b.triangles(), b.positions());
+    std::vector<std::vector<std::uint32_t>> split = patch_map.split(b.triangles());
+    fill_vertices(b);
+    last_rebuilt_patches = 0;
+    for (std::size_t p = 0; p < patches.size(); ++p) {
+      patches[p].triangles = std::move(split[p]);
+      std::vector<std::uint32_t> corners = corners_of(patches[p].triangles);
+      if (corners == patches[p].corners) continue;
+      set_corners(p, std::move(corners));
+      ++last_rebuilt_patches;
+    }
+    commit_all();
     version = b.topology_version();
     ++rebuilds;
   }
@@ -122,7 +231,7 @@ struct SurfaceBvh::Impl {
   static void bounds(const RTCBoundsFunctionArguments* args) {
     const auto* self = static_cast<const Impl*>(args->geometryUserPtr);
     const auto& x = self->body->positions();
-    const std::uint32_t* t = &self->indices[3 * args->primID];
+    const std::uint32_t* t = &self->indices[3 * std::size_t{args->primID}];
     glm::dvec3 lo = x[t[0]], hi = x[t[0]];
     for (int k = 1; k < 3; ++k) {
       lo = glm::min(lo, x[t[k]]);
@@ -180,13 +289,11 @@ SurfaceBvh& SurfaceBvh::operator=(SurfaceBvh&&) noexcept = default;
 void SurfaceBvh::update(const SoftBody& body) {
   if (body.topology_version() != impl_->version ||
       impl_->indices.size() != body.triangles().indices.size()) {
-    impl_->build(body);
+    impl_->rebuild_changed(body);
     return;
   }
   impl_->fill_vertices(body);
-  rtcUpdateGeometryBuffer(impl_->geometry, RTC_BUFFER_TYPE_VERTEX, 0);
-  rtcCommitGeometry(impl_->geometry);
-  rtcCommitScene(impl_->scene);
+  impl_->commit_all();
   ++impl_->refits;
 }
 
@@ -196,40 +303,47 @@ std::uint64_t SurfaceBvh::rebuilds() const {
 std::uint64_t SurfaceBvh::refits() const {
   return impl_->refits;
 }
+std::size_t SurfaceBvh::patch_count() const {
+  return impl_->patches.size();
+}
+std::size_t SurfaceBvh::last_rebuilt_patches() const {
+  return impl_->last_rebuilt_patches;
+}
 
 namespace {
 
 struct PointQueryData {
   const SoftBody* body;
-  const std::vector<std::uint32_t>* indices;
+  const SurfaceBvh::Impl* bvh;
   glm::dvec3 p;
   SurfacePoint best;
 };
 
 bool point_query(RTCPointQueryFunctionArguments* args) {
   auto* d = static_cast<PointQueryData*>(args->userPtr);
-  const std::uint32_t* t = &(*d->indices)[3 * args->primID];
+  const std::uint32_t triangle = d->bvh->triangle_of(args->context->instID[0], args->primID);
+  const std::uint32_t* t = &d->bvh->indices[3 * std::size_t{triangle}];
   const auto& x = d->body->positions();
   glm::dvec3 bc;
   const glm::dvec3 q = closest_point_on_triangle(d->p, x[t[0]], x[t[1]], x[t[2]], bc);
   const double dist = glm::length(q - d->p);
   const bool better = !d->best.found || dist < d->best.distance_m ||
-                      (dist == d->best.distance_m && args->primID < d->best.triangle);
+                      (dist == d->best.distance_m && triangle < d->best.triangle);
   if (!better || dist > args->query->radius) return false;
   d->best.found = true;
   d->best.point_m = q;
   d->best.distance_m = dist;
-  d->best.triangle = args->primID;
+  d->best.triangle = triangle;
   d->best.barycentric = bc;
   args->query->radius = static_cast<float>(dist) * 1.0001f + 1e-9f;
   return true;
 }
 
 glm::dvec3 triangle_normal(const SoftBody& body, const std::vector<std::uint32_t>& idx,
-                           std::uint32_t t) {
+                           std::uint32_t triangle) {
   const auto& x = body.positions();
-  const glm::dvec3 n =
-      glm::cross(x[idx[3 * t + 1]] - x[idx[3 * t]], x[idx[3 * t + 2]] - x[idx[3 * t]]);
+  const std::size_t t = 3 * std::size_t{triangle};
+  const glm::dvec3 n = glm::cross(x[idx[t + 1]] - x[idx[t]], x[idx[t + 2]] - x[idx[t]]);
   const double l = glm::length(n);
   return l > 0.0 ? n / l : glm::dvec3(0.0, 0.0, 1.0);
 }
@@ -238,7 +352,7 @@ glm::dvec3 triangle_normal(const SoftBody& body, const std::vector<std::uint32_t
 
 SurfacePoint SurfaceBvh::closest_point(const SoftBody& body, const glm::dvec3& p,
                                        double max_distance_m) const {
-  PointQueryData data{&body, &impl_->indices, p, {}};
+  PointQueryData data{&body, impl_.get(), p, {}};
   RTCPointQuery q;
   q.x = static_cast<float>(p.x);
   q.y = static_cast<float>(p.y);
@@ -259,7 +373,7 @@ namespace {
 
 struct NearQueryData {
   const SoftBody* body;
-  const std::vector<std::uint32_t>* indices;
+  const SurfaceBvh::Impl* bvh;
   glm::dvec3 p;
   double radius;
   std::vector<std::uint32_t> found;
@@ -267,11 +381,12 @@ struct NearQueryData {
 
 bool near_query(RTCPointQueryFunctionArguments* args) {
   auto* d = static_cast<NearQueryData*>(args->userPtr);
-  const std::uint32_t* t = &(*d->indices)[3 * args->primID];
+  const std::uint32_t triangle = d->bvh->triangle_of(args->context->instID[0], args->primID);
+  const std::uint32_t* t = &d->bvh->indices[3 * std::size_t{triangle}];
   const auto& x = d->body->positions();
   glm::dvec3 bc;
   const glm::dvec3 q = closest_point_on_triangle(d->p, x[t[0]], x[t[1]], x[t[2]], bc);
-  if (glm::length(q - d->p) <= d->radius) d->found.push_back(args->primID);
+  if (glm::length(q - d->p) <= d->radius) d->found.push_back(triangle);
   return false;  // keep the radius: every triangle within it is wanted
 }
 
@@ -279,7 +394,7 @@ bool near_query(RTCPointQueryFunctionArguments* args) {
 
 std::vector<std::uint32_t> SurfaceBvh::triangles_near(const SoftBody& body, const glm::dvec3& p,
                                                       double radius_m) const {
-  NearQueryData data{&body, &impl_->indices, p, radius_m, {}};
+  NearQueryData data{&body, impl_.get(), p, radius_m, {}};
   RTCPointQuery q;
   q.x = static_cast<float>(p.x);
   q.y = static_cast<float>(p.y);
@@ -317,11 +432,11 @@ SurfacePoint SurfaceBvh::ray(const SoftBody& body, const glm::dvec3& from,
   rtcIntersect1(impl_->scene, &ctx, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return out;
   out.found = true;
-  out.triangle = rh.hit.primID;
+  out.triangle = impl_->triangle_of(rh.hit.instID[0], rh.hit.primID);
   out.distance_m = rh.ray.tfar;
   out.barycentric = {1.0 - rh.hit.u - rh.hit.v, rh.hit.u, rh.hit.v};
   const auto& x = body.positions();
-  const std::uint32_t* t = &impl_->indices[3 * out.triangle];
+  const std::uint32_t* t = &impl_->indices[3 * std::size_t{out.triangle}];
   out.point_m =
       out.barycentric.x * x[t[0]] + out.barycentric.y * x[t[1]] + out.barycentric.z * x[t[2]];
   out.normal = body.orientation() * triangle_normal(body, impl_->indices, out.triangle);

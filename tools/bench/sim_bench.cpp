@@ -162,6 +162,20 @@ void BM_Refit(benchmark::State& state) {
 }
 BENCHMARK(BM_Refit)->Arg(2000)->Arg(20000)->Arg(100000)->Unit(benchmark::kMicrosecond);
 
+// The BVH built anew (what a cut costs the collision side: Embree cannot add primitives to a
+// built scene).
+void BM_Rebuild(benchmark::State& state) {
+  const Shape& shape = sphere(radius_for(state.range(0)));
+  SoftBody body(build_oriented_manifold(shape.polygons), Material{});
+  CollisionDevice device(1);
+  for (auto _ : state) {
+    SurfaceBvh bvh(device, body);
+    benchmark::DoNotOptimize(bvh.rebuilds());
+  }
+  state.counters["triangles"] = double(body.triangles().size());
+}
+BENCHMARK(BM_Rebuild)->Arg(2000)->Arg(20000)->Unit(benchmark::kMillisecond);
+
 // The headset session's shape of work: two small bodies (an organ of about 800 vertices under
 // the probe, a second body of about 800 vertices beside it), lower thirds anchored. Reports the
 // first step after set-up (with SimWorld::prepare() when the argument is 1, without it when 0),
@@ -239,7 +253,9 @@ BENCHMARK(BM_TwoBodies)
     ->Iterations(5);
 
 // One 5 cm cut over the top of the 20k-vertex sphere (path, face splits, vertex splits, springs,
-// masses, triangles and the BVH rebuilt), on a fresh body each time.
+// masses, triangles and the BVH rebuilt), on a fresh body each time. SimWorld::cut in its two
+// parts: the surface (cut_surface: path, splits, springs, masses, triangles) and the body's
+// preparation for the next step (solver structure, coarse factor, BVH rebuild).
 void BM_Cut5cm(benchmark::State& state) {
   const Shape& shape = sphere(radius_for(20000));
   const double c = shape.centre_mm * 1e-3;
@@ -250,22 +266,32 @@ void BM_Cut5cm(benchmark::State& state) {
     const double a = -half_angle + 2.0 * half_angle * i / 8.0;
     points.emplace_back(c + r * std::sin(a), c, c + r * std::cos(a));
   }
-  std::vector<double> samples;
-  std::size_t path = 0;
+  std::vector<double> samples, surface_ms, prepare_ms;
+  std::size_t path = 0, patches = 0, rebuilt = 0;
   for (auto _ : state) {
     WorldOptions options;
     options.embree_threads = 1;
     SimWorld world(options);
     world.add_body(SoftBody(build_oriented_manifold(shape.polygons), Material{}));
     const auto t0 = std::chrono::steady_clock::now();
-    const CutResult cut = world.cut(0, points);
+    const CutResult cut = cut_surface(world.body(0), points, CutOptions{});
     const auto t1 = std::chrono::steady_clock::now();
+    world.prepare_body(0);
+    const auto t2 = std::chrono::steady_clock::now();
     path = cut.path.size();
-    const double sec = std::chrono::duration<double>(t1 - t0).count();
+    patches = world.bvh(0).patch_count();
+    rebuilt = world.bvh(0).last_rebuilt_patches();
+    const double sec = std::chrono::duration<double>(t2 - t0).count();
     state.SetIterationTime(sec);
     samples.push_back(sec * 1e3);
+    surface_ms.push_back(std::chrono::duration<double>(t1 - t0).count() * 1e3);
+    prepare_ms.push_back(std::chrono::duration<double>(t2 - t1).count() * 1e3);
   }
+  state.counters["surface_p50_ms"] = percentile(surface_ms, 0.50);
+  state.counters["prepare_p50_ms"] = percentile(prepare_ms, 0.50);
   state.counters["path_vertices"] = double(path);
+  state.counters["bvh_patches"] = double(patches);
+  state.counters["patches_rebuilt"] = double(rebuilt);
   state.counters["p50_ms"] = percentile(samples, 0.50);
   state.counters["max_ms"] = percentile(samples, 1.0);
 }

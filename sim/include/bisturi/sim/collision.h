@@ -1,9 +1,10 @@
 #pragma once
 // Collision on deforming soft bodies through Embree (kept private to sim: no Embree type in a
-// public header). One SurfaceBvh per body: a triangle BVH refitted every step and rebuilt when
-// the body's topology version moves; closest-point and ray queries for the haptic proxy and the
-// scalpel; and, on request, a user-geometry copy for rtcCollide (Embree's collide works on user
-// geometry only) that finds the triangle pairs of tissue-tissue contact.
+// public header). One SurfaceBvh per body: a two-level triangle BVH (one per patch of about 1024
+// triangles, and a top level over them) refitted every step; when the body's topology version
+// moves, the patches whose triangles changed are rebuilt; closest-point and ray queries for the
+// haptic proxy and the scalpel; and, on request, a user-geometry copy for rtcCollide (Embree's
+// collide works on user geometry only) that finds the triangle pairs of tissue-tissue contact.
 
 #include <cstdint>
 #include <memory>
@@ -50,6 +51,10 @@ class SurfaceBvh {
   void update(const SoftBody& body);
   [[nodiscard]] std::uint64_t rebuilds() const;
   [[nodiscard]] std::uint64_t refits() const;
+  /// Patches of the two-level BVH (one Embree geometry each, about 1024 triangles), and how
+  /// many the last build or topology update rebuilt (the others were refitted).
+  [[nodiscard]] std::size_t patch_count() const;
+  [[nodiscard]] std::size_t last_rebuilt_patches() const;
 
   /// Closest surface point to p within max_distance_m (found = false when none).
   [[nodiscard]] SurfacePoint closest_point(const SoftBody& body, const glm::dvec3& p_m,
@@ -66,8 +71,9 @@ class SurfaceBvh {
   std::vector<std::pair<std::uint32_t, std::uint32_t>> overlapping_triangles(
       const SoftBody& body, SurfaceBvh& other, const SoftBody& other_body, double margin_m);
 
+  struct Impl;  // defined in collision.cpp (Embree's types stay there)
+
  private:
-  struct Impl;
   std::unique_ptr<Impl> impl_;
 };
 

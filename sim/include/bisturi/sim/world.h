@@ -45,6 +45,9 @@ class SimWorld {
   /// what later ones do. Call after the bodies are set up (anchors included); cut() does it for
   /// the body it cut. Optional: without it the first step does the same work.
   void prepare();
+  /// prepare() for body i alone: after its topology or anchors changed through body(i) (cut()
+  /// calls it; the benchmarks time it apart from the cut itself).
+  void prepare_body(std::uint32_t i);
   [[nodiscard]] std::size_t body_count() const { return bodies_.size(); }
   SoftBody& body(std::uint32_t i) { return bodies_[i]; }
   [[nodiscard]] const SurfaceBvh& bvh(std::uint32_t i) const { return bvhs_[i]; }
@@ -65,7 +68,6 @@ class SimWorld {
 
  private:
   void tissue_contacts();
-  void prepare_body(std::uint32_t i);
 
   WorldOptions options_;
   std::unique_ptr<CollisionDevice> device_;  // heap: the world stays movable

@@ -1,0 +1,108 @@
+// Surface patches for the two-level BVH (see bvh_patches.h).
+
+#include "bvh_patches.h"
+
+#include <algorithm>
+#include <utility>
+
+#include <glm/common.hpp>
+
+namespace bisturi::sim {
+
+namespace {
+
+constexpr std::uint32_t kUnassigned = 0xffffffffu;
+
+/// Spreads the low 10 bits of v to every third bit.
+std::uint32_t spread_bits(std::uint32_t v) {
+  v &= 0x3ffu;
+  v = (v | (v << 16)) & 0x030000ffu;
+  v = (v | (v << 8)) & 0x0300f00fu;
+  v = (v | (v << 4)) & 0x030c30c3u;
+  v = (v | (v << 2)) & 0x09249249u;
+  return v;
+}
+
+std::uint32_t cell(double u) {
+  return static_cast<std::uint32_t>(std::clamp(u, 0.0, 1023.0));
+}
+
+}  // namespace
+
+std::uint32_t SurfacePatches::code_of(const SurfaceTriangles& triangles, std::size_t triangle,
+                                      const std::vector<glm::dvec3>& x) const {
+  const std::uint32_t* t = &triangles.indices[3 * triangle];
+  const glm::dvec3 c = (x[t[0]] + x[t[1]] + x[t[2]]) / 3.0;
+  const glm::dvec3 u = (c - lo_) * scale_;
+  return spread_bits(cell(u.x)) | (spread_bits(cell(u.y)) << 1) | (spread_bits(cell(u.z)) << 2);
+}
+
+void SurfacePatches::assign(const SurfaceTriangles& triangles, const std::vector<glm::dvec3>& x) {
+  patch_of_face_.clear();
+  first_code_.clear();
+  if (triangles.size() == 0) return;
+  glm::dvec3 lo = x[triangles.indices[0]], hi = lo;
+  for (const std::uint32_t v : triangles.indices) {
+    lo = glm::min(lo, x[v]);
+    hi = glm::max(hi, x[v]);
+  }
+  lo_ = lo;
+  const glm::dvec3 size = glm::max(hi - lo, glm::dvec3(1e-12));
+  scale_ = glm::dvec3(1024.0) / size;
+
+  // One entry per face (its first triangle gives the centroid), with its triangle count. A
+  // face's triangles are consecutive (triangulate_surface fans each face in turn).
+  struct FaceEntry {
+    std::uint32_t code, face, triangles;
+  };
+  std::vector<FaceEntry> faces;
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    const std::uint32_t f = triangles.face_of[t].idx;
+    if (t > 0 && triangles.face_of[t - 1].idx == f) {
+      ++faces.back().triangles;
+      continue;
+    }
+    faces.push_back({code_of(triangles, t, x), f, 1});
+  }
+  std::sort(faces.begin(), faces.end(), [](const FaceEntry& a, const FaceEntry& b) {
+    return std::pair(a.code, a.face) < std::pair(b.code, b.face);
+  });
+  std::size_t in_patch = kTrianglesPerPatch;  // the first face opens a patch
+  for (const FaceEntry& e : faces) {
+    if (in_patch >= kTrianglesPerPatch) {
+      first_code_.push_back(e.code);
+      in_patch = 0;
+    }
+    if (e.face >= patch_of_face_.size()) patch_of_face_.resize(e.face + 1, kUnassigned);
+    patch_of_face_[e.face] = static_cast<std::uint32_t>(first_code_.size() - 1);
+    in_patch += e.triangles;
+  }
+}
+
+void SurfacePatches::assign_new_faces(const SurfaceTriangles& triangles,
+                                      const std::vector<glm::dvec3>& x) {
+  if (first_code_.empty()) {
+    assign(triangles, x);
+    return;
+  }
+  for (std::size_t t = 0; t < triangles.size(); ++t) {
+    const std::uint32_t f = triangles.face_of[t].idx;
+    if (f < patch_of_face_.size() && patch_of_face_[f] != kUnassigned) continue;
+    if (f >= patch_of_face_.size()) patch_of_face_.resize(f + 1, kUnassigned);
+    const std::uint32_t code = code_of(triangles, t, x);
+    const auto after = std::upper_bound(first_code_.begin(), first_code_.end(), code);
+    patch_of_face_[f] = after == first_code_.begin()
+                            ? 0u
+                            : static_cast<std::uint32_t>(after - first_code_.begin() - 1);
+  }
+}
+
+std::vector<std::vector<std::uint32_t>> SurfacePatches::split(
+    const SurfaceTriangles& triangles) const {
+  std::vector<std::vector<std::uint32_t>> out(count());
+  for (std::size_t t = 0; t < triangles.size(); ++t)
+    out[patch_of_face_[triangles.face_of[t].idx]].push_back(static_cast<std::uint32_t>(t));
+  return out;
+}
+
+}  // namespace bisturi::sim
