@@ -47,88 +47,77 @@ WeldResult weld_exact(std::span<const Dlfl::Vec3> positions) {
   const std::size_t n = positions.size();
   reserve_mapped(out.welded_index, n);
   out.welded_index.resize(n);
+  // Kept places, numbered as they first appear. The table compares against this compact array
+  // (recent places are near each other in it), not against the whole input. Reserved for every
+  // vertex but not mapped: only what is written costs memory.
+  ScratchVector<Dlfl::Vec3> kept;
+  kept.reserve(n);
   // Open addressing, linear probing, at most 3/4 full. Fresh memory is slow here and a soup
-  // keeps about one vertex in six, so the table starts small and doubles when it fills.
+  // keeps about one vertex in six, so the table starts small and doubles when it fills. A slot
+  // holds the hash's high half beside the kept number: a probe past another place mostly
+  // rejects it without reading that place's coordinates (a cache miss).
+  constexpr std::uint64_t kEmptySlot = ~std::uint64_t{0};
+  constexpr std::uint64_t kTagBits = 0xffffffff00000000ull;
   std::size_t size = 16;
   while (3 * size < n)
     size *= 2;
   std::size_t mask = size - 1;
-  auto slot_of = [](const Dlfl::Vec3& p) { return hash_bits(p.x, p.y, p.z); };
-  // Pass 1: the table holds the first input vertex of every place; each vertex notes its first.
-  ScratchVector<std::uint32_t> table;
+  ScratchVector<std::uint64_t> table;
   reserve_mapped(table, size);
-  table.assign(size, kEmpty);
-  std::size_t kept = 0;
-  // Places recur close together in a soup (the faces around a vertex are near in the file): a
-  // small cache of recent places, holding their coordinates, answers most repeats from L2
-  // instead of a table probe plus a random read of the first vertex's coordinates.
-  struct Recent {
-    Dlfl::Vec3 p;
-    std::uint32_t first = kEmpty;
-  };
-  constexpr std::size_t kRecent = std::size_t{1} << 14;
-  const std::size_t recent_size = n >= 4 * kRecent ? kRecent : 0;
-  std::vector<Recent> recent;
-  reserve_mapped(recent, recent_size);
-  recent.resize(recent_size);
+  table.assign(size, kEmptySlot);
+  auto hash_of = [](const Dlfl::Vec3& p) { return hash_bits(p.x, p.y, p.z); };
+  // The time goes in cache misses on the table: each vertex's slot is prefetched kAhead
+  // vertices early (its hash kept until then), so the misses of several vertices overlap.
+  constexpr std::size_t kAhead = 16;
+  std::array<std::uint64_t, kAhead> ahead{};
+  for (std::size_t i = 0; i < kAhead && i < n; ++i) {
+    ahead[i] = hash_of(positions[i]);
+    __builtin_prefetch(&table[ahead[i] & mask]);
+  }
   for (std::size_t i = 0; i < n; ++i) {
     const Dlfl::Vec3& p = positions[i];
-    const std::uint64_t hash = slot_of(p);
-    Recent* cached = nullptr;
-    if (!recent.empty()) {
-      cached = &recent[(hash >> 40) & (kRecent - 1)];
-      if (cached->first != kEmpty && cached->p.x == p.x && cached->p.y == p.y &&
-          cached->p.z == p.z) {
-        out.welded_index[i] = cached->first;
-        continue;
-      }
+    const std::uint64_t hash = ahead[i % kAhead];
+    if (i + kAhead < n) {
+      const std::uint64_t later = hash_of(positions[i + kAhead]);
+      ahead[i % kAhead] = later;
+      __builtin_prefetch(&table[later & mask]);
     }
-    std::size_t slot = hash & mask;
-    while (true) {
-      const std::uint32_t first = table[slot];
-      if (first == kEmpty) {
-        table[slot] = static_cast<std::uint32_t>(i);
-        out.welded_index[i] = static_cast<std::uint32_t>(i);
-        ++kept;
+    for (std::size_t slot = hash & mask;; slot = (slot + 1) & mask) {
+      const std::uint64_t entry = table[slot];
+      if (entry == kEmptySlot) {
+        const auto k = static_cast<std::uint32_t>(kept.size());
+        table[slot] = (hash & kTagBits) | k;
+        kept.push_back(p);
+        out.welded_index[i] = k;
         break;
       }
-      const Dlfl::Vec3& q = positions[first];
+      const auto k = static_cast<std::uint32_t>(entry);
+      if ((entry & kTagBits) != (hash & kTagBits)) continue;
+      const Dlfl::Vec3& q = kept[k];
       if (p.x == q.x && p.y == q.y && p.z == q.z) {
-        out.welded_index[i] = first;
+        out.welded_index[i] = k;
         break;
       }
-      slot = (slot + 1) & mask;
     }
-    if (cached != nullptr) *cached = {p, out.welded_index[i]};
-    if (4 * kept > 3 * size) {
-      ScratchVector<std::uint32_t> bigger;
-      reserve_mapped(bigger, 2 * size);
-      bigger.assign(2 * size, kEmpty);
-      const std::size_t bigger_mask = 2 * size - 1;
-      for (const std::uint32_t first : table) {
-        if (first == kEmpty) continue;
-        std::size_t s = slot_of(positions[first]) & bigger_mask;
-        while (bigger[s] != kEmpty)
-          s = (s + 1) & bigger_mask;
-        bigger[s] = first;
+    if (4 * kept.size() > 3 * size) {
+      size *= 2;
+      mask = size - 1;
+      ScratchVector<std::uint64_t> bigger;
+      reserve_mapped(bigger, size);
+      bigger.assign(size, kEmptySlot);
+      for (std::uint32_t k = 0; k < kept.size(); ++k) {
+        const std::uint64_t h = hash_of(kept[k]);
+        std::size_t s = h & mask;
+        while (bigger[s] != kEmptySlot)
+          s = (s + 1) & mask;
+        bigger[s] = (h & kTagBits) | k;
       }
       table = std::move(bigger);
-      size *= 2;
-      mask = bigger_mask;
     }
   }
-  // Pass 2: kept vertices numbered in order of first appearance, into an exactly sized array.
-  // A repeat's first vertex comes earlier, so it is already renumbered.
-  reserve_mapped(out.positions, kept);
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::uint32_t first = out.welded_index[i];
-    if (first == i) {
-      out.welded_index[i] = static_cast<std::uint32_t>(out.positions.size());
-      out.positions.push_back(positions[i]);
-    } else {
-      out.welded_index[i] = out.welded_index[first];
-    }
-  }
+  // Sized exactly, so the DLFL can take them as they are.
+  reserve_mapped(out.positions, kept.size());
+  out.positions.assign(kept.begin(), kept.end());
   return out;
 }
 
