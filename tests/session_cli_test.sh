@@ -103,7 +103,8 @@ TOML
       "$bisturi" run --duration $duration --eye-width 128 --eye-height 128 --no-openxr $variant \
         --out "$work/$name" --record "$work/$name.btrace" > "$work/$name.txt" 2>&1 ||
         { cat "$work/$name.txt"; fail "bisturi run $variant exited with $?"; }
-      for key in late_ticks max_tissue_backlog missed_by_late_wakeup tissue_lag_ticks; do
+      for key in late_ticks max_tissue_backlog missed_by_late_wakeup tissue_lag_ticks initial_hz \
+                 calibration_step_ms; do
         grep -q "\"$key\"" "$work/$name/report.json" || fail "report.json has no $key"
       done
       out=$("$bisturi" replay "$work/$name.btrace" --json) || { echo "$out"; fail "replay $name"; }

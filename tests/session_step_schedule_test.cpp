@@ -109,6 +109,17 @@ TEST(TissueRateController, ALowerLoadLimitHalvesSooner) {
   EXPECT_EQ(b, 1u);
 }
 
+TEST(TissueRateController, FirstRateCoversTheStepAtTheLoadLimit) {
+  // 1 ms ticks, steps may take 3/4 of their time.
+  EXPECT_EQ(ticks_per_step_for(0.5, 1.0, 0.75, 8), 1u);
+  EXPECT_EQ(ticks_per_step_for(0.75, 1.0, 0.75, 8), 1u);  // exactly at the limit still fits
+  EXPECT_EQ(ticks_per_step_for(0.9, 1.0, 0.75, 8), 2u);
+  EXPECT_EQ(ticks_per_step_for(3.3, 1.0, 0.75, 8), 8u);   // 6.5k-vertex organ, Zen 1
+  EXPECT_EQ(ticks_per_step_for(50.0, 1.0, 0.75, 8), 8u);  // never past the most
+  EXPECT_EQ(ticks_per_step_for(50.0, 1.0, 0.75, 6), 6u);
+  EXPECT_EQ(ticks_per_step_for(0.9, 1.0, 0.75, 0), 1u);
+}
+
 TEST(LockstepNotes, RoundTripAndRefuseWhatTheyAreNot) {
   const auto l = parse_late_tick_note(late_tick_note(1234, 1229));
   ASSERT_TRUE(l.has_value());

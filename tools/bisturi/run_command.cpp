@@ -229,6 +229,8 @@ int run_run(const RunOptions& options) {
       {"tissue_lag_ticks", r.tissue_lag_ticks},
       {"tissue_rate",
        {{"adaptive", r.adaptive_tissue_rate},
+        {"initial_hz", r.haptic_hz / r.first_tissue_ticks_per_step},
+        {"calibration_step_ms", r.calibration_step_ms},
         {"final_hz", r.haptic_hz / r.tissue_ticks_per_step},
         {"lowest_hz", r.haptic_hz / r.max_tissue_ticks_per_step},
         {"changes", r.tissue_rate_changes}}},

@@ -36,6 +36,7 @@
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/sim/units.h"
 #include "lockstep_notes.h"
+#include "rate_calibration.h"
 #include "step_schedule.h"
 #include "tissue_thread.h"
 
@@ -255,10 +256,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   const std::uint32_t lag = options.tissue_thread ? options.tissue_lag_ticks : 0;
   report.tissue_in_haptic_thread = !options.tissue_thread;
   report.tissue_lag_ticks = lag;
-  const std::uint32_t first_ticks_per_step = std::max(1u, options.tissue_ticks_per_step);
+  std::uint32_t first_ticks_per_step = std::max(1u, options.tissue_ticks_per_step);
   report.adaptive_tissue_rate = options.adaptive_tissue_rate;
-  report.tissue_ticks_per_step = first_ticks_per_step;
-  report.max_tissue_ticks_per_step = first_ticks_per_step;
   stage("build");
   std::vector<BuiltSolid> solids = build_solids(scene);
   std::size_t simulated_vertices = 0;
@@ -271,6 +270,20 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
       options.tissue_threads > 0
           ? options.tissue_threads
           : auto_tissue_threads(simulated_vertices, std::thread::hardware_concurrency());
+  SessionSimOptions sim_options;
+  sim_options.tissue_threads = report.tissue_threads;
+  if (options.adaptive_tissue_rate) {
+    // The first rate from a few timed steps of a copy (rate_calibration.h); the trace records
+    // the rate chosen, so a replay does not depend on this machine's timing.
+    stage("timing the tissue step");
+    const RateCalibration calibration = calibrate_tissue_rate(
+        scene, solids, sim_options, options.tissue_max_load, options.max_tissue_ticks_per_step);
+    report.calibration_step_ms = calibration.median_step_ms;
+    first_ticks_per_step = std::max(first_ticks_per_step, calibration.ticks_per_step);
+  }
+  report.first_tissue_ticks_per_step = first_ticks_per_step;
+  report.tissue_ticks_per_step = first_ticks_per_step;
+  report.max_tissue_ticks_per_step = first_ticks_per_step;
   const auto duration =
       Nanoseconds{static_cast<std::int64_t>(std::llround(report.duration_s * 1e9))};
   const Procedure procedure =
@@ -306,8 +319,6 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   devices::GuardedHaptic guarded(*glove, guard, clock, writer.get(), glove_index);
   report.max_force_N = choice.haptic->max_force_N;
 
-  SessionSimOptions sim_options;
-  sim_options.tissue_threads = report.tissue_threads;
   SessionSim sim(scene, std::move(solids), glove->capabilities().force_channels, sim_options);
 
   // ---- The hand-off ----

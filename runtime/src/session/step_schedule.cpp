@@ -31,6 +31,14 @@ std::uint64_t StepSchedule::due(std::uint64_t k) {
   return due_;
 }
 
+std::uint32_t ticks_per_step_for(double step_ms, double haptic_period_ms, double max_load,
+                                 std::uint32_t max_ticks) {
+  std::uint32_t n = 1;
+  while (n < max_ticks && step_ms > max_load * n * haptic_period_ms)
+    n *= 2;
+  return std::min(n, std::max(1u, max_ticks));
+}
+
 TissueRateController::TissueRateController(std::uint32_t ticks_per_step, std::uint32_t max_ticks,
                                            double haptic_period_ms, double max_load)
     : n_(std::max(1u, ticks_per_step)),

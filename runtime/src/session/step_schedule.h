@@ -48,6 +48,12 @@ class StepSchedule {
   std::deque<std::uint64_t> due_ticks_;  ///< of the steps handed over and not yet due
 };
 
+/// The fewest ticks per step (a power of two, at most max_ticks) whose time covers a step of
+/// step_ms at no more than max_load of it: the controller's criterion for doubling, used to
+/// pick the first rate (rate_calibration.h).
+std::uint32_t ticks_per_step_for(double step_ms, double haptic_period_ms, double max_load,
+                                 std::uint32_t max_ticks);
+
 /// Picks the ticks per step from how long the tissue thread's steps take: doubles it (up to
 /// max_ticks) when the median step takes more than `max_load` (3/4) of the time it covers,
 /// halves it when the median would take under half that share of the halved step's time, with
