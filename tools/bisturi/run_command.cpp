@@ -231,6 +231,8 @@ int run_run(const RunOptions& options) {
        {{"adaptive", r.adaptive_tissue_rate},
         {"initial_hz", r.haptic_hz / r.first_tissue_ticks_per_step},
         {"calibration_step_ms", r.calibration_step_ms},
+        {"calibration_error", r.calibration_error.empty() ? nlohmann::json(nullptr)
+                                                          : nlohmann::json(r.calibration_error)},
         {"final_hz", r.haptic_hz / r.tissue_ticks_per_step},
         {"lowest_hz", r.haptic_hz / r.max_tissue_ticks_per_step},
         {"changes", r.tissue_rate_changes}}},

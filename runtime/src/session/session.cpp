@@ -275,11 +275,18 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   if (options.adaptive_tissue_rate) {
     // The first rate from a few timed steps of a copy (rate_calibration.h); the trace records
     // the rate chosen, so a replay does not depend on this machine's timing.
+    // A copy that does not build (it should, from a built solid) leaves the rate where it was:
+    // the controller still adapts it.
     stage("timing the tissue step");
-    const RateCalibration calibration = calibrate_tissue_rate(
-        scene, solids, sim_options, options.tissue_max_load, options.max_tissue_ticks_per_step);
-    report.calibration_step_ms = calibration.median_step_ms;
-    first_ticks_per_step = std::max(first_ticks_per_step, calibration.ticks_per_step);
+    try {
+      const RateCalibration calibration = calibrate_tissue_rate(
+          scene, solids, sim_options, options.tissue_max_load, options.max_tissue_ticks_per_step);
+      report.calibration_step_ms = calibration.median_step_ms;
+      first_ticks_per_step = std::max(first_ticks_per_step, calibration.ticks_per_step);
+    } catch (const std::exception& e) {
+      report.calibration_step_ms = -1.0;
+      report.calibration_error = e.what();
+    }
   }
   report.first_tissue_ticks_per_step = first_ticks_per_step;
   report.tissue_ticks_per_step = first_ticks_per_step;

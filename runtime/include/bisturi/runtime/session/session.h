@@ -134,7 +134,8 @@ struct SessionReport {
   /// Haptic ticks per tissue step: at the start (with an adaptive rate, from the median of a
   /// few timed steps, calibration_step_ms), at the end, the most used, and how often it changed.
   std::uint32_t first_tissue_ticks_per_step = 1;
-  double calibration_step_ms = 0.0;
+  double calibration_step_ms = 0.0;  ///< 0: not calibrated (fixed rate); -1: it failed
+  std::string calibration_error;
   std::uint32_t tissue_ticks_per_step = 1;
   std::uint32_t max_tissue_ticks_per_step = 1;
   std::uint64_t tissue_rate_changes = 0;
