@@ -91,20 +91,21 @@ BISTURI_INLINE double product(const CgData<T>& d, const T* in, T* out) {
   return in_out;
 }
 
-/// The coarse correction: xc = (P^T A P)^-1 rc by the packed Cholesky factor (forward, then
+/// The coarse correction: xc = (P^T A P)^-1 rc by the skyline Cholesky factor (forward, then
 /// backward by columns so both sweeps read rows); returns rc . xc.
 template <class T>
 BISTURI_INLINE double coarse_solve(const CgData<T>& d) {
   using V = typename Lanes<T>::V;
   constexpr std::size_t kV = sizeof(V);
   const std::size_t nc = d.nc;
-  const T* L = d.chol;
   T* x = d.xc;
+  // factor_row(i)[j] is L_ij for j in [first[i], i].
+  auto factor_row = [&](std::size_t i) { return d.chol + d.chol_start[i] - d.chol_first[i]; };
   for (std::size_t i = 0; i < nc; ++i) {
-    const T* li = L + i * (i + 1) / 2;
+    const T* li = factor_row(i);
     V s;
     std::memcpy(&s, d.rc + 4 * i, kV);
-    for (std::size_t j = 0; j < i; ++j) {
+    for (std::size_t j = d.chol_first[i]; j < i; ++j) {
       V xj;
       std::memcpy(&xj, x + 4 * j, kV);
       s -= xj * li[j];
@@ -113,12 +114,12 @@ BISTURI_INLINE double coarse_solve(const CgData<T>& d) {
     std::memcpy(x + 4 * i, &s, kV);
   }
   for (std::size_t i = nc; i-- > 0;) {
-    const T* li = L + i * (i + 1) / 2;
+    const T* li = factor_row(i);
     V xi;
     std::memcpy(&xi, x + 4 * i, kV);
     xi *= li[i];
     std::memcpy(x + 4 * i, &xi, kV);
-    for (std::size_t j = 0; j < i; ++j) {
+    for (std::size_t j = d.chol_first[i]; j < i; ++j) {
       V xj;
       std::memcpy(&xj, x + 4 * j, kV);
       xj -= xi * li[j];

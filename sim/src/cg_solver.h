@@ -27,11 +27,14 @@ struct CgData {
   const double* contact = nullptr;     ///< 5 per contact: compact index, nx, ny, nz, k
   std::size_t contacts = 0;
   T *dv = nullptr, *r = nullptr, *p = nullptr, *ap = nullptr;
-  // Coarse level (nc = 0: Jacobi alone): row -> aggregate, packed Cholesky factor (inverted
-  // diagonal), and two 4-lane vectors of nc aggregates.
+  // Coarse level (nc = 0: Jacobi alone): row -> aggregate, the Cholesky factor in skyline form
+  // (row I: columns chol_first[I]..I from chol[chol_start[I]], the diagonal inverted), and two
+  // 4-lane vectors of nc aggregates.
   std::size_t nc = 0;
   const std::uint32_t* agg = nullptr;
   const T* chol = nullptr;
+  const std::uint32_t* chol_first = nullptr;
+  const std::uint32_t* chol_start = nullptr;
   T *rc = nullptr, *xc = nullptr;
   double stop2 = 0.0;  ///< squared residual that ends a solve once it has started
   // Threads (team != nullptr): member t takes rows [part[t], part[t + 1]) of every pass, and

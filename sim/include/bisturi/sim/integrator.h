@@ -154,13 +154,15 @@ class ImplicitIntegrator {
     bool fixed_energy_valid = false;
     /// The coarse level of the preconditioner: rows grouped into aggregates of nearby vertices
     /// (agg: row -> aggregate), and the Cholesky factor of the aggregated matrix P^T A P
-    /// (contacts left out), packed lower rows with the diagonal inverted, for the h it was built
-    /// with (coarse_h < 0: none yet).
+    /// (contacts left out) in skyline form: row I holds columns coarse_first[I]..I from
+    /// coarse[coarse_start[I]], the diagonal inverted; for the h it was built with (coarse_h < 0:
+    /// none yet).
     std::vector<std::uint32_t> agg;
     std::uint32_t coarse_count = 0;
     double coarse_h = -1.0;
     std::vector<double> coarse;
     std::vector<float> coarse_f;
+    std::vector<std::uint32_t> coarse_first, coarse_start;
   };
   /// The springs of one body generation as arrays, the system over its free vertices (neither
   /// anchored, kinematic nor massless; rebuilt when that set changes), and the sleep state of
