@@ -17,6 +17,7 @@
 #include "bisturi/runtime/session/scene_description.h"
 #include "bisturi/runtime/session/session.h"
 #include "bisturi/runtime/session/session_sim.h"
+#include "session/rate_calibration.h"
 #include "session/step_schedule.h"
 #include "session/tissue_thread.h"
 
@@ -183,6 +184,28 @@ TEST(SessionSim, TissueThreadsReachTheIntegratorAndRepeat) {
     hash = sim.state_hash();
   }
   EXPECT_EQ(hashes[0], hashes[1]);
+}
+
+TEST(SessionSim, RateCalibrationTimesACopyAndLeavesTheSolidsAlone) {
+  const SceneDescription scene = default_scene();
+  const std::vector<BuiltSolid> solids = build_solids(scene);
+  std::vector<std::vector<Dlfl::Vec3>> before;
+  for (const BuiltSolid& s : solids) {
+    before.emplace_back();
+    for (std::uint32_t v = 0; v < s.mesh.vertex_capacity(); ++v)
+      before.back().push_back(s.mesh.position(VertexId(v)));
+  }
+  const RateCalibration c = calibrate_tissue_rate(scene, solids, {}, 0.75, 8);
+  EXPECT_GT(c.median_step_ms, 0.0);
+  EXPECT_EQ(c.ticks_per_step,
+            ticks_per_step_for(c.median_step_ms, 1000.0 / scene.rates.haptic_hz, 0.75, 8));
+  // A load limit no step can meet asks for the slowest rate.
+  EXPECT_EQ(calibrate_tissue_rate(scene, solids, {}, 1e-9, 8).ticks_per_step, 8u);
+  for (std::size_t b = 0; b < solids.size(); ++b) {
+    ASSERT_EQ(solids[b].mesh.vertex_capacity(), before[b].size());
+    for (std::uint32_t v = 0; v < solids[b].mesh.vertex_capacity(); ++v)
+      ASSERT_EQ(solids[b].mesh.position(VertexId(v)), before[b][v]);
+  }
 }
 
 TEST(SessionSim, CommandForTheStepsOwnTipIsTheStepsCommand) {
