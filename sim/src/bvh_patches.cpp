@@ -23,8 +23,10 @@ std::uint32_t spread_bits(std::uint32_t v) {
   return v;
 }
 
+/// u's cell on a 1024-cell axis (0 for a NaN: a position the guard has not rolled back yet must
+/// not make the cast undefined).
 std::uint32_t cell(double u) {
-  return static_cast<std::uint32_t>(std::clamp(u, 0.0, 1023.0));
+  return u > 0.0 ? static_cast<std::uint32_t>(std::min(u, 1023.0)) : 0u;
 }
 
 }  // namespace

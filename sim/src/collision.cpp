@@ -76,7 +76,7 @@ struct PatchGeometry {
 struct SurfaceBvh::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
-  std::vector<PatchGeometry> patches;  // geomID = patch index
+  std::vector<PatchGeometry> patches;  // instance ID in the top scene = patch index
   SurfacePatches patch_map;
   std::vector<float> vertices;  // shared by every patch; capacity for a cut's new vertices
   std::size_t vertex_capacity = 0;
@@ -104,7 +104,7 @@ struct SurfaceBvh::Impl {
     user_geometry = nullptr;
   }
 
-  /// The body's triangle behind Embree's (geomID, primID).
+  /// The body's triangle behind Embree's (instance ID, primID).
   [[nodiscard]] std::uint32_t triangle_of(unsigned geom, unsigned prim) const {
     return patches[geom].triangles[prim];
   }
@@ -206,7 +206,8 @@ struct SurfaceBvh::Impl {
   /// After a topology change: rebuilds the patches whose triangles changed, keeps the others
   /// (a full build when the new vertices do not fit the shared buffer).
   void rebuild_changed(const SoftBody& b) {
-    if (scene == nullptr || b.positions().size() > vertex_capacity) {
+    // A body that had no triangles has no patches to keep.
+    if (scene == nullptr || patches.empty() || b.positions().size() > vertex_capacity) {
       build(b);
       return;
     }
