@@ -27,32 +27,34 @@ struct Nearest {
   std::uint32_t triangle = 0;
 };
 
+/// The distance from p to every triangle of the body, in triangle order.
+std::vector<double> brute_distances(const SoftBody& body, const glm::dvec3& p) {
+  const auto& idx = body.triangles().indices;
+  const auto& x = body.positions();
+  std::vector<double> out;
+  for (std::size_t i = 0; i < idx.size(); i += 3) {
+    glm::dvec3 bc;
+    const glm::dvec3 q = closest_point_on_triangle(p, x[idx[i]], x[idx[i + 1]], x[idx[i + 2]], bc);
+    out.push_back(glm::length(q - p));
+  }
+  return out;
+}
+
 /// The closest triangle to p over every triangle of the body (the lowest index on a tie, as the
 /// BVH's query breaks ties).
 Nearest brute_closest(const SoftBody& body, const glm::dvec3& p) {
-  const auto& idx = body.triangles().indices;
-  const auto& x = body.positions();
   Nearest best;
-  for (std::uint32_t t = 0; t < body.triangles().size(); ++t) {
-    const std::size_t i = 3 * std::size_t{t};
-    glm::dvec3 bc;
-    const glm::dvec3 q = closest_point_on_triangle(p, x[idx[i]], x[idx[i + 1]], x[idx[i + 2]], bc);
-    const double d = glm::length(q - p);
-    if (d < best.distance) best = {d, t};
-  }
+  const std::vector<double> d = brute_distances(body, p);
+  for (std::uint32_t t = 0; t < d.size(); ++t)
+    if (d[t] < best.distance) best = {d[t], t};
   return best;
 }
 
 std::vector<std::uint32_t> brute_near(const SoftBody& body, const glm::dvec3& p, double r) {
-  const auto& idx = body.triangles().indices;
-  const auto& x = body.positions();
   std::vector<std::uint32_t> out;
-  for (std::uint32_t t = 0; t < body.triangles().size(); ++t) {
-    const std::size_t i = 3 * std::size_t{t};
-    glm::dvec3 bc;
-    const glm::dvec3 q = closest_point_on_triangle(p, x[idx[i]], x[idx[i + 1]], x[idx[i + 2]], bc);
-    if (glm::length(q - p) <= r) out.push_back(t);
-  }
+  const std::vector<double> d = brute_distances(body, p);
+  for (std::uint32_t t = 0; t < d.size(); ++t)
+    if (d[t] <= r) out.push_back(t);
   return out;
 }
 

@@ -161,8 +161,8 @@ struct SurfaceBvh::Impl {
     scene = rtcNewScene(device);
     // COMPACT keeps indexed triangles in the leaves instead of copies of their vertices: a refit
     // then only recomputes bounds (19.4k-vertex sphere, Zen 1: 0.43-0.49 ms against 0.75-1.2 ms).
-    // DYNAMIC with several geometries gives Embree's two-level BVH: one per patch, refitted or
-    // rebuilt on its own, and a top level over them.
+    // The top level holds one identity instance per patch; each patch's scene is refitted or
+    // rebuilt on its own (see bvh_patches.h).
     rtcSetSceneFlags(scene,
                      RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_COMPACT | RTC_SCENE_FLAG_ROBUST);
     rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_LOW);
@@ -313,6 +313,21 @@ std::size_t SurfaceBvh::last_rebuilt_patches() const {
 
 namespace {
 
+/// The closest point to p on the body's triangle behind a point query's hit.
+struct HitPoint {
+  std::uint32_t triangle;
+  glm::dvec3 point;
+  glm::dvec3 barycentric;
+};
+HitPoint closest_on_hit(const SurfaceBvh::Impl& bvh, const SoftBody& body,
+                        const RTCPointQueryFunctionArguments* args, const glm::dvec3& p) {
+  HitPoint h{bvh.triangle_of(args->context->instID[0], args->primID), {}, {}};
+  const std::uint32_t* t = &bvh.indices[3 * std::size_t{h.triangle}];
+  const auto& x = body.positions();
+  h.point = closest_point_on_triangle(p, x[t[0]], x[t[1]], x[t[2]], h.barycentric);
+  return h;
+}
+
 struct PointQueryData {
   const SoftBody* body;
   const SurfaceBvh::Impl* bvh;
@@ -322,20 +337,16 @@ struct PointQueryData {
 
 bool point_query(RTCPointQueryFunctionArguments* args) {
   auto* d = static_cast<PointQueryData*>(args->userPtr);
-  const std::uint32_t triangle = d->bvh->triangle_of(args->context->instID[0], args->primID);
-  const std::uint32_t* t = &d->bvh->indices[3 * std::size_t{triangle}];
-  const auto& x = d->body->positions();
-  glm::dvec3 bc;
-  const glm::dvec3 q = closest_point_on_triangle(d->p, x[t[0]], x[t[1]], x[t[2]], bc);
-  const double dist = glm::length(q - d->p);
+  const HitPoint h = closest_on_hit(*d->bvh, *d->body, args, d->p);
+  const double dist = glm::length(h.point - d->p);
   const bool better = !d->best.found || dist < d->best.distance_m ||
-                      (dist == d->best.distance_m && triangle < d->best.triangle);
+                      (dist == d->best.distance_m && h.triangle < d->best.triangle);
   if (!better || dist > args->query->radius) return false;
   d->best.found = true;
-  d->best.point_m = q;
+  d->best.point_m = h.point;
   d->best.distance_m = dist;
-  d->best.triangle = triangle;
-  d->best.barycentric = bc;
+  d->best.triangle = h.triangle;
+  d->best.barycentric = h.barycentric;
   args->query->radius = static_cast<float>(dist) * 1.0001f + 1e-9f;
   return true;
 }
@@ -382,12 +393,8 @@ struct NearQueryData {
 
 bool near_query(RTCPointQueryFunctionArguments* args) {
   auto* d = static_cast<NearQueryData*>(args->userPtr);
-  const std::uint32_t triangle = d->bvh->triangle_of(args->context->instID[0], args->primID);
-  const std::uint32_t* t = &d->bvh->indices[3 * std::size_t{triangle}];
-  const auto& x = d->body->positions();
-  glm::dvec3 bc;
-  const glm::dvec3 q = closest_point_on_triangle(d->p, x[t[0]], x[t[1]], x[t[2]], bc);
-  if (glm::length(q - d->p) <= d->radius) d->found.push_back(triangle);
+  const HitPoint h = closest_on_hit(*d->bvh, *d->body, args, d->p);
+  if (glm::length(h.point - d->p) <= d->radius) d->found.push_back(h.triangle);
   return false;  // keep the radius: every triangle within it is wanted
 }
 

@@ -34,7 +34,7 @@ std::uint64_t StepSchedule::due(std::uint64_t k) {
 std::uint32_t ticks_per_step_for(double step_ms, double haptic_period_ms, double max_load,
                                  std::uint32_t max_ticks) {
   std::uint32_t n = 1;
-  while (n < max_ticks && step_ms > max_load * n * haptic_period_ms)
+  while (n < max_ticks && step_too_slow(step_ms, n, haptic_period_ms, max_load))
     n *= 2;
   return std::min(n, std::max(1u, max_ticks));
 }
@@ -51,7 +51,8 @@ std::uint32_t TissueRateController::decide(double median_step_ms) {
   // 48 steps after a change the median (of 32, TissueThread::median_step_ms) holds steps of the
   // new length only. Going down waits longer: a step that just fits is worse than a longer one.
   const double covered_ms = n_ * period_ms_;
-  if (since_change_ >= 48 && median_step_ms > max_load_ * covered_ms && n_ < max_) {
+  if (since_change_ >= 48 && step_too_slow(median_step_ms, n_, period_ms_, max_load_) &&
+      n_ < max_) {
     n_ = std::min(max_, 2 * n_);
     since_change_ = 0;
   } else if (since_change_ >= 256 && n_ > 1 &&

@@ -48,9 +48,15 @@ class StepSchedule {
   std::deque<std::uint64_t> due_ticks_;  ///< of the steps handed over and not yet due
 };
 
-/// The fewest ticks per step (a power of two, at most max_ticks) whose time covers a step of
-/// step_ms at no more than max_load of it: the controller's criterion for doubling, used to
-/// pick the first rate (rate_calibration.h).
+/// Whether a step of step_ms takes more than max_load of the `ticks` haptic periods it covers:
+/// the controller's criterion for doubling the ticks per step.
+constexpr bool step_too_slow(double step_ms, std::uint32_t ticks, double haptic_period_ms,
+                             double max_load) {
+  return step_ms > max_load * (ticks * haptic_period_ms);
+}
+
+/// The fewest ticks per step (a power of two, at most max_ticks) for which a step of step_ms is
+/// not too slow (step_too_slow), to pick the first rate (rate_calibration.h).
 std::uint32_t ticks_per_step_for(double step_ms, double haptic_period_ms, double max_load,
                                  std::uint32_t max_ticks);
 
