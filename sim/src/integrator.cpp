@@ -38,9 +38,23 @@ ImplicitIntegrator::Structure& ImplicitIntegrator::structure(const SoftBody& bod
   for (Structure& s : structures_) {
     if (s.generation == generation) return s;
   }
-  if (structures_.size() >= kMaxStructures) structures_.erase(structures_.begin());
   Structure st;
+  // After a cut the body's previous structure is dead: its storage is reused, because fresh pages
+  // cost about 2 ms of a 5 cm cut at 20k vertices on this project's VM (page faults, zeroing).
+  const auto previous =
+      std::find_if(structures_.begin(), structures_.end(),
+                   [&](const Structure& s) { return s.lineage == body.lineage(); });
+  if (previous != structures_.end()) {
+    st = std::move(*previous);
+    structures_.erase(previous);
+    st.free_mask.clear();  // the free system is rebuilt for the new springs
+    st.part_dirty = true;
+    std::fill(std::begin(st.k_class), std::end(st.k_class), 0.0);
+  } else if (structures_.size() >= kMaxStructures) {
+    structures_.erase(structures_.begin());
+  }
   st.generation = generation;
+  st.lineage = body.lineage();
   const auto& springs = body.springs();
   const std::size_t n = body.positions().size();
   if (n > kIndexMask) throw SimInputError("integrator: more than 2^30 vertex slots");

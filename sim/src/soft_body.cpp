@@ -16,6 +16,7 @@ namespace bisturi::sim {
 namespace {
 
 std::atomic<std::uint64_t> g_generation{0};
+std::atomic<std::uint64_t> g_lineage{0};
 
 double signed_volume(const SurfaceTriangles& t, const std::vector<glm::dvec3>& x) {
   return six_volume(t.indices.data(), 0, t.size(), x.data()) / 6.0;
@@ -24,7 +25,7 @@ double signed_volume(const SurfaceTriangles& t, const std::vector<glm::dvec3>& x
 }  // namespace
 
 SoftBody::SoftBody(Dlfl mesh, const Material& material)
-    : mesh_(std::move(mesh)), material_(material) {
+    : mesh_(std::move(mesh)), material_(material), lineage_(++g_lineage) {
   check_material(material_);
   if (mesh_.num_faces() == 0) throw SimInputError("soft body: the solid has no faces");
   auto& props = mesh_.vertex_properties();

@@ -169,6 +169,7 @@ class ImplicitIntegrator {
   /// the free system's aggregates with the system over the awake ones.
   struct Structure {
     std::uint64_t generation = 0;
+    std::uint64_t lineage = 0;        ///< the body's (SoftBody::lineage)
     std::vector<std::uint32_t> a, b;  ///< spring ends
     std::vector<double> rest, k;
     std::vector<std::uint8_t> spring_class;  ///< index into k_class

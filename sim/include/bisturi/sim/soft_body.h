@@ -103,6 +103,9 @@ class SoftBody {
   /// Unique over every body of the process and every rebuild of the derived data: a cache key
   /// for data derived from springs and masses (the integrator's solver structure).
   [[nodiscard]] std::uint64_t derived_generation() const { return derived_generation_; }
+  /// Unique over every body of the process and kept across topology changes: data derived for
+  /// an older generation of the same body can be recycled (its memory is already resident).
+  [[nodiscard]] std::uint64_t lineage() const { return lineage_; }
 
   // ---- Energies (J) for the divergence guard and the tests ----
   [[nodiscard]] double kinetic_energy() const;
@@ -149,6 +152,7 @@ class SoftBody {
   double orientation_ = 1.0;
   std::uint64_t topology_version_ = 0;
   std::uint64_t derived_generation_ = 0;
+  std::uint64_t lineage_ = 0;
   bool frozen_ = false;
 };
 
