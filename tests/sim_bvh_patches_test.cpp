@@ -84,10 +84,10 @@ double brute_ray(const SoftBody& body, const glm::dvec3& from, const glm::dvec3&
 /// Query points in a shell around the sphere's surface, and rays from outside towards points
 /// inside, all from a fixed seed.
 void expect_queries_match(const SoftBody& body, const SurfaceBvh& bvh, std::uint32_t seed,
-                          const glm::dvec3& focus, double spread) {
+                          const glm::dvec3& focus, double spread, int queries = 150) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
-  for (int i = 0; i < 150; ++i) {
+  for (int i = 0; i < queries; ++i) {
     const glm::dvec3 p = focus + spread * glm::dvec3(unit(rng), unit(rng), unit(rng));
     const Nearest want = brute_closest(body, p);
     const SurfacePoint got = bvh.closest_point(body, p);
@@ -135,6 +135,8 @@ TEST(SimBvhPatches, ACutRebuildsSomePatchesAndQueriesStillMatch) {
   EXPECT_EQ(bvh.patch_count(), patches);
   EXPECT_GT(bvh.last_rebuilt_patches(), 0u);
   EXPECT_LT(bvh.last_rebuilt_patches(), patches);
+  // The changed patches kept their BVHs: the cut's new triangles are in the loose patch.
+  EXPECT_GT(bvh.loose_triangles(), 0u);
   // Around the incision (the new faces and the split ones) and over the whole body.
   const glm::dvec3 top(kCentre, kCentre, kCentre + kRadius);
   expect_queries_match(world.body(0), bvh, 11, top, 0.012);
@@ -143,6 +145,110 @@ TEST(SimBvhPatches, ACutRebuildsSomePatchesAndQueriesStillMatch) {
   for (int s = 0; s < 5; ++s)
     world.step(top + glm::dvec3(0.0, 0.0, 0.01));
   expect_queries_match(world.body(0), bvh, 17, top, 0.012);
+}
+
+/// Rays straight down into the incision of a cut along the sphere's top meridian (y = centre),
+/// opened by `gap` metres: each must find what a brute-force pass finds, never a dead triangle
+/// of a kept patch spanning the opening.
+void expect_rays_into_gap_match(const SoftBody& body, const SurfaceBvh& bvh, double gap) {
+  for (int i = 0; i < 40; ++i) {
+    const double x = kCentre - 0.008 + 0.016 * i / 39.0;
+    const double y = kCentre + gap * (0.25 + 0.5 * (i % 5) / 4.0);
+    const glm::dvec3 from(x, y, kCentre + 0.08), to(x, y, kCentre);
+    const double hit = brute_ray(body, from, to);
+    const SurfacePoint ray = bvh.ray(body, from, to);
+    ASSERT_EQ(ray.found, std::isfinite(hit)) << "ray " << i;
+    if (ray.found) {
+      EXPECT_NEAR(ray.distance_m, hit, 1e-6) << "ray " << i;
+    }
+  }
+}
+
+TEST(SimBvhPatches, RaysPassThroughTheDeadTrianglesOfAnOpenedIncision) {
+  // The far lip is moved away from the near one, in either direction (one of them opens the
+  // incision; the dead triangles of the kept patches still span it).
+  for (const double gap : {0.0015, -0.0015}) {
+    WorldOptions options;
+    options.integrator.gravity_m_s2 = glm::dvec3(0.0);
+    SimWorld world(options);
+    world.add_body(SoftBody(testing::sphere(56, 25.0), Material{}));
+    std::vector<glm::dvec3> points;
+    const double half_angle = 0.01 / kRadius;
+    for (int i = 0; i <= 8; ++i) {
+      const double a = -half_angle + 2.0 * half_angle * i / 8.0;
+      points.emplace_back(kCentre + kRadius * std::sin(a), kCentre,
+                          kCentre + kRadius * std::cos(a));
+    }
+    const CutResult cut = world.cut(0, points);
+    ASSERT_GT(cut.new_vertices.size(), 2u);
+    ASSERT_GT(world.bvh(0).loose_triangles(), 0u) << "the cut should keep stale patches";
+    SoftBody& body = world.body(0);
+    for (const VertexId v : cut.new_vertices)
+      body.set_position(v, body.position(v) + glm::dvec3(0.0, gap, 0.0));
+    world.prepare_body(0);  // refits the BVH
+    expect_rays_into_gap_match(body, world.bvh(0), gap);
+  }
+}
+
+/// Blade points along a 1 cm arc of the sphere's parallel at latitude lat, centred on longitude
+/// lon (radians).
+std::vector<glm::dvec3> parallel_arc(double lat, double lon) {
+  std::vector<glm::dvec3> points;
+  const double half = 0.005 / (kRadius * std::cos(lat));
+  for (int i = 0; i <= 8; ++i) {
+    const double l = lon - half + 2.0 * half * i / 8.0;
+    points.push_back(glm::dvec3(kCentre) + kRadius * glm::dvec3(std::cos(lat) * std::cos(l),
+                                                                std::cos(lat) * std::sin(l),
+                                                                std::sin(lat)));
+  }
+  return points;
+}
+
+/// Cuts twelve short incisions over the sphere (two parallels, six longitudes each) with the
+/// given rebuild limits, checking the queries around each; returns the loose patch's size after
+/// each cut.
+std::vector<std::size_t> cut_around(const PatchRebuildLimits& limits) {
+  WorldOptions options;
+  options.integrator.gravity_m_s2 = glm::dvec3(0.0);
+  options.bvh_rebuild = limits;
+  SimWorld world(options);
+  world.add_body(SoftBody(testing::sphere(56, 25.0), Material{}));
+  const double kPi = std::acos(-1.0);
+  std::vector<std::size_t> loose;
+  for (const double lat : {-0.4, 0.4}) {
+    for (int k = 0; k < 6; ++k) {
+      const std::vector<glm::dvec3> points = parallel_arc(lat, k * kPi / 3.0 + lat);
+      const CutResult cut = world.cut(0, points);
+      EXPECT_GT(cut.path.size(), 2u) << "cut " << loose.size();
+      loose.push_back(world.bvh(0).loose_triangles());
+      // Around the incision, where the dead triangles lie under the new ones.
+      expect_queries_match(world.body(0), world.bvh(0), 100 + static_cast<std::uint32_t>(k),
+                           points[4], 0.006, 40);
+    }
+  }
+  expect_queries_match(world.body(0), world.bvh(0), 7, glm::dvec3(kCentre), kRadius * 1.2);
+  return loose;
+}
+
+/// True when the loose patch grew and then shrank: the patches it served were rebuilt.
+bool grew_then_shrank(const std::vector<std::size_t>& loose) {
+  for (std::size_t i = 1; i < loose.size(); ++i)
+    if (loose[i - 1] > 0 && loose[i] < loose[i - 1]) return true;
+  return false;
+}
+
+TEST(SimBvhPatches, AFullLoosePatchRebuildsTheStalePatches) {
+  const std::vector<std::size_t> loose = cut_around({.loose_triangles = 150, .stale_share = 1.0});
+  EXPECT_TRUE(grew_then_shrank(loose))
+      << "largest " << *std::max_element(loose.begin(), loose.end());
+  EXPECT_LE(*std::max_element(loose.begin(), loose.end()), 150u);
+}
+
+TEST(SimBvhPatches, APatchWithManyDeadTrianglesIsRebuilt) {
+  const std::vector<std::size_t> loose =
+      cut_around({.loose_triangles = 1000000, .stale_share = 0.02});
+  EXPECT_TRUE(grew_then_shrank(loose))
+      << "largest " << *std::max_element(loose.begin(), loose.end());
 }
 
 }  // namespace

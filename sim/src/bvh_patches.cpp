@@ -107,4 +107,48 @@ std::vector<std::vector<std::uint32_t>> SurfacePatches::split(
   return out;
 }
 
+std::vector<std::uint32_t> match_primitives(const std::vector<std::uint32_t>& prim_corners,
+                                            const std::vector<std::uint32_t>& home,
+                                            const std::vector<std::uint32_t>& indices,
+                                            std::vector<std::uint32_t>& prim_triangle) {
+  // Open addressing over home's positions, keyed by the corner triple (a power of two at least
+  // twice the entries: short probe runs). kDeadTriangle marks an empty or consumed slot.
+  std::size_t size = 16;
+  while (size < 2 * home.size())
+    size *= 2;
+  const std::size_t mask = size - 1;
+  auto slot_of = [&](const std::uint32_t* t) {
+    std::uint64_t h = t[0] * 0x9e3779b97f4a7c15ull;
+    h ^= (h >> 29) + t[1] * 0xbf58476d1ce4e5b9ull;
+    h ^= (h >> 31) + t[2] * 0x94d049bb133111ebull;
+    return static_cast<std::size_t>(h ^ (h >> 32)) & mask;
+  };
+  std::vector<std::uint32_t> table(size, kDeadTriangle);
+  for (std::size_t k = 0; k < home.size(); ++k) {
+    std::size_t s = slot_of(&indices[3 * std::size_t{home[k]}]);
+    while (table[s] != kDeadTriangle)
+      s = (s + 1) & mask;
+    table[s] = static_cast<std::uint32_t>(k);
+  }
+  std::vector<std::uint8_t> matched(home.size(), 0);
+  const std::size_t np = prim_corners.size() / 3;
+  prim_triangle.assign(np, kDeadTriangle);
+  for (std::size_t i = 0; i < np; ++i) {
+    const std::uint32_t* c = &prim_corners[3 * i];
+    // Probe to the first empty slot: consumed entries stay in the table (a triple can repeat).
+    for (std::size_t s = slot_of(c); table[s] != kDeadTriangle; s = (s + 1) & mask) {
+      const std::uint32_t k = table[s];
+      const std::uint32_t* t = &indices[3 * std::size_t{home[k]}];
+      if (matched[k] || t[0] != c[0] || t[1] != c[1] || t[2] != c[2]) continue;
+      matched[k] = 1;
+      prim_triangle[i] = home[k];
+      break;
+    }
+  }
+  std::vector<std::uint32_t> unmatched;
+  for (std::size_t k = 0; k < home.size(); ++k)
+    if (!matched[k]) unmatched.push_back(home[k]);
+  return unmatched;
+}
+
 }  // namespace bisturi::sim

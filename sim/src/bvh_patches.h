@@ -41,4 +41,18 @@ class SurfacePatches {
   std::vector<std::uint32_t> first_code_;     // the smallest code in each patch, ascending
 };
 
+/// A primitive of a patch's Embree geometry that no current triangle has: after a cut, a patch
+/// keeps its built BVH with such primitives in it (queries skip them) instead of rebuilding.
+constexpr std::uint32_t kDeadTriangle = 0xffffffffu;
+
+/// Matches a patch's primitives (their corner triples as Embree holds them, 3 per primitive)
+/// with the triangles `home` (indices into the body's triangle `indices`) that have the same
+/// corners in the same order: prim_triangle[i] is the triangle of primitive i, or kDeadTriangle.
+/// Returns the triangles of `home` that no primitive matched, in home's order. Each triangle
+/// matches one primitive at most.
+std::vector<std::uint32_t> match_primitives(const std::vector<std::uint32_t>& prim_corners,
+                                            const std::vector<std::uint32_t>& home,
+                                            const std::vector<std::uint32_t>& indices,
+                                            std::vector<std::uint32_t>& prim_triangle);
+
 }  // namespace bisturi::sim

@@ -62,9 +62,10 @@ glm::dvec3 closest_point_on_triangle(const glm::dvec3& p, const glm::dvec3& a, c
   return a + ab * v + ac * w;
 }
 
-/// One patch's Embree geometry (a triangle mesh over the shared vertex buffer), the indices of
-/// its triangles in the body's SurfaceTriangles (Embree's primID -> the body's triangle) and the
-/// corners Embree holds.
+/// One patch's Embree geometry (a triangle mesh over the shared vertex buffer), the body's
+/// triangle behind each primitive (Embree's primID -> an index into the body's SurfaceTriangles,
+/// kDeadTriangle for a primitive kept after a cut that no triangle has now) and the corners
+/// Embree holds.
 struct PatchGeometry {
   RTCScene scene = nullptr;        // the patch's own BVH (owned here)
   RTCGeometry geometry = nullptr;  // its triangles (owned by its scene)
@@ -74,9 +75,12 @@ struct PatchGeometry {
 };
 
 struct SurfaceBvh::Impl {
+  PatchRebuildLimits limits;
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
-  std::vector<PatchGeometry> patches;  // instance ID in the top scene = patch index
+  /// Instance ID in the top scene = index. The last one is the loose patch: the triangles that
+  /// a cut made in patches kept stale (it is rebuilt on each topology change, and small).
+  std::vector<PatchGeometry> patches;
   SurfacePatches patch_map;
   std::vector<float> vertices;  // shared by every patch; capacity for a cut's new vertices
   std::size_t vertex_capacity = 0;
@@ -104,9 +108,20 @@ struct SurfaceBvh::Impl {
     user_geometry = nullptr;
   }
 
-  /// The body's triangle behind Embree's (instance ID, primID).
+  /// The body's triangle behind Embree's (instance ID, primID); kDeadTriangle for none.
   [[nodiscard]] std::uint32_t triangle_of(unsigned geom, unsigned prim) const {
     return patches[geom].triangles[prim];
+  }
+
+  /// Embree's intersection filter: a ray passes through dead primitives.
+  static void skip_dead(const RTCFilterFunctionNArguments* args) {
+    const auto* self = static_cast<const Impl*>(args->geometryUserPtr);
+    for (unsigned i = 0; i < args->N; ++i) {
+      if (args->valid[i] == 0) continue;
+      const unsigned inst = RTCHitN_instID(args->hit, args->N, i, 0);
+      const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+      if (self->triangle_of(inst, prim) == kDeadTriangle) args->valid[i] = 0;
+    }
   }
 
   void fill_vertices(const SoftBody& b) {
@@ -174,6 +189,7 @@ struct SurfaceBvh::Impl {
     vertices.assign(3 * vertex_capacity + 1, 0.0f);
     fill_vertices(b);
     std::vector<std::vector<std::uint32_t>> split = patch_map.split(b.triangles());
+    split.emplace_back();  // the loose patch, empty
     patches.resize(split.size());
     static constexpr float kIdentity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
     for (std::size_t p = 0; p < split.size(); ++p) {
@@ -184,6 +200,9 @@ struct SurfaceBvh::Impl {
       rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_REFIT);
       rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, vertices.data(),
                                  0, 3 * sizeof(float), vertex_capacity);
+      rtcSetGeometryUserData(g, this);
+      rtcSetGeometryIntersectFilterFunction(g, &Impl::skip_dead);
+      rtcSetGeometryOccludedFilterFunction(g, &Impl::skip_dead);
       rtcAttachGeometryByID(ps, g, 0);
       rtcReleaseGeometry(g);  // the patch's scene holds it
       RTCGeometry inst = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
@@ -203,11 +222,24 @@ struct SurfaceBvh::Impl {
     ++rebuilds;
   }
 
-  /// After a topology change: rebuilds the patches whose triangles changed, keeps the others
-  /// (a full build when the new vertices do not fit the shared buffer).
+  /// Gives patch p the triangles `home` (a rebuild when its corners change).
+  void rebuild_patch(std::size_t p, std::vector<std::uint32_t> home) {
+    std::vector<std::uint32_t> corners = corners_of(home);
+    patches[p].triangles = std::move(home);
+    if (corners == patches[p].corners) return;
+    set_corners(p, std::move(corners));
+    ++last_rebuilt_patches;
+  }
+
+  /// After a topology change. A patch whose triangles did not change is refitted. One that did
+  /// keeps its BVH when few of its primitives died or were added (a cut changes a few hundred
+  /// triangles; rebuilding a patch of 4096 costs about 2 ms): its dead primitives are skipped by
+  /// the queries and its new triangles go to the loose patch. Otherwise, and for every stale
+  /// patch once the loose patch is full, the patch is rebuilt. A full build when the new
+  /// vertices do not fit the shared buffer.
   void rebuild_changed(const SoftBody& b) {
     // A body that had no triangles has no patches to keep.
-    if (scene == nullptr || patches.empty() || b.positions().size() > vertex_capacity) {
+    if (scene == nullptr || patches.size() < 2 || b.positions().size() > vertex_capacity) {
       build(b);
       return;
     }
@@ -217,13 +249,34 @@ struct SurfaceBvh::Impl {
     std::vector<std::vector<std::uint32_t>> split = patch_map.split(b.triangles());
     fill_vertices(b);
     last_rebuilt_patches = 0;
-    for (std::size_t p = 0; p < patches.size(); ++p) {
-      patches[p].triangles = std::move(split[p]);
-      std::vector<std::uint32_t> corners = corners_of(patches[p].triangles);
-      if (corners == patches[p].corners) continue;
-      set_corners(p, std::move(corners));
-      ++last_rebuilt_patches;
+    std::vector<std::uint32_t> loose, prim_triangle;
+    std::vector<std::size_t> stale;
+    for (std::size_t p = 0; p < split.size(); ++p) {
+      PatchGeometry& g = patches[p];
+      if (corners_of(split[p]) == g.corners) {
+        g.triangles = std::move(split[p]);
+        continue;
+      }
+      std::vector<std::uint32_t> added =
+          match_primitives(g.corners, split[p], indices, prim_triangle);
+      const auto dead = static_cast<std::size_t>(
+          std::count(prim_triangle.begin(), prim_triangle.end(), kDeadTriangle));
+      if (g.corners.empty() ||
+          double(dead + added.size()) > limits.stale_share * double(prim_triangle.size())) {
+        rebuild_patch(p, std::move(split[p]));
+        continue;
+      }
+      g.triangles = prim_triangle;
+      loose.insert(loose.end(), added.begin(), added.end());
+      stale.push_back(p);
     }
+    if (loose.size() > limits.loose_triangles) {
+      for (const std::size_t p : stale)
+        rebuild_patch(p, std::move(split[p]));
+      loose.clear();
+    }
+    std::sort(loose.begin(), loose.end());
+    rebuild_patch(patches.size() - 1, std::move(loose));
     commit_all();
     version = b.topology_version();
     ++rebuilds;
@@ -310,10 +363,17 @@ std::size_t SurfaceBvh::patch_count() const {
 std::size_t SurfaceBvh::last_rebuilt_patches() const {
   return impl_->last_rebuilt_patches;
 }
+std::size_t SurfaceBvh::loose_triangles() const {
+  return impl_->patches.empty() ? 0 : impl_->patches.back().triangles.size();
+}
+void SurfaceBvh::set_rebuild_limits(const PatchRebuildLimits& limits) {
+  impl_->limits = limits;
+}
 
 namespace {
 
-/// The closest point to p on the body's triangle behind a point query's hit.
+/// The closest point to p on the body's triangle behind a point query's hit (triangle =
+/// kDeadTriangle and no point for a dead primitive).
 struct HitPoint {
   std::uint32_t triangle;
   glm::dvec3 point;
@@ -322,6 +382,7 @@ struct HitPoint {
 HitPoint closest_on_hit(const SurfaceBvh::Impl& bvh, const SoftBody& body,
                         const RTCPointQueryFunctionArguments* args, const glm::dvec3& p) {
   HitPoint h{bvh.triangle_of(args->context->instID[0], args->primID), {}, {}};
+  if (h.triangle == kDeadTriangle) return h;
   const std::uint32_t* t = &bvh.indices[3 * std::size_t{h.triangle}];
   const auto& x = body.positions();
   h.point = closest_point_on_triangle(p, x[t[0]], x[t[1]], x[t[2]], h.barycentric);
@@ -338,6 +399,7 @@ struct PointQueryData {
 bool point_query(RTCPointQueryFunctionArguments* args) {
   auto* d = static_cast<PointQueryData*>(args->userPtr);
   const HitPoint h = closest_on_hit(*d->bvh, *d->body, args, d->p);
+  if (h.triangle == kDeadTriangle) return false;
   const double dist = glm::length(h.point - d->p);
   const bool better = !d->best.found || dist < d->best.distance_m ||
                       (dist == d->best.distance_m && h.triangle < d->best.triangle);
@@ -394,6 +456,7 @@ struct NearQueryData {
 bool near_query(RTCPointQueryFunctionArguments* args) {
   auto* d = static_cast<NearQueryData*>(args->userPtr);
   const HitPoint h = closest_on_hit(*d->bvh, *d->body, args, d->p);
+  if (h.triangle == kDeadTriangle) return false;
   if (glm::length(h.point - d->p) <= d->radius) d->found.push_back(h.triangle);
   return false;  // keep the radius: every triangle within it is wanted
 }

@@ -15,6 +15,7 @@ SimWorld::SimWorld(const WorldOptions& options)
 std::uint32_t SimWorld::add_body(SoftBody body) {
   bodies_.push_back(std::move(body));
   bvhs_.emplace_back(*device_, bodies_.back());
+  bvhs_.back().set_rebuild_limits(options_.bvh_rebuild);
   stats_.emplace_back();
   integrator_.prepare(bodies_.back(), options_.integrator);
   return static_cast<std::uint32_t>(bodies_.size() - 1);

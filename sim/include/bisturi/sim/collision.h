@@ -1,8 +1,9 @@
 #pragma once
 // Collision on deforming soft bodies through Embree (kept private to sim: no Embree type in a
-// public header). One SurfaceBvh per body: a two-level triangle BVH (one per patch of about 1024
+// public header). One SurfaceBvh per body: a two-level triangle BVH (one per patch of about 4096
 // triangles, and a top level over them) refitted every step; when the body's topology version
-// moves, the patches whose triangles changed are rebuilt; closest-point and ray queries for the
+// moves, the patches whose triangles changed much are rebuilt, the others keep their BVHs
+// (see rebuild_changed in collision.cpp); closest-point and ray queries for the
 // haptic proxy and the scalpel; and, on request, a user-geometry copy for rtcCollide (Embree's
 // collide works on user geometry only) that finds the triangle pairs of tissue-tissue contact.
 
@@ -40,6 +41,14 @@ struct SurfacePoint {
   glm::dvec3 barycentric{0.0};
 };
 
+/// When a topology change rebuilds a patch's BVH instead of keeping it with dead triangles.
+struct PatchRebuildLimits {
+  /// The loose patch holds at most this many triangles; past it every stale patch is rebuilt.
+  std::size_t loose_triangles = 1024;
+  /// A changed patch is rebuilt when more than this share of its primitives is dead or new.
+  double stale_share = 0.125;
+};
+
 class SurfaceBvh {
  public:
   SurfaceBvh(const CollisionDevice& device, const SoftBody& body);
@@ -51,10 +60,15 @@ class SurfaceBvh {
   void update(const SoftBody& body);
   [[nodiscard]] std::uint64_t rebuilds() const;
   [[nodiscard]] std::uint64_t refits() const;
-  /// Patches of the two-level BVH (one Embree geometry each, about 1024 triangles), and how
-  /// many the last build or topology update rebuilt (the others were refitted).
+  /// Patches of the two-level BVH (one Embree geometry each, about 4096 triangles, and the
+  /// loose patch), and how many the last build or topology update rebuilt (the others were
+  /// refitted).
   [[nodiscard]] std::size_t patch_count() const;
   [[nodiscard]] std::size_t last_rebuilt_patches() const;
+  /// Triangles in the loose patch: those a cut added to patches it left unrebuilt (their BVHs
+  /// keep the cut's dead triangles, which queries skip). Back to 0 when those are rebuilt.
+  [[nodiscard]] std::size_t loose_triangles() const;
+  void set_rebuild_limits(const PatchRebuildLimits& limits);
 
   /// Closest surface point to p within max_distance_m (found = false when none).
   [[nodiscard]] SurfacePoint closest_point(const SoftBody& body, const glm::dvec3& p_m,

@@ -32,6 +32,7 @@ struct WorldOptions {
   HapticOptions haptic;
   ContactOptions contact;
   unsigned embree_threads = 1;
+  PatchRebuildLimits bvh_rebuild;  ///< when a cut rebuilds a BVH patch instead of keeping it
 };
 
 class SimWorld {
