@@ -150,6 +150,10 @@ void Dlfl::reserve(std::size_t n, std::size_t c, std::size_t f, std::size_t e) {
   faces_.reserve(f);
   bounding_.reserve(f);
   edges_.reserve(e);
+  vertex_props_.reserve(n);
+  corner_props_.reserve(c);
+  face_props_.reserve(f);
+  edge_props_.reserve(e);
 }
 
 void Dlfl::release_empty_free_lists() {

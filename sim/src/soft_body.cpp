@@ -39,6 +39,18 @@ SoftBody::SoftBody(Dlfl mesh, const Material& material)
     (*x_)[v] = scene_to_sim(mesh_.position(v));
     (*rest_)[v] = (*x_)[v];
   }
+  // Room for the elements of a few cuts: growing an array in a cut would copy all of it, and
+  // fault in fresh pages, while the session waits (about 2 ms of a 5 cm cut at 20k vertices).
+  // Reserved pages that are never written cost no memory.
+  auto room = [](std::size_t n) { return n + n / 4 + 64; };
+  const std::size_t nv = room(mesh_.vertex_capacity());
+  mesh_.reserve(nv, room(mesh_.corner_capacity()), room(mesh_.face_capacity()),
+                room(mesh_.edge_capacity()));
+  mass_.reserve(nv);
+  kinematic_.reserve(nv);
+  target_.reserve(nv);
+  force_.reserve(nv);
+  warm_.reserve(nv);
   topology_version_ = mesh_.topology_version() + 1;  // force the first build
   refresh_topology();
   const double v0 = signed_volume(triangles_, rest_->raw());

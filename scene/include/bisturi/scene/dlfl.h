@@ -178,7 +178,8 @@ class Dlfl {
   /// Renumbers every element densely (drops deleted slots and free lists); attribute arrays
   /// follow. Invalidates every handle held outside.
   void compact();
-  /// Reserves array space for about n vertices, c corners, f faces and e edges.
+  /// Reserves array space for about n vertices, c corners, f faces and e edges (attribute arrays
+  /// included).
   void reserve(std::size_t n, std::size_t c, std::size_t f, std::size_t e);
   /// Returns the memory of free lists that are empty (a bulk build leaves them so).
   void release_empty_free_lists();

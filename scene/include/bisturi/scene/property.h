@@ -21,6 +21,8 @@ class PropertyArrayBase {
   virtual ~PropertyArrayBase() = default;
   /// Grows (or shrinks) to n entries; new entries take the default value.
   virtual void resize(std::size_t n) = 0;
+  /// Makes room for n entries without changing the size (growth then copies nothing).
+  virtual void reserve(std::size_t n) = 0;
   /// Puts the default value at i (an element slot is being reused).
   virtual void reset(std::uint32_t i) = 0;
   /// Keeps entry old at new_index[old] for every old entry whose new_index is valid.
@@ -42,6 +44,7 @@ class PropertyArray final : public PropertyArrayBase {
   const std::vector<T>& raw() const { return data_; }
 
   void resize(std::size_t n) override { data_.resize(n, default_); }
+  void reserve(std::size_t n) override { data_.reserve(n); }
   void reset(std::uint32_t i) override { data_[i] = default_; }
   void renumber(const std::vector<std::uint32_t>& new_index, std::size_t new_size) override {
     std::vector<T> out(new_size, default_);
@@ -92,6 +95,10 @@ class PropertyRegistry {
     size_ = n;
     for (auto& [name, a] : arrays_)
       a->resize(n);
+  }
+  void reserve(std::size_t n) {
+    for (auto& [name, a] : arrays_)
+      a->reserve(n);
   }
   void reset(std::uint32_t i) {
     for (auto& [name, a] : arrays_)
