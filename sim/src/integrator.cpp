@@ -87,7 +87,7 @@ ImplicitIntegrator::Structure& ImplicitIntegrator::structure(const SoftBody& bod
 
 void ImplicitIntegrator::update_free_rows(Structure& st, const std::vector<std::uint8_t>& mask,
                                           const std::vector<double>& masses) {
-  if (st.free_mask == mask && !st.full.row.empty()) return;
+  if (st.free_mask == mask && !st.full.prow.empty()) return;
   st.free_mask = mask;
   build_system(st, st.full, mask);
   aggregate(st.full);
@@ -132,10 +132,13 @@ void ImplicitIntegrator::build_system(const Structure& st, System& sys,
     }
   }
   const std::size_t nf = sys.vertex.size();
-  // Four segments per row, one per stiffness class (segment 4 r + class), each in spring order:
-  // the product sums a segment's neighbour differences and scales the sum once by the class's
-  // weight. Springs to constrained vertices only count towards the row's diagonal.
-  sys.row.assign(4 * nf + 1, 0);
+  // The product's form: one run per row, each entry a neighbour with its stiffness class in the
+  // top two bits, grouped by class and in spring order within a class (the product sums a
+  // class's neighbour differences and scales the sum once), padded to an even length with the
+  // row itself (in_i - in_i adds an exact zero), so the product takes two neighbours per trip
+  // with one loop exit per row. Springs to constrained vertices only count towards the row's
+  // diagonal (fixed_count).
+  sys.free_count.assign(4 * nf, 0);
   sys.fixed_count.assign(4 * nf, 0);
   const std::size_t ns = st.a.size();
   std::size_t active = 0;
@@ -143,8 +146,8 @@ void ImplicitIntegrator::build_system(const Structure& st, System& sys,
     const std::uint32_t ca = sys.compact[st.a[s]], cb = sys.compact[st.b[s]];
     const std::uint32_t cls = st.spring_class[s];
     if (ca != kNotFree && cb != kNotFree) {
-      ++sys.row[4 * ca + cls + 1];
-      ++sys.row[4 * cb + cls + 1];
+      ++sys.free_count[4 * ca + cls];
+      ++sys.free_count[4 * cb + cls];
     } else if (ca != kNotFree) {
       ++sys.fixed_count[4 * ca + cls];
     } else if (cb != kNotFree) {
@@ -152,58 +155,64 @@ void ImplicitIntegrator::build_system(const Structure& st, System& sys,
     }
     if (ca != kNotFree || cb != kNotFree) ++active;
   }
-  for (std::size_t i = 0; i < 4 * nf; ++i)
-    sys.row[i + 1] += sys.row[i];
-  sys.col.resize(sys.row[4 * nf]);
-  std::vector<std::uint32_t> fill(sys.row.begin(), sys.row.end() - 1);
-  for (std::size_t s = 0; s < ns; ++s) {
-    const std::uint32_t ca = sys.compact[st.a[s]], cb = sys.compact[st.b[s]];
-    if (ca == kNotFree || cb == kNotFree) continue;
-    sys.col[fill[4 * ca + st.spring_class[s]]++] = cb;
-    sys.col[fill[4 * cb + st.spring_class[s]]++] = ca;
-  }
-  // The product's form: one run per row, each entry a neighbour with its class in the top two
-  // bits, padded to an even length with the row itself (in_i - in_i adds an exact zero), so the
-  // product takes two neighbours per trip with one loop exit per row.
-  sys.prow.assign(nf + 1, 0);
-  sys.pcol.clear();
-  sys.pcol.reserve(sys.col.size() + nf);
+  std::vector<std::uint32_t>& fill = sys.fill;  // per row and class: the next entry to fill
+  fill.resize(4 * nf);
+  sys.prow.resize(nf + 1);
+  sys.prow[0] = 0;
   for (std::size_t i = 0; i < nf; ++i) {
-    for (std::uint32_t k = 0; k < 4; ++k) {
-      for (std::uint32_t e = sys.row[4 * i + k]; e < sys.row[4 * i + k + 1]; ++e)
-        sys.pcol.push_back(sys.col[e] | (k << 30));
+    std::uint32_t at = sys.prow[i];
+    for (std::size_t k = 0; k < 4; ++k) {
+      fill[4 * i + k] = at;
+      at += sys.free_count[4 * i + k];
     }
-    if ((sys.pcol.size() - sys.prow[i]) % 2 != 0) sys.pcol.push_back(static_cast<std::uint32_t>(i));
-    sys.prow[i + 1] = static_cast<std::uint32_t>(sys.pcol.size());
+    sys.prow[i + 1] = at + ((at - sys.prow[i]) & 1u);
   }
-  // The two spring sets, in spring order, padded with null springs (vertex 0 to itself).
+  // The two spring sets, in spring order, padded with null springs (vertex 0 to itself): those
+  // with a solved end and the others.
   auto reset = [](System::SpringSet& set, std::size_t count) {
     const std::size_t padded = (count + 3) / 4 * 4;
     set.count = count;
-    set.a.assign(padded, 0);
-    set.b.assign(padded, 0);
-    set.rest.assign(padded, 0.0);
-    set.k.assign(padded, 0.0);
+    set.a.resize(padded);
+    set.b.resize(padded);
+    set.rest.resize(padded);
+    set.k.resize(padded);
+    std::fill(set.a.begin() + static_cast<std::ptrdiff_t>(count), set.a.end(), 0u);
+    std::fill(set.b.begin() + static_cast<std::ptrdiff_t>(count), set.b.end(), 0u);
+    std::fill(set.rest.begin() + static_cast<std::ptrdiff_t>(count), set.rest.end(), 0.0);
+    std::fill(set.k.begin() + static_cast<std::ptrdiff_t>(count), set.k.end(), 0.0);
   };
   reset(sys.active, active);
   reset(sys.fixed, ns - active);
+  sys.pcol.resize(sys.prow[nf]);
   std::size_t ia = 0, ix = 0;
   for (std::size_t s = 0; s < ns; ++s) {
-    const bool is_active = sys.compact[st.a[s]] != kNotFree || sys.compact[st.b[s]] != kNotFree;
+    const std::uint32_t ca = sys.compact[st.a[s]], cb = sys.compact[st.b[s]];
+    const bool is_active = ca != kNotFree || cb != kNotFree;
     System::SpringSet& set = is_active ? sys.active : sys.fixed;
-    std::size_t& i = is_active ? ia : ix;
-    set.a[i] = st.a[s];
-    set.b[i] = st.b[s];
-    set.rest[i] = st.rest[s];
-    set.k[i] = st.k[s];
-    ++i;
+    std::size_t& at = is_active ? ia : ix;
+    set.a[at] = st.a[s];
+    set.b[at] = st.b[s];
+    set.rest[at] = st.rest[s];
+    set.k[at] = st.k[s];
+    ++at;
+    if (ca == kNotFree || cb == kNotFree) continue;
+    const std::uint32_t cls = st.spring_class[s];
+    sys.pcol[fill[4 * ca + cls]++] = cb | (cls << 30);
+    sys.pcol[fill[4 * cb + cls]++] = ca | (cls << 30);
+  }
+  for (std::size_t i = 0; i < nf; ++i) {
+    if (fill[4 * i + 3] != sys.prow[i + 1])
+      sys.pcol[sys.prow[i + 1] - 1] = static_cast<std::uint32_t>(i);
   }
 }
 
 void ImplicitIntegrator::aggregate(System& sys) {
   const std::size_t nf = sys.vertex.size();
-  const std::uint32_t* row = sys.row.data();
-  const std::uint32_t* col = sys.col.data();
+  const std::uint32_t* row = sys.prow.data();
+  const std::uint32_t* col = sys.pcol.data();
+  // A row's neighbours (and the row itself as padding, which is assigned or the row in hand
+  // wherever it is met below).
+  auto neighbour = [col](std::uint32_t e) { return col[e] & kIndexMask; };
   // Aggregates: a seed whose neighbours are all unassigned takes them and grows by whole rings
   // of neighbours until it holds `target` rows; leftovers join an assigned neighbour's
   // aggregate. About nf / 192 aggregates (the coarse solve stays below a fifth of a
@@ -217,8 +226,8 @@ void ImplicitIntegrator::aggregate(System& sys) {
   for (std::size_t seed = 0; seed < nf; ++seed) {
     if (sys.agg[seed] != kNone) continue;
     bool free_around = true;
-    for (std::uint32_t e = row[4 * seed]; e < row[4 * seed + 4] && free_around; ++e)
-      free_around = sys.agg[col[e]] == kNone;
+    for (std::uint32_t e = row[seed]; e < row[seed + 1] && free_around; ++e)
+      free_around = sys.agg[neighbour(e)] == kNone;
     if (!free_around) continue;
     sys.agg[seed] = count;
     std::size_t size = 1;
@@ -226,10 +235,11 @@ void ImplicitIntegrator::aggregate(System& sys) {
     while (size < target && !ring.empty()) {
       next.clear();
       for (std::uint32_t i : ring) {
-        for (std::uint32_t e = row[4 * std::size_t{i}]; e < row[4 * std::size_t{i} + 4]; ++e) {
-          if (sys.agg[col[e]] != kNone) continue;
-          sys.agg[col[e]] = count;
-          next.push_back(col[e]);
+        for (std::uint32_t e = row[i]; e < row[i + 1]; ++e) {
+          const std::uint32_t j = neighbour(e);
+          if (sys.agg[j] != kNone) continue;
+          sys.agg[j] = count;
+          next.push_back(j);
           ++size;
         }
       }
@@ -241,9 +251,9 @@ void ImplicitIntegrator::aggregate(System& sys) {
     changed = false;
     for (std::size_t i = 0; i < nf; ++i) {
       if (sys.agg[i] != kNone) continue;
-      for (std::uint32_t e = row[4 * std::size_t{i}]; e < row[4 * std::size_t{i} + 4]; ++e) {
-        if (sys.agg[col[e]] != kNone) {
-          sys.agg[i] = sys.agg[col[e]];
+      for (std::uint32_t e = row[i]; e < row[i + 1]; ++e) {
+        if (sys.agg[neighbour(e)] != kNone) {
+          sys.agg[i] = sys.agg[neighbour(e)];
           changed = true;
           break;
         }
@@ -260,8 +270,8 @@ void ImplicitIntegrator::update_coarse(System& sys, const Structure& st, const S
                                        double h) {
   if (sys.coarse_h == h) return;
   const std::size_t nf = sys.vertex.size();
-  const std::uint32_t* row = sys.row.data();
-  const std::uint32_t* col = sys.col.data();
+  const std::uint32_t* row = sys.prow.data();
+  const std::uint32_t* col = sys.pcol.data();
   // P^T A P with P the aggregates' indicator: each aggregate sums its rows' diagonal parts that
   // are not a free neighbour's weight, and the weights of springs leaving it.
   const std::size_t nc = sys.coarse_count;
@@ -274,14 +284,14 @@ void ImplicitIntegrator::update_coarse(System& sys, const Structure& st, const S
   for (std::size_t i = 0; i < nf; ++i) {
     const std::size_t I = sys.agg[i];
     double self = m[sys.vertex[i]] * (1.0 + h * mat.drag_per_s);
-    for (std::size_t k = 0; k < 4; ++k) {
+    for (std::size_t k = 0; k < 4; ++k)
       self += double(sys.fixed_count[4 * i + k]) * w[k];
-      for (std::uint32_t e = row[4 * i + k]; e < row[4 * i + k + 1]; ++e) {
-        const std::size_t J = sys.agg[col[e]];
-        if (J == I) continue;
-        a[I * nc + I] += w[k];
-        a[I * nc + J] -= w[k];
-      }
+    for (std::uint32_t e = row[i]; e < row[i + 1]; ++e) {
+      const std::size_t J = sys.agg[col[e] & kIndexMask];
+      if (J == I) continue;  // the row's own padding too
+      const double wk = w[col[e] >> 30];
+      a[I * nc + I] += wk;
+      a[I * nc + J] -= wk;
     }
     a[I * nc + I] += self;
   }
@@ -798,7 +808,7 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
   for (int k = 0; k < 4; ++k)
     w[k] = h2 * st.k_class[k] + h * c;
   const std::size_t n4 = 4 * nf;
-  const std::uint32_t* row = sys->row.data();
+  const std::uint32_t* free = sys->free_count.data();
   const std::uint32_t* fixed = sys->fixed_count.data();
   rhs_.resize(n4);
   diag_.resize(nf);
@@ -826,7 +836,7 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
       double self = m[i] * (1.0 + h * drag), nbr = 0.0;
       for (std::size_t k = 0; k < 4; ++k) {
         self += double(fixed[4 * ci + k]) * w[k];
-        nbr += double(row[4 * ci + k + 1] - row[4 * ci + k]) * w[k];
+        nbr += double(free[4 * ci + k]) * w[k];
       }
       const double d = self + nbr;
       self_[ci] = self;

@@ -129,15 +129,14 @@ class ImplicitIntegrator {
   struct System {
     // compact -> vertex, vertex -> compact (kNotFree outside the set).
     std::vector<std::uint32_t> vertex, compact;
-    /// 4 (count) + 1 offsets into col: row r's neighbours of stiffness class k are
-    /// col[row[4 r + k] .. row[4 r + k + 1]).
-    std::vector<std::uint32_t> row;
-    std::vector<std::uint32_t> col;  ///< solved neighbours' compact indices
-    /// The same neighbours for the product: count + 1 offsets into pcol, whose entries are
-    /// compact index | class << 30, each row padded to an even length with itself.
+    /// The solved neighbours of each row: count + 1 offsets into pcol, whose entries are
+    /// compact index | stiffness class << 30, grouped by class, each row padded to an even
+    /// length with itself.
     std::vector<std::uint32_t> prow, pcol;
-    /// Per row and class: springs to vertices held fixed (they weigh on the diagonal only).
-    std::vector<std::uint32_t> fixed_count;  ///< 4 per row
+    std::vector<std::uint32_t> fill;  ///< scratch of the build: per row and class
+    /// Per row and class (4 per row): springs to solved neighbours, and springs to vertices
+    /// held fixed (they weigh on the diagonal only).
+    std::vector<std::uint32_t> free_count, fixed_count;
     /// Springs as copies in sets, each padded to a multiple of 4 with null springs: those with a
     /// solved end (their forces are needed), those with none, which do not move during a step
     /// (their energy is taken once per set), and among those the ones with an end on the border
