@@ -4,67 +4,83 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "hot_loop.h"
 
 namespace bisturi::sim {
 namespace {
 
+/// Four doubles: one per spring of a group of four (lane l is spring s + l).
+typedef double V4 __attribute__((vector_size(32)));
+
+/// The four springs' end differences d = x_b - x_a (and the velocities' when Velocities).
+template <bool Velocities>
+BISTURI_INLINE void gather(const std::uint32_t* a, const std::uint32_t* b, const glm::dvec3* x,
+                           const glm::dvec3* v, V4 (&d)[3], V4 (&dv)[3]) {
+  const glm::dvec3 x0 = x[b[0]] - x[a[0]], x1 = x[b[1]] - x[a[1]], x2 = x[b[2]] - x[a[2]],
+                   x3 = x[b[3]] - x[a[3]];
+  d[0] = V4{x0.x, x1.x, x2.x, x3.x};
+  d[1] = V4{x0.y, x1.y, x2.y, x3.y};
+  d[2] = V4{x0.z, x1.z, x2.z, x3.z};
+  if constexpr (Velocities) {
+    const glm::dvec3 v0 = v[b[0]] - v[a[0]], v1 = v[b[1]] - v[a[1]], v2 = v[b[2]] - v[a[2]],
+                     v3 = v[b[3]] - v[a[3]];
+    dv[0] = V4{v0.x, v1.x, v2.x, v3.x};
+    dv[1] = V4{v0.y, v1.y, v2.y, v3.y};
+    dv[2] = V4{v0.z, v1.z, v2.z, v3.z};
+  }
+}
+
+// Vectors go through references, not return values: a V4 returned by value changes the ABI of
+// the baseline clone (GCC's -Wpsabi), even inlined.
+BISTURI_INLINE void length(const V4 (&d)[3], V4& len) {
+  const V4 len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+  len = V4{std::sqrt(len2[0]), std::sqrt(len2[1]), std::sqrt(len2[2]), std::sqrt(len2[3])};
+}
+
+BISTURI_INLINE void load4(const double* p, V4& out) {
+  std::memcpy(&out, p, sizeof(V4));
+}
+
 /// Spring forces (with the h^2 H v term of the right-hand side divided by h) accumulated into
 /// f, which must start at zero; returns the springs' elastic energy when Energy is set. ns is a
-/// multiple of 4 (null springs pad the arrays); only the first `real` are scattered.
+/// multiple of 4 (null springs pad the arrays); only the first `real` are scattered. Four
+/// springs at a time in registers: gathered, computed as one vector each (sqrt and division
+/// four or two at a time), scattered in spring order.
 template <bool Energy>
 BISTURI_INLINE double spring_pass_impl(const std::uint32_t* a, const std::uint32_t* b,
                                        const double* rest, const double* k, std::size_t ns,
                                        std::size_t real, const glm::dvec3* x, const glm::dvec3* v,
                                        double c, double h, glm::dvec3* f) {
-  double dx[kChunk], dy[kChunk], dz[kChunk], vx[kChunk], vy[kChunk], vz[kChunk], along[kChunk],
-      energy[kChunk];
-  double e4[4] = {0.0, 0.0, 0.0, 0.0};
-  for (std::size_t s0 = 0; s0 < ns; s0 += kChunk) {
-    const std::size_t m = std::min(kChunk, ns - s0);
-    for (std::size_t j = 0; j < m; ++j) {
-      const glm::dvec3 xa = x[a[s0 + j]], xb = x[b[s0 + j]];
-      const glm::dvec3 va = v[a[s0 + j]], vb = v[b[s0 + j]];
-      dx[j] = xb.x - xa.x;
-      dy[j] = xb.y - xa.y;
-      dz[j] = xb.z - xa.z;
-      vx[j] = vb.x - va.x;
-      vy[j] = vb.y - va.y;
-      vz[j] = vb.z - va.z;
-    }
-    const double* rs = rest + s0;
-    const double* ks = k + s0;
-    for (std::size_t q = 0; q < m; ++q) {
-      const double len = std::sqrt(dx[q] * dx[q] + dy[q] * dy[q] + dz[q] * dz[q]);
-      // Branch-free 1 / len (0 for a null spring), so that the loop vectorises.
-      const double ok = len > 1e-12 ? 1.0 : 0.0;
-      const double inv = ok / (len + (1.0 - ok));
-      const double stretch = len - rs[q];
-      // (k stretch + c u . vrel) u with u = d / len, written on d: one scale for all three.
-      along[q] =
-          (ks[q] * stretch + c * (dx[q] * vx[q] + dy[q] * vy[q] + dz[q] * vz[q]) * inv) * inv;
-      if constexpr (Energy) energy[q] = 0.5 * ks[q] * stretch * stretch;
-    }
-    if constexpr (Energy) {
-      for (std::size_t j = 0; j < m; j += 4) {
-        for (std::size_t l = 0; l < 4; ++l)
-          e4[l] += energy[j + l];
-      }
-    }
-    const std::size_t mr = s0 < real ? std::min(m, real - s0) : 0;
-    for (std::size_t j = 0; j < mr; ++j) {
-      const double hk = h * k[s0 + j];  // h f + h^2 H v, divided by h below
-      const double fx = along[j] * dx[j] + hk * vx[j], fy = along[j] * dy[j] + hk * vy[j],
-                   fz = along[j] * dz[j] + hk * vz[j];
-      glm::dvec3& fa = f[a[s0 + j]];
-      glm::dvec3& fb = f[b[s0 + j]];
-      fa.x += fx;
-      fa.y += fy;
-      fa.z += fz;
-      fb.x -= fx;
-      fb.y -= fy;
-      fb.z -= fz;
+  const V4 one = {1.0, 1.0, 1.0, 1.0}, zero = {0.0, 0.0, 0.0, 0.0};
+  V4 e4 = zero;
+  for (std::size_t s = 0; s < ns; s += 4) {
+    V4 d[3] = {}, dv[3] = {}, ks, rs, len;
+    gather<true>(a + s, b + s, x, v, d, dv);
+    load4(k + s, ks);
+    load4(rest + s, rs);
+    length(d, len);
+    // Branch-free 1 / len (0 for a null spring).
+    const V4 ok = len > 1e-12 ? one : zero;
+    const V4 inv = ok / (len + (one - ok));
+    const V4 stretch = len - rs;
+    // (k stretch + c u . vrel) u with u = d / len, written on d: one scale for all three.
+    const V4 along = (ks * stretch + c * (d[0] * dv[0] + d[1] * dv[1] + d[2] * dv[2]) * inv) * inv;
+    if constexpr (Energy) e4 += 0.5 * ks * stretch * stretch;
+    const V4 hk = h * ks;  // h f + h^2 H v, divided by h below
+    const V4 fx = along * d[0] + hk * dv[0], fy = along * d[1] + hk * dv[1],
+             fz = along * d[2] + hk * dv[2];
+    const std::size_t m = s < real ? std::min<std::size_t>(4, real - s) : 0;
+    for (std::size_t l = 0; l < m; ++l) {
+      glm::dvec3& fa = f[a[s + l]];
+      glm::dvec3& fb = f[b[s + l]];
+      fa.x += fx[l];
+      fa.y += fy[l];
+      fa.z += fz[l];
+      fb.x -= fx[l];
+      fb.y -= fy[l];
+      fb.z -= fz[l];
     }
   }
   return (e4[0] + e4[1]) + (e4[2] + e4[3]);
@@ -89,20 +105,15 @@ BISTURI_HOT double spring_forces_energy(const std::uint32_t* a, const std::uint3
 /// The springs' elastic energy at x (ns a multiple of 4, null springs add nothing).
 BISTURI_HOT double spring_energy(const std::uint32_t* a, const std::uint32_t* b, const double* rest,
                                  const double* k, std::size_t ns, const glm::dvec3* x) {
-  double len2[kChunk];
-  double e4[4] = {0.0, 0.0, 0.0, 0.0};
-  for (std::size_t s0 = 0; s0 < ns; s0 += kChunk) {
-    const std::size_t m = std::min(kChunk, ns - s0);
-    for (std::size_t j = 0; j < m; ++j) {
-      const glm::dvec3 d = x[b[s0 + j]] - x[a[s0 + j]];
-      len2[j] = d.x * d.x + d.y * d.y + d.z * d.z;
-    }
-    for (std::size_t j = 0; j < m; j += 4) {
-      for (std::size_t l = 0; l < 4; ++l) {
-        const double stretch = std::sqrt(len2[j + l]) - rest[s0 + j + l];
-        e4[l] += 0.5 * k[s0 + j + l] * stretch * stretch;
-      }
-    }
+  V4 e4 = {0.0, 0.0, 0.0, 0.0};
+  for (std::size_t s = 0; s < ns; s += 4) {
+    V4 d[3] = {}, unused[3] = {}, ks, rs, len;
+    gather<false>(a + s, b + s, x, nullptr, d, unused);
+    load4(k + s, ks);
+    load4(rest + s, rs);
+    length(d, len);
+    const V4 stretch = len - rs;
+    e4 += 0.5 * ks * stretch * stretch;
   }
   return (e4[0] + e4[1]) + (e4[2] + e4[3]);
 }

@@ -10,8 +10,8 @@
 
 namespace bisturi::sim {
 
-/// Springs per block of the spring passes: gathered into small arrays, computed in a loop the
-/// compiler vectorises (sqrt and division four or two at a time), then scattered.
+/// The team splits a spring pass into runs of a multiple of this many springs (the passes take
+/// springs four at a time; the split, and so the bits, is what it was with blocks of 64).
 constexpr std::size_t kChunk = 64;
 
 /// Spring forces (with the h^2 H v term of the right-hand side divided by h) accumulated into
