@@ -133,11 +133,10 @@ void ImplicitIntegrator::build_system(const Structure& st, System& sys,
   }
   const std::size_t nf = sys.vertex.size();
   // The product's form: one run per row, each entry a neighbour with its stiffness class in the
-  // top two bits, grouped by class and in spring order within a class (the product sums a
-  // class's neighbour differences and scales the sum once), padded to an even length with the
-  // row itself (in_i - in_i adds an exact zero), so the product takes two neighbours per trip
-  // with one loop exit per row. Springs to constrained vertices only count towards the row's
-  // diagonal (fixed_count).
+  // top two bits (the product weighs each difference by its class), grouped by class and in
+  // spring order within a class, padded to an even length with the row itself (in_i - in_i adds
+  // an exact zero), so the product takes two neighbours per trip with one loop exit per row.
+  // Springs to constrained vertices only count towards the row's diagonal (fixed_count).
   sys.free_count.assign(4 * nf, 0);
   sys.fixed_count.assign(4 * nf, 0);
   const std::size_t ns = st.a.size();
