@@ -106,6 +106,17 @@ void expect_queries_match(const SoftBody& body, const SurfaceBvh& bvh, std::uint
   }
 }
 
+/// Blade points along a 2 cm arc of the meridian y = centre, over the top of the sphere.
+std::vector<glm::dvec3> top_meridian_arc() {
+  std::vector<glm::dvec3> points;
+  const double half_angle = 0.01 / kRadius;
+  for (int i = 0; i <= 8; ++i) {
+    const double a = -half_angle + 2.0 * half_angle * i / 8.0;
+    points.emplace_back(kCentre + kRadius * std::sin(a), kCentre, kCentre + kRadius * std::cos(a));
+  }
+  return points;
+}
+
 TEST(SimBvhPatches, QueriesMatchBruteForceOnEveryPatch) {
   CollisionDevice device(1);
   const SoftBody body(testing::sphere(56, 25.0), Material{});
@@ -121,14 +132,7 @@ TEST(SimBvhPatches, ACutRebuildsSomePatchesAndQueriesStillMatch) {
   world.add_body(SoftBody(testing::sphere(56, 25.0), Material{}));
   const std::size_t patches = world.bvh(0).patch_count();
   const std::uint64_t rebuilds = world.bvh(0).rebuilds();
-  // A 2 cm cut over the top of the sphere.
-  std::vector<glm::dvec3> points;
-  const double half_angle = 0.01 / kRadius;
-  for (int i = 0; i <= 8; ++i) {
-    const double a = -half_angle + 2.0 * half_angle * i / 8.0;
-    points.emplace_back(kCentre + kRadius * std::sin(a), kCentre, kCentre + kRadius * std::cos(a));
-  }
-  const CutResult cut = world.cut(0, points);
+  const CutResult cut = world.cut(0, top_meridian_arc());
   ASSERT_GT(cut.path.size(), 2u);
   const SurfaceBvh& bvh = world.bvh(0);
   EXPECT_EQ(bvh.rebuilds(), rebuilds + 1);
@@ -172,14 +176,7 @@ TEST(SimBvhPatches, RaysPassThroughTheDeadTrianglesOfAnOpenedIncision) {
     options.integrator.gravity_m_s2 = glm::dvec3(0.0);
     SimWorld world(options);
     world.add_body(SoftBody(testing::sphere(56, 25.0), Material{}));
-    std::vector<glm::dvec3> points;
-    const double half_angle = 0.01 / kRadius;
-    for (int i = 0; i <= 8; ++i) {
-      const double a = -half_angle + 2.0 * half_angle * i / 8.0;
-      points.emplace_back(kCentre + kRadius * std::sin(a), kCentre,
-                          kCentre + kRadius * std::cos(a));
-    }
-    const CutResult cut = world.cut(0, points);
+    const CutResult cut = world.cut(0, top_meridian_arc());
     ASSERT_GT(cut.new_vertices.size(), 2u);
     ASSERT_GT(world.bvh(0).loose_triangles(), 0u) << "the cut should keep stale patches";
     SoftBody& body = world.body(0);

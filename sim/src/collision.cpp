@@ -222,9 +222,9 @@ struct SurfaceBvh::Impl {
     ++rebuilds;
   }
 
-  /// Gives patch p the triangles `home` (a rebuild when its corners change).
-  void rebuild_patch(std::size_t p, std::vector<std::uint32_t> home) {
-    std::vector<std::uint32_t> corners = corners_of(home);
+  /// Gives patch p the triangles `home` with their `corners` (a rebuild when they change).
+  void rebuild_patch(std::size_t p, std::vector<std::uint32_t> home,
+                     std::vector<std::uint32_t> corners) {
     patches[p].triangles = std::move(home);
     if (corners == patches[p].corners) return;
     set_corners(p, std::move(corners));
@@ -253,7 +253,8 @@ struct SurfaceBvh::Impl {
     std::vector<std::size_t> stale;
     for (std::size_t p = 0; p < split.size(); ++p) {
       PatchGeometry& g = patches[p];
-      if (corners_of(split[p]) == g.corners) {
+      std::vector<std::uint32_t> corners = corners_of(split[p]);
+      if (corners == g.corners) {
         g.triangles = std::move(split[p]);
         continue;
       }
@@ -263,7 +264,7 @@ struct SurfaceBvh::Impl {
           std::count(prim_triangle.begin(), prim_triangle.end(), kDeadTriangle));
       if (g.corners.empty() ||
           double(dead + added.size()) > limits.stale_share * double(prim_triangle.size())) {
-        rebuild_patch(p, std::move(split[p]));
+        rebuild_patch(p, std::move(split[p]), std::move(corners));
         continue;
       }
       g.triangles = prim_triangle;
@@ -272,11 +273,12 @@ struct SurfaceBvh::Impl {
     }
     if (loose.size() > limits.loose_triangles) {
       for (const std::size_t p : stale)
-        rebuild_patch(p, std::move(split[p]));
+        rebuild_patch(p, split[p], corners_of(split[p]));
       loose.clear();
     }
     std::sort(loose.begin(), loose.end());
-    rebuild_patch(patches.size() - 1, std::move(loose));
+    std::vector<std::uint32_t> loose_corners = corners_of(loose);
+    rebuild_patch(patches.size() - 1, std::move(loose), std::move(loose_corners));
     commit_all();
     version = b.topology_version();
     ++rebuilds;

@@ -43,6 +43,22 @@ BISTURI_INLINE void load4(const double* p, V4& out) {
   std::memcpy(&out, p, sizeof(V4));
 }
 
+/// Four springs' geometry at x: end differences, lengths, stretches and stiffnesses (and the
+/// velocity differences when Velocities).
+template <bool Velocities>
+struct SpringGroup {
+  V4 d[3] = {}, dv[3] = {}, k = {}, len = {}, stretch = {};
+  BISTURI_INLINE SpringGroup(const std::uint32_t* a, const std::uint32_t* b, const double* rest,
+                             const double* k4, const glm::dvec3* x, const glm::dvec3* v) {
+    gather<Velocities>(a, b, x, v, d, dv);
+    load4(k4, k);
+    V4 rs;
+    load4(rest, rs);
+    length(d, len);
+    stretch = len - rs;
+  }
+};
+
 /// Spring forces (with the h^2 H v term of the right-hand side divided by h) accumulated into
 /// f, which must start at zero; returns the springs' elastic energy when Energy is set. ns is a
 /// multiple of 4 (null springs pad the arrays); only the first `real` are scattered. Four
@@ -56,15 +72,13 @@ BISTURI_INLINE double spring_pass_impl(const std::uint32_t* a, const std::uint32
   const V4 one = {1.0, 1.0, 1.0, 1.0}, zero = {0.0, 0.0, 0.0, 0.0};
   V4 e4 = zero;
   for (std::size_t s = 0; s < ns; s += 4) {
-    V4 d[3] = {}, dv[3] = {}, ks, rs, len;
-    gather<true>(a + s, b + s, x, v, d, dv);
-    load4(k + s, ks);
-    load4(rest + s, rs);
-    length(d, len);
+    const SpringGroup<true> g(a + s, b + s, rest + s, k + s, x, v);
+    const V4(&d)[3] = g.d;
+    const V4(&dv)[3] = g.dv;
+    const V4 &ks = g.k, &stretch = g.stretch;
     // Branch-free 1 / len (0 for a null spring).
-    const V4 ok = len > 1e-12 ? one : zero;
-    const V4 inv = ok / (len + (one - ok));
-    const V4 stretch = len - rs;
+    const V4 ok = g.len > 1e-12 ? one : zero;
+    const V4 inv = ok / (g.len + (one - ok));
     // (k stretch + c u . vrel) u with u = d / len, written on d: one scale for all three.
     const V4 along = (ks * stretch + c * (d[0] * dv[0] + d[1] * dv[1] + d[2] * dv[2]) * inv) * inv;
     if constexpr (Energy) e4 += 0.5 * ks * stretch * stretch;
@@ -107,13 +121,8 @@ BISTURI_HOT double spring_energy(const std::uint32_t* a, const std::uint32_t* b,
                                  const double* k, std::size_t ns, const glm::dvec3* x) {
   V4 e4 = {0.0, 0.0, 0.0, 0.0};
   for (std::size_t s = 0; s < ns; s += 4) {
-    V4 d[3] = {}, unused[3] = {}, ks, rs, len;
-    gather<false>(a + s, b + s, x, nullptr, d, unused);
-    load4(k + s, ks);
-    load4(rest + s, rs);
-    length(d, len);
-    const V4 stretch = len - rs;
-    e4 += 0.5 * ks * stretch * stretch;
+    const SpringGroup<false> g(a + s, b + s, rest + s, k + s, x, nullptr);
+    e4 += 0.5 * g.k * g.stretch * g.stretch;
   }
   return (e4[0] + e4[1]) + (e4[2] + e4[3]);
 }
