@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -21,6 +22,9 @@ namespace {
 constexpr std::uint32_t kNotFree = std::numeric_limits<std::uint32_t>::max();
 constexpr std::size_t kMaxStructures = 16;
 constexpr double kNeverQuiet = std::numeric_limits<double>::infinity();
+
+/// System ids: every build of every integrator's systems gets a new one.
+std::atomic<std::uint64_t> next_system_id{1};
 
 /// The array team member t accumulates into: `first` (zeroed by the caller) for member 0, its
 /// own zeroed array of the same size for the others.
@@ -49,6 +53,7 @@ ImplicitIntegrator::Structure& ImplicitIntegrator::structure(const SoftBody& bod
     structures_.erase(previous);
     st.free_mask.clear();  // the free system is rebuilt for the new springs
     st.part_dirty = true;
+    st.ahead.valid = false;
     std::fill(std::begin(st.k_class), std::end(st.k_class), 0.0);
   } else if (structures_.size() >= kMaxStructures) {
     structures_.erase(structures_.begin());
@@ -119,6 +124,7 @@ void ImplicitIntegrator::update_free_rows(Structure& st, const std::vector<std::
 
 void ImplicitIntegrator::build_system(const Structure& st, System& sys,
                                       const std::vector<std::uint8_t>& mask) {
+  sys.id = next_system_id.fetch_add(1, std::memory_order_relaxed);
   sys.agg.clear();
   sys.coarse_h = -1.0;
   sys.fixed_energy_valid = false;
@@ -384,6 +390,10 @@ StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& opti
     body.clear_forces();
     return stats;
   }
+  // Read before the non-const views below count as edits.
+  const bool untouched =
+      st.ahead.valid && st.ahead.state_edits == body.state_edits() && st.ahead.members == members();
+  st.ahead.valid = false;
   auto& x = body.positions();
   auto& v = body.velocities();
   saved_x_ = x;
@@ -408,15 +418,19 @@ StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& opti
       // The energy of the start state comes out of the first substep's force pass for free.
       const bool first = attempt == 0 && s == 0 && energy_check;
       sys = &substep(body, st, options, h, double(s + 1) / substeps, trial,
-                     first ? &energy_before : nullptr);
+                     first ? &energy_before : nullptr, first && untouched);
     }
-    const std::string reason = check(body, *sys, options, energy_before, energy_check);
+    const double elastic_after = energy_check ? end_pass(st, *sys, body, options) : 0.0;
+    const std::string reason = check(body, options, energy_before, energy_check, elastic_after);
     if (reason.empty()) {
       trial.rolled_back = attempt > 0;
       trial.free_vertices = static_cast<std::uint32_t>(st.full.vertex.size());
       trial.awake_vertices = static_cast<std::uint32_t>(sys->vertex.size());
       if (options.sleeping && !any_kinematic && attempt == 0) update_sleep(st, body, options);
       body.clear_forces();
+      // Sleep changes show as a new system id; edits from now on as a new count.
+      st.ahead.valid = energy_check;
+      st.ahead.state_edits = body.state_edits();
       return trial;
     }
     events.push_back({SimEventKind::RolledBack, body_index, step_index, substeps, reason});
@@ -432,9 +446,9 @@ StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& opti
   return stats;
 }
 
-std::string ImplicitIntegrator::check(const SoftBody& body, System& st,
-                                      const IntegratorOptions& options, double energy_before,
-                                      bool energy_check) const {
+std::string ImplicitIntegrator::check(const SoftBody& body, const IntegratorOptions& options,
+                                      double energy_before, bool energy_check,
+                                      double elastic_after) const {
   const auto& x = body.positions();
   const auto& v = body.velocities();
   const auto& m = body.masses();
@@ -471,24 +485,7 @@ std::string ImplicitIntegrator::check(const SoftBody& body, System& st,
     }
   }
   if (!energy_check) return {};
-  // Springs between constrained vertices did not move: their energy is the start state's.
-  const System::SpringSet& sa = st.active;
-  double elastic = fixed_energy(st, body);
-  std::array<double, kMaxThreads> partial{};
-  run_parts(
-      step_team_, sa.a.size(),
-      [&](std::size_t first, std::size_t last, unsigned t) {
-        partial[t] = spring_energy(sa.a.data() + first, sa.b.data() + first, sa.rest.data() + first,
-                                   sa.k.data() + first, last - first, x.data());
-      },
-      kChunk);
-  for (unsigned t = 0; t < members(); ++t)
-    elastic += partial[t];
-  if (body.closed() && body.rest_volume_m3() > 0.0) {
-    const double dv = volume_now(body) - body.rest_volume_m3();
-    elastic += 0.5 * body.material().bulk_modulus_Pa * dv * dv / body.rest_volume_m3();
-  }
-  const double energy_after = kinetic + potential + elastic;
+  const double energy_after = kinetic + potential + elastic_after;
   if (!std::isfinite(energy_after)) return "non-finite energy";
   const double allowed = std::max(0.0, work) + options.energy_jump_J +
                          options.energy_jump_relative * std::abs(energy_before);
@@ -698,19 +695,26 @@ double ImplicitIntegrator::volume_pass(const SoftBody& body) {
   return six_v;
 }
 
-double ImplicitIntegrator::volume_now(const SoftBody& body) const {
-  const unsigned n = members();
-  const std::uint32_t* idx = body.triangles().indices.data();
-  const std::size_t nt = body.triangles().size();
-  const glm::dvec3* x = body.positions().data();
-  std::array<double, kMaxThreads> partial{};
-  run_parts(step_team_, nt, [&](std::size_t first, std::size_t last, unsigned t) {
-    partial[t] = six_volume(idx, first, last, x);
-  });
-  double six_v = 0.0;
-  for (unsigned t = 0; t < n; ++t)
-    six_v += partial[t];
-  return body.orientation() * six_v / 6.0;
+double ImplicitIntegrator::end_pass(Structure& st, System& sys, const SoftBody& body,
+                                    const IntegratorOptions& options) {
+  // The passes the next step starts with, at the state it will start from: the guard's spring
+  // and volume energies come out of them, and the next step need not take them again.
+  Structure::Ahead& ahead = st.ahead;
+  ahead.h = options.dt_s;
+  ahead.elastic = spring_pass(sys, body, ahead.h, true);
+  ahead.six_v = 0.0;
+  double elastic = ahead.elastic;
+  if (body.closed() && body.rest_volume_m3() > 0.0) {
+    ahead.six_v = volume_pass(body);
+    const double v0 = body.rest_volume_m3();
+    const double dv = body.orientation() * (ahead.six_v / 6.0) - v0;
+    elastic += 0.5 * body.material().bulk_modulus_Pa * dv * dv / v0;
+  }
+  ahead.system = sys.id;
+  ahead.members = members();
+  f_.swap(ahead.f);
+  grad_.swap(ahead.grad);
+  return elastic;
 }
 
 unsigned ImplicitIntegrator::members() const {
@@ -727,7 +731,7 @@ StepThreads* ImplicitIntegrator::team(const IntegratorOptions& options) {
 ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structure& st,
                                                         const IntegratorOptions& options, double h,
                                                         double fraction, StepStats& stats,
-                                                        double* energy_out) {
+                                                        double* energy_out, bool reuse_ahead) {
   auto& x = body.positions();
   auto& v = body.velocities();
   const auto& m = body.masses();
@@ -768,8 +772,18 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
   System* sys = &system(st, body);
 
   // Springs with a solved end: forces and the h^2 H v term of the right-hand side (H = k I per
-  // spring). The others only add their (constant) energy to the start state's.
-  double spring_energy = spring_pass(*sys, body, h, energy_out != nullptr);
+  // spring). The others only add their (constant) energy to the start state's. The last step's
+  // end_pass took them (and the volume pass) at this state already, if nothing changed since.
+  Structure::Ahead& ahead = st.ahead;
+  const bool reuse = reuse_ahead && ahead.system == sys->id && ahead.h == h;
+  double spring_energy = 0.0;
+  if (reuse) {
+    f_.swap(ahead.f);
+    spring_energy = ahead.elastic;
+    stats.reused_end_pass = true;
+  } else {
+    spring_energy = spring_pass(*sys, body, h, energy_out != nullptr);
+  }
 
   // Volume term (explicit): p dV/dx_i, p = K (V0 - V) / V0. 6 dV/dx_i is the sum over the
   // triangles around i of x_j x x_k; around a closed fan that equals the sum of the triangles'
@@ -780,7 +794,12 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
   double p6 = 0.0, volume_energy = 0.0;
   const bool volume_term = body.closed() && body.rest_volume_m3() > 0.0;
   if (volume_term) {
-    const double six_v = volume_pass(body);
+    double six_v = ahead.six_v;
+    if (reuse) {
+      grad_.swap(ahead.grad);
+    } else {
+      six_v = volume_pass(body);
+    }
     const double volume = body.orientation() * (six_v / 6.0);  // as SoftBody::volume_m3()
     const double v0 = body.rest_volume_m3();
     // volume_m3() is measured outward whatever the faces' winding; the gradient follows it.

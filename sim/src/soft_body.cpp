@@ -68,6 +68,7 @@ void SoftBody::resize_arrays() {
 }
 
 void SoftBody::ensure_capacity() {
+  ++state_edits_;  // new vertex slots
   const std::size_t n = mesh_.vertex_capacity();
   mass_.resize(n, 0.0);
   kinematic_.resize(n, 0);

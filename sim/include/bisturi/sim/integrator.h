@@ -105,6 +105,8 @@ struct StepStats {
   bool frozen = false;
   std::uint32_t free_vertices = 0;   ///< neither anchored, kinematic nor massless
   std::uint32_t awake_vertices = 0;  ///< free vertices that were solved (not sleeping)
+  /// The step started from the force pass the last one took at its end (nothing had changed).
+  bool reused_end_pass = false;
 };
 
 class StepThreads;
@@ -127,6 +129,8 @@ class ImplicitIntegrator {
   /// A linear system over a set of solved vertices (the free ones, or the awake ones when some
   /// sleep), in a compact numbering, with its spring sets and coarse level.
   struct System {
+    /// Unique over every build of any system (build_system): a key for data taken over it.
+    std::uint64_t id = 0;
     // compact -> vertex, vertex -> compact (kNotFree outside the set).
     std::vector<std::uint32_t> vertex, compact;
     /// The solved neighbours of each row: count + 1 offsets into pcol, whose entries are
@@ -189,6 +193,19 @@ class ImplicitIntegrator {
     std::uint32_t asleep = 0;  ///< sleeping aggregates
     System part;               ///< the awake vertices' system (when asleep > 0)
     bool part_dirty = true;
+    /// The force pass taken at the end of the last accepted step, at its end state and for a
+    /// substep of dt (the guard's energies come out of it): the next step's first substep uses
+    /// it instead of its own while the state, the system and the team are what they were.
+    struct Ahead {
+      bool valid = false;
+      std::uint64_t state_edits = 0;  ///< SoftBody::state_edits() after the step
+      std::uint64_t system = 0;       ///< System::id of the springs it took
+      double h = 0.0;
+      unsigned members = 0;
+      double elastic = 0.0;             ///< the springs' energy, fixed ones included
+      double six_v = 0.0;               ///< 6 V (closed bodies)
+      std::vector<glm::dvec3> f, grad;  ///< spring forces, volume gradient (swapped with f_, grad_)
+    } ahead;
   };
   Structure& structure(const SoftBody& body);
   /// Rebuilds st's free system when free_mask differs from the mask it was built for (every
@@ -228,8 +245,14 @@ class ImplicitIntegrator {
   /// One backward Euler substep of length h; kinematic targets are interpolated by fraction.
   /// When energy_out is given, it receives the total energy of the state the substep starts from
   /// Returns the system it solved.
+  /// When reuse_ahead is set, st.ahead's force pass stands for the substep's own if it was
+  /// taken over the system the substep solves and for its h.
   System& substep(SoftBody& body, Structure& st, const IntegratorOptions& options, double h,
-                  double fraction, StepStats& stats, double* energy_out);
+                  double fraction, StepStats& stats, double* energy_out, bool reuse_ahead);
+  /// The next step's force pass taken at the end state (for a substep of dt) into st.ahead;
+  /// returns the end state's elastic energy (springs and volume term) for the guard.
+  double end_pass(Structure& st, System& sys, const SoftBody& body,
+                  const IntegratorOptions& options);
   /// The spring forces of sys (and of its halo) into f_ (zeroed first); when energy is set,
   /// returns the elastic energy of every spring (the fixed ones' is kept in sys).
   double spring_pass(System& sys, const SoftBody& body, double h, bool energy);
@@ -237,9 +260,6 @@ class ImplicitIntegrator {
   void add_parts(std::vector<glm::dvec3>& into, const std::vector<std::vector<glm::dvec3>>& parts);
   /// The volume term's gradient (6 dV/dx) into grad_, split over the team; returns 6 V.
   double volume_pass(const SoftBody& body);
-  /// The body's enclosed volume, as SoftBody::volume_m3 (the same sum with one thread), split
-  /// over the team.
-  double volume_now(const SoftBody& body) const;
   /// The energy of sys's fixed springs (which do not move while sys is in use), taken once.
   static double fixed_energy(System& sys, const SoftBody& body);
   /// The CG over the free vertices in T (float: half the memory traffic; double for tolerances
@@ -248,9 +268,10 @@ class ImplicitIntegrator {
   template <class T>
   void solve(const System& st, const double (&w)[4], int max_iterations, double rel_tol2,
              double abs_tol2, StepStats& stats);
-  /// Empty when the state is fine, else the reason.
-  std::string check(const SoftBody& body, System& st, const IntegratorOptions& options,
-                    double energy_before, bool energy_check) const;
+  /// Empty when the state is fine, else the reason. elastic_after: the end state's elastic
+  /// energy (end_pass), used when energy_check is set.
+  std::string check(const SoftBody& body, const IntegratorOptions& options, double energy_before,
+                    bool energy_check, double elastic_after) const;
 
   std::vector<Structure> structures_;
   std::vector<glm::dvec3> saved_x_, saved_v_;

@@ -33,7 +33,10 @@ class SoftBody {
 
   [[nodiscard]] const Dlfl& mesh() const { return mesh_; }
   /// For topological edits (cutting); call refresh_topology() after them.
-  Dlfl& mesh_for_edit() { return mesh_; }
+  Dlfl& mesh_for_edit() {
+    ++state_edits_;
+    return mesh_;
+  }
   [[nodiscard]] const Material& material() const { return material_; }
 
   // ---- State (metres, m/s, kg), indexed by vertex handle ----
@@ -41,16 +44,33 @@ class SoftBody {
   [[nodiscard]] const glm::dvec3& velocity(VertexId v) const { return (*v_)[v]; }
   [[nodiscard]] const glm::dvec3& rest_position(VertexId v) const { return (*rest_)[v]; }
   [[nodiscard]] double mass(VertexId v) const { return mass_[v.idx]; }
-  void set_position(VertexId v, const glm::dvec3& p_m) { (*x_)[v] = p_m; }
-  void set_velocity(VertexId v, const glm::dvec3& v_m_s) { (*v_)[v] = v_m_s; }
+  void set_position(VertexId v, const glm::dvec3& p_m) {
+    ++state_edits_;
+    (*x_)[v] = p_m;
+  }
+  void set_velocity(VertexId v, const glm::dvec3& v_m_s) {
+    ++state_edits_;
+    (*v_)[v] = v_m_s;
+  }
   void set_rest_position(VertexId v, const glm::dvec3& p_m) { (*rest_)[v] = p_m; }
   /// Grows the per-vertex arrays to the Dlfl's vertex capacity (vertices created by an edit).
   void ensure_capacity();
   /// Dense views over vertex slots (dead slots have zero mass and are never moved).
-  std::vector<glm::dvec3>& positions() { return x_->raw(); }
+  /// The non-const views count as edits (state_edits()): read through a const body.
+  std::vector<glm::dvec3>& positions() {
+    ++state_edits_;
+    return x_->raw();
+  }
   [[nodiscard]] const std::vector<glm::dvec3>& positions() const { return x_->raw(); }
-  std::vector<glm::dvec3>& velocities() { return v_->raw(); }
+  std::vector<glm::dvec3>& velocities() {
+    ++state_edits_;
+    return v_->raw();
+  }
   [[nodiscard]] const std::vector<glm::dvec3>& velocities() const { return v_->raw(); }
+  /// Counts the calls that can change positions or velocities (the non-const views, the
+  /// setters, mesh_for_edit, ensure_capacity): data computed from the state stays valid while
+  /// it does not move. A non-const view kept across calls and written later is not counted.
+  [[nodiscard]] std::uint64_t state_edits() const { return state_edits_; }
   [[nodiscard]] const std::vector<double>& masses() const { return mass_; }
 
   /// Anchored vertices never move (their velocity is zero).
@@ -153,6 +173,7 @@ class SoftBody {
   std::uint64_t topology_version_ = 0;
   std::uint64_t derived_generation_ = 0;
   std::uint64_t lineage_ = 0;
+  std::uint64_t state_edits_ = 0;
   bool frozen_ = false;
 };
 
