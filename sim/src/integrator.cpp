@@ -365,11 +365,9 @@ void ImplicitIntegrator::prepare(SoftBody& body, const IntegratorOptions& option
   saved_v_.reserve(n);
   f_.reserve(n);
   grad_.reserve(n);
-  for (auto* vec : {&rhs_, &inv_diag_, &dv_})
+  for (auto* vec : {&rhs_, &dv_})
     vec->reserve(n4);
-  diag_.reserve(n4 / 4);
-  self_.reserve(n4 / 4);
-  fbuf_.reserve(5 * n4 + n4 / 4);
+  fbuf_.reserve(4 * n4);
   dbuf_.reserve(3 * n4);
 }
 
@@ -496,9 +494,58 @@ std::string ImplicitIntegrator::check(const SoftBody& body, const IntegratorOpti
   return {};
 }
 
+void ImplicitIntegrator::update_diagonal(System& st, const SoftBody& body, double h,
+                                         const double (&w)[4]) {
+  System::Diagonal& dg = st.diagonal;
+  if (dg.system == st.id && dg.h == h && dg.members == members()) return;
+  const std::size_t nf = st.vertex.size();
+  const std::uint32_t* vertex = st.vertex.data();
+  const std::uint32_t* free = st.free_count.data();
+  const std::uint32_t* fixed = st.fixed_count.data();
+  const auto& m = body.masses();
+  const double drag = body.material().drag_per_s;
+  dg.value.resize(nf);
+  dg.self.resize(nf);
+  dg.self_f.resize(nf);
+  dg.inv.resize(4 * nf);
+  dg.inv_f.resize(4 * nf);
+  // The matrix: diagonal m (1 + h a) + sum of the spring weights, weights h^2 k + h c per class.
+  // Per member the sum of the free vertices' squared masses, for the absolute tolerance.
+  std::array<double, kMaxThreads> weight2_part{};
+  run_parts(step_team_, nf, [&](std::size_t first, std::size_t last, unsigned t) {
+    double weight2 = 0.0;
+    for (std::size_t ci = first; ci < last; ++ci) {
+      const std::uint32_t i = vertex[ci];
+      double self = m[i] * (1.0 + h * drag), nbr = 0.0;
+      for (std::size_t k = 0; k < 4; ++k) {
+        self += double(fixed[4 * ci + k]) * w[k];
+        nbr += double(free[4 * ci + k]) * w[k];
+      }
+      const double d = self + nbr;
+      dg.value[ci] = d;
+      dg.self[ci] = self;
+      dg.self_f[ci] = static_cast<float>(self);
+      const double inv = d > 0.0 ? 1.0 / d : 1.0;
+      for (std::size_t l = 0; l < 4; ++l) {
+        dg.inv[4 * ci + l] = l < 3 ? inv : 1.0;
+        dg.inv_f[4 * ci + l] = static_cast<float>(dg.inv[4 * ci + l]);
+      }
+      weight2 += m[i] * m[i];
+    }
+    weight2_part[t] = weight2;
+  });
+  dg.weight2 = 0.0;
+  for (const double w2 : weight2_part)
+    dg.weight2 += w2;
+  dg.system = st.id;
+  dg.h = h;
+  dg.members = members();
+}
+
 template <class T>
-void ImplicitIntegrator::solve(const System& st, const double (&w)[4], int max_iterations,
-                               double rel_tol2, double abs_tol2, StepStats& stats) {
+const T* ImplicitIntegrator::solve(System& st, const double (&w)[4],
+                                   const std::vector<glm::dvec3>& warm, int max_iterations,
+                                   double rel_tol2, double abs_tol2, StepStats& stats) {
   const std::size_t nf = st.vertex.size();
   const std::size_t n4 = 4 * nf;
   CgData<T> d;
@@ -540,41 +587,54 @@ void ImplicitIntegrator::solve(const System& st, const double (&w)[4], int max_i
   // left every later step just above it (one or two iterations per step at rest).
   const double tol2 = std::max(rel_tol2 * b2, abs_tol2);
   d.stop2 = std::max(rel_tol2 * b2, 0.01 * abs_tol2);
-  // When dv = 0 already meets the absolute tolerance, it is the answer: the warm start (the last
-  // step's dv) would meet it too, but applying it again step after step keeps a resting body
-  // moving at the tolerance's level.
-  if (b2 <= abs_tol2) std::fill(dv_.begin(), dv_.end(), 0.0);
+  System::Diagonal& dg = st.diagonal;
+  T* inv = nullptr;
   if constexpr (std::is_same_v<T, double>) {
     dbuf_.resize(3 * n4);
-    d.self = self_.data();
-    d.inv = inv_diag_.data();
+    dv_.resize(n4);
+    inv = dg.inv.data();
+    d.self = dg.self.data();
     d.b = rhs_.data();
     d.dv = dv_.data();
     d.r = dbuf_.data();
     d.p = d.r + n4;
     d.ap = d.p + n4;
   } else {
-    // Layout: r, p, ap, dv, b, inv (4 lanes each), self (1 per row).
-    fbuf_.resize(6 * n4 + nf);
+    // Layout: r, p, ap, dv, b (4 lanes each).
+    fbuf_.resize(5 * n4);
     float* f = fbuf_.data();
     d.r = f;
     d.p = f + n4;
     d.ap = f + 2 * n4;
     d.dv = f + 3 * n4;
     float* b = f + 4 * n4;
-    float* inv = f + 5 * n4;
-    float* self = f + 6 * n4;
-    for (std::size_t e = 0; e < n4; ++e) {
-      d.dv[e] = static_cast<float>(dv_[e]);
+    for (std::size_t e = 0; e < n4; ++e)
       b[e] = static_cast<float>(rhs_[e]);
-      inv[e] = static_cast<float>(inv_diag_[e]);
-    }
-    for (std::size_t i = 0; i < nf; ++i)
-      self[i] = static_cast<float>(self_[i]);
+    inv = dg.inv_f.data();
+    d.self = dg.self_f.data();
     d.b = b;
-    d.inv = inv;
-    d.self = self;
   }
+  // The start: the warm start, except when dv = 0 already meets the absolute tolerance: then it
+  // is the answer (the warm start would meet it too, but applying it again step after step keeps
+  // a resting body moving at the tolerance's level).
+  {
+    const std::uint32_t* vertex = st.vertex.data();
+    const bool zero = b2 <= abs_tol2;
+    for (std::size_t i = 0; i < nf; ++i) {
+      const glm::dvec3 w0 = zero ? glm::dvec3(0.0) : warm[vertex[i]];
+      d.dv[4 * i] = static_cast<T>(w0.x);
+      d.dv[4 * i + 1] = static_cast<T>(w0.y);
+      d.dv[4 * i + 2] = static_cast<T>(w0.z);
+      d.dv[4 * i + 3] = T(0);
+    }
+  }
+  // The contact rows' inverses, with their blocks, for this solve (restored below).
+  for (const ContactRow& row : contact_rows_) {
+    const bool ok = row.d[0] > 0.0 && row.d[1] > 0.0 && row.d[2] > 0.0;
+    for (std::size_t l = 0; l < 3; ++l)
+      inv[4 * row.row + l] = static_cast<T>(ok ? 1.0 / row.d[l] : 1.0);
+  }
+  d.inv = inv;
   if (!st.agg.empty() && st.coarse_h > 0.0) {
     d.nc = st.coarse_count;
     d.agg = st.agg.data();
@@ -602,12 +662,13 @@ void ImplicitIntegrator::solve(const System& st, const double (&w)[4], int max_i
   }
   double r2 = 0.0;
   const int it = run_cg(d, max_iterations, tol2, r2);
-  if constexpr (!std::is_same_v<T, double>) {
-    for (std::size_t e = 0; e < n4; ++e)
-      dv_[e] = double(d.dv[e]);
+  for (const ContactRow& row : contact_rows_) {
+    for (std::size_t l = 0; l < 3; ++l)
+      inv[4 * row.row + l] = static_cast<T>(dg.inv[4 * row.row + l]);
   }
   stats.cg_iterations += it;
   stats.relative_residual = std::sqrt(r2 / std::max(b2, 1e-300));
+  return d.dv;
 }
 
 double ImplicitIntegrator::fixed_energy(System& sys, const SoftBody& body) {
@@ -826,20 +887,14 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
   for (int k = 0; k < 4; ++k)
     w[k] = h2 * st.k_class[k] + h * c;
   const std::size_t n4 = 4 * nf;
-  const std::uint32_t* free = sys->free_count.data();
-  const std::uint32_t* fixed = sys->fixed_count.data();
+  update_diagonal(*sys, body, h, w);
+  const System::Diagonal& dg = sys->diagonal;
   rhs_.resize(n4);
-  diag_.resize(nf);
-  self_.resize(nf);
-  inv_diag_.resize(n4);
   row_residual_.resize(nf);
   row_gradient_.resize(nf);
   // The rows split over the team: per row its residual force and pressure gradient (squared),
-  // summed per aggregate below in row order; per member the sum of the free vertices' squared
-  // masses, for the absolute tolerance.
-  std::array<double, kMaxThreads> weight2_part{};
-  run_parts(step_team_, nf, [&](std::size_t first, std::size_t last, unsigned t) {
-    double weight2 = 0.0;
+  // summed per aggregate below in row order.
+  run_parts(step_team_, nf, [&](std::size_t first, std::size_t last, unsigned) {
     for (std::size_t ci = first; ci < last; ++ci) {
       const std::uint32_t i = vertex[ci];
       glm::dvec3 f = m[i] * g + fext[i] - drag * m[i] * v[i] + f_[i];
@@ -851,25 +906,9 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
       rhs_[4 * ci + 1] = h * f.y;
       rhs_[4 * ci + 2] = h * f.z;
       rhs_[4 * ci + 3] = 0.0;
-      double self = m[i] * (1.0 + h * drag), nbr = 0.0;
-      for (std::size_t k = 0; k < 4; ++k) {
-        self += double(fixed[4 * ci + k]) * w[k];
-        nbr += double(free[4 * ci + k]) * w[k];
-      }
-      const double d = self + nbr;
-      self_[ci] = self;
-      diag_[ci] = d;
-      inv_diag_[4 * ci] = d;  // scratch: the diagonal with the contact blocks, inverted below
-      inv_diag_[4 * ci + 1] = d;
-      inv_diag_[4 * ci + 2] = d;
-      inv_diag_[4 * ci + 3] = 1.0;
-      weight2 += m[i] * m[i];
     }
-    weight2_part[t] = weight2;
   });
-  double weight2 = 0.0;
-  for (const double w2 : weight2_part)
-    weight2 += w2;
+  const double weight2 = dg.weight2;
   // Per aggregate, for sleeping: the sums over its vertices of the squared residual force and
   // pressure gradient.
   std::fill(st.step_residual.begin(), st.step_residual.end(), 0.0);
@@ -881,6 +920,8 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
   }
   // Contacts: k n n^T blocks on the diagonal, their h^2 H v term on the right-hand side.
   contacts_.clear();
+  contact_rows_.clear();
+  if (contact_slot_.size() < nf) contact_slot_.resize(nf, kNotFree);
   for (const SoftBody::ContactTerm& ct : body.contacts()) {
     const std::uint32_t i = ct.vertex;
     if (i >= n || !free_[i]) continue;
@@ -893,29 +934,22 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
     rhs_[4 * ci] -= nv * nn.x;
     rhs_[4 * ci + 1] -= nv * nn.y;
     rhs_[4 * ci + 2] -= nv * nn.z;
-    inv_diag_[4 * ci] += kc * nn.x * nn.x;
-    inv_diag_[4 * ci + 1] += kc * nn.y * nn.y;
-    inv_diag_[4 * ci + 2] += kc * nn.z * nn.z;
-  }
-  // The diagonal inverted, and the solve's start: the warm start, the last step's dv. The solve
-  // stops at the relative tolerance or when the residual force is below the absolute one (see
-  // IntegratorOptions).
-  auto& warm = body.warm_start();
-  dv_.resize(n4);
-  run_parts(step_team_, nf, [&](std::size_t first, std::size_t last, unsigned) {
-    for (std::size_t ci = first; ci < last; ++ci) {
-      double* di = &inv_diag_[4 * ci];
-      const bool ok = di[0] > 0.0 && di[1] > 0.0 && di[2] > 0.0;
-      di[0] = ok ? 1.0 / di[0] : 1.0;
-      di[1] = ok ? 1.0 / di[1] : 1.0;
-      di[2] = ok ? 1.0 / di[2] : 1.0;
-      const glm::dvec3 w0 = warm[vertex[ci]];
-      dv_[4 * ci] = w0.x;
-      dv_[4 * ci + 1] = w0.y;
-      dv_[4 * ci + 2] = w0.z;
-      dv_[4 * ci + 3] = 0.0;
+    std::uint32_t& slot = contact_slot_[ci];
+    if (slot == kNotFree) {
+      slot = static_cast<std::uint32_t>(contact_rows_.size());
+      const double d = dg.value[ci];
+      contact_rows_.push_back({static_cast<std::uint32_t>(ci), {d, d, d}});
     }
-  });
+    double* d = contact_rows_[slot].d;
+    d[0] += kc * nn.x * nn.x;
+    d[1] += kc * nn.y * nn.y;
+    d[2] += kc * nn.z * nn.z;
+  }
+  for (const ContactRow& row : contact_rows_)
+    contact_slot_[row.row] = kNotFree;
+  // The solve starts from the warm start, the last step's dv. It stops at the relative tolerance
+  // or when the residual force is below the absolute one (see IntegratorOptions).
+  auto& warm = body.warm_start();
   const double g2 = glm::dot(g, g);
   const double frac2 = options.cg_weight_fraction * options.cg_weight_fraction;
   const double floor2 = options.cg_force_floor_N * options.cg_force_floor_N;
@@ -928,27 +962,28 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
   } else {
     sys->coarse_h = -1.0;  // keeps solve() on Jacobi alone
   }
-  if (options.cg_relative_tolerance >= 1e-5) {
-    solve<float>(*sys, w, options.max_cg_iterations, rel_tol2, abs_tol2, stats);
-  } else {
-    solve<double>(*sys, w, options.max_cg_iterations, rel_tol2, abs_tol2, stats);
-  }
-
   // v += dv (solved vertices only), x += h v (every vertex with mass); the warm start keeps dv.
   // Per aggregate, for sleeping: the sum over its vertices of the squared force that one more
   // step at their speed would add to their residual (the diagonal, inertia and springs, times
   // the speed over h): a vertex stopped while it moves that much was not at rest.
   row_speed_.resize(nf);
-  run_parts(step_team_, nf, [&](std::size_t first, std::size_t last, unsigned) {
-    for (std::size_t ci = first; ci < last; ++ci) {
-      const std::uint32_t i = vertex[ci];
-      const glm::dvec3 d(dv_[4 * ci], dv_[4 * ci + 1], dv_[4 * ci + 2]);
-      warm[i] = d;
-      v[i] += d;
-      const double stop = diag_[ci] / h;
-      row_speed_[ci] = stop * stop * glm::dot(v[i], v[i]);
-    }
-  });
+  const auto apply = [&](const auto* dvs) {
+    run_parts(step_team_, nf, [&](std::size_t first, std::size_t last, unsigned) {
+      for (std::size_t ci = first; ci < last; ++ci) {
+        const std::uint32_t i = vertex[ci];
+        const glm::dvec3 d{double(dvs[4 * ci]), double(dvs[4 * ci + 1]), double(dvs[4 * ci + 2])};
+        warm[i] = d;
+        v[i] += d;
+        const double stop = dg.value[ci] / h;
+        row_speed_[ci] = stop * stop * glm::dot(v[i], v[i]);
+      }
+    });
+  };
+  if (options.cg_relative_tolerance >= 1e-5) {
+    apply(solve<float>(*sys, w, warm, options.max_cg_iterations, rel_tol2, abs_tol2, stats));
+  } else {
+    apply(solve<double>(*sys, w, warm, options.max_cg_iterations, rel_tol2, abs_tol2, stats));
+  }
   // Vertices outside the solve keep no warm start.
   const std::uint32_t* compact = sys->compact.data();
   run_parts(step_team_, n, [&](std::size_t first, std::size_t last, unsigned) {

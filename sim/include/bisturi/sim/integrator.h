@@ -166,6 +166,18 @@ class ImplicitIntegrator {
     std::vector<double> coarse;
     std::vector<float> coarse_f;
     std::vector<std::uint32_t> coarse_first, coarse_start;
+    /// The solve's diagonal for one substep length, kept while the system, h and the team stay
+    /// (it changes with nothing else): per row its value, the part that is not a free
+    /// neighbour's weight, the Jacobi inverse (4 lanes, contact blocks left out), the float
+    /// solve's copies, and the rows' summed squared masses.
+    struct Diagonal {
+      std::uint64_t system = 0;  ///< the System::id it was built for (0: none)
+      double h = 0.0;
+      unsigned members = 0;
+      std::vector<double> value, self, inv;
+      std::vector<float> self_f, inv_f;
+      double weight2 = 0.0;
+    } diagonal;
   };
   /// The springs of one body generation as arrays, the system over its free vertices (neither
   /// anchored, kinematic nor massless; rebuilt when that set changes), and the sleep state of
@@ -262,12 +274,15 @@ class ImplicitIntegrator {
   double volume_pass(const SoftBody& body);
   /// The energy of sys's fixed springs (which do not move while sys is in use), taken once.
   static double fixed_energy(System& sys, const SoftBody& body);
+  /// st.diagonal for substep length h (rebuilt when stale).
+  void update_diagonal(System& st, const SoftBody& body, double h, const double (&w)[4]);
   /// The CG over the free vertices in T (float: half the memory traffic; double for tolerances
-  /// float cannot reach). Reads rhs_, diag_, self_, inv_diag_, contacts_ and the warm start in
-  /// dv_; leaves the solution in dv_.
+  /// float cannot reach), from the warm start. Reads rhs_, st.diagonal (its contact rows
+  /// replaced by contact_rows_ during the solve) and contacts_; returns the solution (4 lanes
+  /// per row) in fbuf_ or dv_.
   template <class T>
-  void solve(const System& st, const double (&w)[4], int max_iterations, double rel_tol2,
-             double abs_tol2, StepStats& stats);
+  const T* solve(System& st, const double (&w)[4], const std::vector<glm::dvec3>& warm,
+                 int max_iterations, double rel_tol2, double abs_tol2, StepStats& stats);
   /// Empty when the state is fine, else the reason. elastic_after: the end state's elastic
   /// energy (end_pass), used when energy_check is set.
   std::string check(const SoftBody& body, const IntegratorOptions& options, double energy_before,
@@ -290,9 +305,16 @@ class ImplicitIntegrator {
   std::vector<std::uint32_t> loaded_;  ///< vertices with an external force this step
   double p6_ = 0.0;                    ///< the last substep's pressure factor
   // Solver data over the free vertices, four lanes (x, y, z, zero pad) per vertex: the
-  // right-hand side, the diagonal and its inverse (contact blocks included), and the part of the
-  // diagonal that is not a free neighbour's weight (mass, drag, springs to constrained vertices).
-  std::vector<double> rhs_, diag_, self_, inv_diag_, dv_;
+  // right-hand side and the double solve's solution.
+  std::vector<double> rhs_, dv_;
+  /// The rows with contact blocks: their diagonal with the blocks, per lane.
+  struct ContactRow {
+    std::uint32_t row = 0;
+    double d[3] = {0.0, 0.0, 0.0};
+  };
+  std::vector<ContactRow> contact_rows_;
+  /// Per row: its index in contact_rows_ while they are gathered, else kNotFree.
+  std::vector<std::uint32_t> contact_slot_;
   /// Per free vertex, summed per aggregate for sleeping: the squared residual force, pressure
   /// gradient and stopping force of the last substep.
   std::vector<double> row_residual_, row_gradient_, row_speed_;
