@@ -184,6 +184,42 @@ TEST(SimCutting, LocalUpdateGivesTheFullRebuildsSpringsAndMasses) {
   EXPECT_FALSE(body.closed());  // the incision opened it
 }
 
+/// The body's triangles (updated around the cut) against a triangulation of the whole mesh.
+void expect_full_triangulation(const SoftBody& body, const char* what) {
+  const SurfaceTriangles full = triangulate_surface(body.mesh());
+  ASSERT_EQ(body.triangles().size(), full.size()) << what;
+  EXPECT_EQ(body.triangles().indices, full.indices) << what;
+  EXPECT_TRUE(body.triangles().face_of == full.face_of) << what;
+}
+
+TEST(SimCutting, LocalUpdateGivesTheFullTriangulation) {
+  // Two arcs on the sphere (triangles), the second crossing the first's end, and two cuts on the
+  // sheet (quads: two triangles per face), one from its boundary.
+  SoftBody sphere(testing::sphere(24, 8.0), Material{});
+  ASSERT_TRUE(sphere.closed());
+  const double c = 0.0115, r = 0.008;
+  for (const double tilt : {0.0, 0.9}) {
+    std::vector<glm::dvec3> blade;
+    for (int i = 0; i <= 6; ++i) {
+      const double a = -0.5 + i / 6.0;
+      const glm::dvec3 along(std::sin(a) * std::cos(tilt), std::sin(a) * std::sin(tilt),
+                             std::cos(a));
+      blade.push_back(glm::dvec3(c) + r * along);
+    }
+    cut_surface(sphere, blade);
+    ASSERT_TRUE(validate(sphere.mesh()).ok());
+    expect_full_triangulation(sphere, "sphere");
+    EXPECT_FALSE(sphere.closed());
+  }
+  SoftBody sheet = square();
+  cut_surface(sheet, std::vector<glm::dvec3>{{0.021, 0.03, 0.0}, {0.079, 0.03, 0.0}});
+  expect_full_triangulation(sheet, "sheet, inside");
+  cut_surface(sheet, std::vector<glm::dvec3>{{0.0, 0.061, 0.0}, {0.04, 0.061, 0.0}});
+  ASSERT_TRUE(validate(sheet.mesh()).ok());
+  expect_full_triangulation(sheet, "sheet, from the boundary");
+  EXPECT_FALSE(sheet.closed());
+}
+
 TEST(SimCutting, TooShortCutIsRefusedUnchanged) {
   SoftBody body = square();
   const std::uint64_t version = body.mesh().topology_version();

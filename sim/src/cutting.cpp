@@ -43,15 +43,16 @@ double point_segment_distance(const glm::dvec3& p, const glm::dvec3& a, const gl
 
 VertexId nearest_vertex(const SoftBody& body, const glm::dvec3& p) {
   const Dlfl& mesh = body.mesh();
+  const std::vector<glm::dvec3>& x = body.positions();
   VertexId best;
-  double best_d = std::numeric_limits<double>::infinity();
+  // Squared distances: no square root per vertex.
+  double best_d2 = std::numeric_limits<double>::infinity();
   for (std::uint32_t i = 0; i < mesh.vertex_capacity(); ++i) {
-    const VertexId v(i);
-    if (!mesh.alive(v)) continue;
-    const double d = glm::length(body.position(v) - p);
-    if (d < best_d && has_real_face(mesh, v)) {
-      best_d = d;
-      best = v;
+    const glm::dvec3 d = x[i] - p;
+    const double d2 = glm::dot(d, d);
+    if (d2 < best_d2 && mesh.alive(VertexId(i)) && has_real_face(mesh, VertexId(i))) {
+      best_d2 = d2;
+      best = VertexId(i);
     }
   }
   return best;

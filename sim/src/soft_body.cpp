@@ -108,15 +108,14 @@ bool SoftBody::refresh_topology() {
   resize_arrays();
   springs_ = build_springs(mesh_, rest_->raw(), material_);
   rebuild_masses();
-  finish_refresh();
+  finish_refresh(true);
   return true;
 }
 
-void SoftBody::finish_refresh() {
-  triangles_ = triangulate_surface(mesh_);
-  closed_ = material_.bulk_modulus_Pa > 0.0;
-  for (std::uint32_t f = 0; f < mesh_.face_capacity() && closed_; ++f) {
-    if (mesh_.alive(FaceId(f)) && mesh_.is_bounding(FaceId(f))) closed_ = false;
+void SoftBody::finish_refresh(bool surface) {
+  if (surface) {
+    triangles_ = triangulate_surface(mesh_);
+    closed_ = material_.bulk_modulus_Pa > 0.0 && !any_bounding_face();
   }
   topology_version_ = mesh_.topology_version();
   derived_generation_ = ++g_generation;
@@ -146,8 +145,10 @@ bool SoftBody::refresh_topology_local(std::span<const VertexId> touched) {
     });
   }
   std::sort(verts.begin(), verts.end());
+  // Every face the edit changed is around a region vertex.
+  const std::vector<FaceId> faces = faces_around(mesh_, verts);
   // Springs: those with no end in the region are kept; the others come from the new faces.
-  std::vector<Spring> near = build_springs_near(mesh_, rest_->raw(), material_, region, verts);
+  std::vector<Spring> near = build_springs_near(mesh_, rest_->raw(), material_, region, faces);
   // In place (no new multi-megabyte array: fresh pages cost more than the merge): drop the
   // region's springs, then merge the new ones in from the back.
   auto less = [](const Spring& x, const Spring& y) { return x.a != y.a ? x.a < y.a : x.b < y.b; };
@@ -183,8 +184,28 @@ bool SoftBody::refresh_topology_local(std::span<const VertexId> touched) {
     });
     mass_[v] = m;
   }
-  finish_refresh();
+  // Triangles: the faces around the region again, the others' copied (into the storage of the
+  // triangulation before last: fresh pages cost more than the copy).
+  triangulate_changed_faces(mesh_, triangles_, faces, spare_triangles_);
+  std::swap(triangles_, spare_triangles_);
+  // A closed body stays closed unless a changed face is labelled; an open one is checked in full.
+  const bool was_closed = closed_;
+  closed_ = material_.bulk_modulus_Pa > 0.0;
+  if (was_closed) {
+    for (const FaceId f : faces)
+      if (mesh_.alive(f) && mesh_.is_bounding(f)) closed_ = false;
+  } else {
+    closed_ = closed_ && !any_bounding_face();
+  }
+  finish_refresh(false);
   return true;
+}
+
+bool SoftBody::any_bounding_face() const {
+  for (std::uint32_t f = 0; f < mesh_.face_capacity(); ++f) {
+    if (mesh_.alive(FaceId(f)) && mesh_.is_bounding(FaceId(f))) return true;
+  }
+  return false;
 }
 
 void SoftBody::set_anchored(VertexId v, bool anchored) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <tuple>
 
 #include <glm/geometric.hpp>
@@ -108,17 +109,21 @@ std::vector<Spring> build_springs(const Dlfl& mesh, const std::vector<glm::dvec3
   return springs_from_keys(keys, rest, material);
 }
 
-std::vector<Spring> build_springs_near(const Dlfl& mesh, const std::vector<glm::dvec3>& rest,
-                                       const Material& material,
-                                       const std::vector<std::uint8_t>& region,
-                                       std::span<const std::uint32_t> region_vertices) {
-  // A spring with an end v in the region comes from a face around v (structural, shear), or
-  // from an edge of such a face (a bending spring's ends are corners of the edge's two faces).
+std::vector<FaceId> faces_around(const Dlfl& mesh, std::span<const std::uint32_t> vertices) {
   std::vector<FaceId> faces;
-  for (std::uint32_t v : region_vertices)
+  for (std::uint32_t v : vertices)
     for_each_corner(mesh, VertexId(v), [&](CornerId c) { faces.push_back(mesh.face(c)); });
   std::sort(faces.begin(), faces.end());
   faces.erase(std::unique(faces.begin(), faces.end()), faces.end());
+  return faces;
+}
+
+std::vector<Spring> build_springs_near(const Dlfl& mesh, const std::vector<glm::dvec3>& rest,
+                                       const Material& material,
+                                       const std::vector<std::uint8_t>& region,
+                                       std::span<const FaceId> faces) {
+  // A spring with an end v in the region comes from a face around v (structural, shear), or
+  // from an edge of such a face (a bending spring's ends are corners of the edge's two faces).
   std::vector<Key> keys;
   std::vector<EdgeId> edges;
   std::vector<std::uint32_t> ring;
@@ -141,27 +146,84 @@ std::vector<Spring> build_springs_near(const Dlfl& mesh, const std::vector<glm::
   return springs_from_keys(keys, rest, material);
 }
 
+namespace {
+
+/// Appends the fan of face f (alive and real) to t: corner 0 with each later side, skipping
+/// degenerate triangles.
+void add_face_triangles(const Dlfl& mesh, FaceId f, SurfaceTriangles& t) {
+  const CornerId first = mesh.first_corner(f);
+  const std::uint32_t v0 = mesh.vertex(first).idx;
+  CornerId c = mesh.next(first);
+  while (mesh.next(c) != first) {
+    const std::uint32_t v1 = mesh.vertex(c).idx;
+    const std::uint32_t v2 = mesh.vertex(mesh.next(c)).idx;
+    if (v0 != v1 && v1 != v2 && v0 != v2) {
+      t.indices.insert(t.indices.end(), {v0, v1, v2});
+      t.face_of.push_back(f);
+    }
+    c = mesh.next(c);
+  }
+}
+
+}  // namespace
+
 SurfaceTriangles triangulate_surface(const Dlfl& mesh) {
   SurfaceTriangles t;
   t.indices.reserve(mesh.num_corners() * 3);
   t.face_of.reserve(mesh.num_corners());
   for (std::uint32_t fi = 0; fi < mesh.face_capacity(); ++fi) {
     const FaceId f(fi);
-    if (!mesh.alive(f) || !real_face(mesh, f)) continue;
-    const CornerId first = mesh.first_corner(f);
-    const std::uint32_t v0 = mesh.vertex(first).idx;
-    CornerId c = mesh.next(first);
-    while (mesh.next(c) != first) {
-      const std::uint32_t v1 = mesh.vertex(c).idx;
-      const std::uint32_t v2 = mesh.vertex(mesh.next(c)).idx;
-      if (v0 != v1 && v1 != v2 && v0 != v2) {
-        t.indices.insert(t.indices.end(), {v0, v1, v2});
-        t.face_of.push_back(f);
-      }
-      c = mesh.next(c);
-    }
+    if (mesh.alive(f) && real_face(mesh, f)) add_face_triangles(mesh, f, t);
   }
   return t;
+}
+
+void triangulate_changed_faces(const Dlfl& mesh, const SurfaceTriangles& before,
+                               std::span<const FaceId> changed, SurfaceTriangles& out) {
+  // A merge in face order of the unchanged faces' runs of triangles (copied while the face is
+  // alive) and the changed faces (triangulated again at the end, then moved into place).
+  SurfaceTriangles fresh;
+  for (const FaceId f : changed)
+    if (mesh.alive(f) && real_face(mesh, f)) add_face_triangles(mesh, f, fresh);
+  const std::size_t nb = before.size(), nf = fresh.size();
+  out.indices.resize(3 * (nb + nf));
+  out.face_of.resize(nb + nf);
+  std::uint32_t* oi = out.indices.data();
+  FaceId* of = out.face_of.data();
+  const std::uint32_t* bi = before.indices.data();
+  const FaceId* bf = before.face_of.data();
+  std::size_t n = 0, i = 0, j = 0, c = 0;
+  auto put = [&](const std::uint32_t* idx, FaceId f) {
+    oi[3 * n] = idx[0];
+    oi[3 * n + 1] = idx[1];
+    oi[3 * n + 2] = idx[2];
+    of[n++] = f;
+  };
+  constexpr std::uint32_t kEnd = std::numeric_limits<std::uint32_t>::max();
+  while (i < nb || j < nf) {
+    const std::uint32_t fb = i < nb ? bf[i].idx : kEnd;
+    // The next changed face at or after fb: its old triangles are dropped, its new ones go in
+    // before any later face's.
+    while (c < changed.size() && changed[c].idx < fb)
+      ++c;
+    const bool replaced = c < changed.size() && changed[c].idx == fb;
+    const std::uint32_t fj = j < nf ? fresh.face_of[j].idx : kEnd;
+    if (fj <= fb) {
+      put(fresh.indices.data() + 3 * j, fresh.face_of[j]);
+      ++j;
+      continue;
+    }
+    std::size_t run = i + 1;
+    while (run < nb && bf[run].idx == fb)
+      ++run;
+    if (!replaced && mesh.alive(FaceId(fb))) {
+      for (std::size_t t = i; t < run; ++t)
+        put(bi + 3 * t, bf[t]);
+    }
+    i = run;
+  }
+  out.indices.resize(3 * n);
+  out.face_of.resize(n);
 }
 
 }  // namespace bisturi::sim

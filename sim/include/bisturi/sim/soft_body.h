@@ -150,8 +150,10 @@ class SoftBody {
  private:
   void resize_arrays();
   void rebuild_masses();
-  /// Triangles, the closed flag, the version and generation after springs and masses.
-  void finish_refresh();
+  /// The version and generation after springs and masses, and when `surface` is set the
+  /// triangles and the closed flag (from scratch).
+  void finish_refresh(bool surface);
+  [[nodiscard]] bool any_bounding_face() const;
 
   Dlfl mesh_;
   Material material_;
@@ -167,6 +169,7 @@ class SoftBody {
   std::vector<ContactTerm> contacts_;
   std::vector<Spring> springs_;
   SurfaceTriangles triangles_;
+  SurfaceTriangles spare_triangles_;  ///< the triangulation before last, as storage
   bool closed_ = false;
   double rest_volume_m3_ = 0.0;
   double orientation_ = 1.0;

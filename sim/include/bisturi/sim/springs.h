@@ -30,14 +30,17 @@ struct Spring {
 std::vector<Spring> build_springs(const Dlfl& mesh, const std::vector<glm::dvec3>& rest_positions_m,
                                   const Material& material);
 
-/// The springs build_springs gives that have at least one end in the region (region[v] != 0 for
-/// the vertex indices in region_vertices), found from the faces and edges around those vertices
-/// only: the local update after an edit (a cut) that changed nothing outside the region.
+/// The faces around the vertices (indices), sorted and unique.
+std::vector<FaceId> faces_around(const Dlfl& mesh, std::span<const std::uint32_t> vertices);
+
+/// The springs build_springs gives that have at least one end in the region (region[v] != 0),
+/// found from `faces` (faces_around the region's vertices) and their edges only: the local
+/// update after an edit (a cut) that changed nothing outside the region.
 std::vector<Spring> build_springs_near(const Dlfl& mesh,
                                        const std::vector<glm::dvec3>& rest_positions_m,
                                        const Material& material,
                                        const std::vector<std::uint8_t>& region,
-                                       std::span<const std::uint32_t> region_vertices);
+                                       std::span<const FaceId> faces);
 
 /// The unlabelled faces fan-triangulated (vertex indices, counter-clockwise seen from outside),
 /// with the face each triangle came from: the surface the BVH, the haptic proxy and the volume
@@ -48,5 +51,10 @@ struct SurfaceTriangles {
   [[nodiscard]] std::size_t size() const { return face_of.size(); }
 };
 SurfaceTriangles triangulate_surface(const Dlfl& mesh);
+/// triangulate_surface into `out` after an edit that changed only the faces in `changed`
+/// (sorted, unique; a face that died needs not be listed): the others' triangles are copied
+/// from `before`, the last triangulation. The result is the same, in the same order.
+void triangulate_changed_faces(const Dlfl& mesh, const SurfaceTriangles& before,
+                               std::span<const FaceId> changed, SurfaceTriangles& out);
 
 }  // namespace bisturi::sim
