@@ -3,24 +3,38 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
-#include <tuple>
 
 #include <glm/geometric.hpp>
 
+#include "bisturi/sim/errors.h"
 #include "vertex_corners.h"
 
 namespace bisturi::sim {
 namespace {
 
-struct Key {
-  std::uint32_t a, b;
-  SpringKind kind;
-  auto operator<=>(const Key&) const = default;
-};
+/// A spring candidate packed into one integer whose order is (a, b, kind): a in the top 30
+/// bits, b in the next 32, the kind in the low 2. Sorting integers is several times faster than
+/// sorting a struct with a three-way comparison (the sort dominated building a body's springs).
+using Key = std::uint64_t;
+constexpr std::uint32_t kMaxVertexIndex = (1u << 30) - 1u;
+
+Key make_key(std::uint32_t a, std::uint32_t b, SpringKind kind) {
+  return (Key{a} << 34) | (Key{b} << 2) | Key{static_cast<std::uint8_t>(kind)};
+}
+std::uint32_t key_a(Key k) {
+  return static_cast<std::uint32_t>(k >> 34);
+}
+std::uint32_t key_b(Key k) {
+  return static_cast<std::uint32_t>(k >> 2);
+}
+SpringKind key_kind(Key k) {
+  return static_cast<SpringKind>(k & 3u);
+}
 
 void add_pair(std::vector<Key>& keys, std::uint32_t a, std::uint32_t b, SpringKind kind) {
   if (a == b) return;
-  keys.push_back({std::min(a, b), std::max(a, b), kind});
+  if (std::max(a, b) > kMaxVertexIndex) throw SimInputError("springs: more than 2^30 vertex slots");
+  keys.push_back(make_key(std::min(a, b), std::max(a, b), kind));
 }
 
 bool real_face(const Dlfl& mesh, FaceId f) {
@@ -63,17 +77,41 @@ void add_edge_keys(const Dlfl& mesh, EdgeId e, std::vector<Key>& keys) {
 
 /// Sorted keys to springs: one per vertex pair, a structural spring winning over shear and
 /// bending on the same pair.
+/// Sorts the keys: a counting sort by the first end, then each vertex's few keys by std::sort
+/// (a comparison sort of the whole list was most of the time of making a body).
+void sort_keys(std::vector<Key>& keys) {
+  if (keys.size() < 4096) {
+    std::sort(keys.begin(), keys.end());
+    return;
+  }
+  std::uint32_t n = 0;
+  for (const Key k : keys)
+    n = std::max(n, key_a(k) + 1);
+  std::vector<std::uint32_t> start(std::size_t{n} + 1, 0);
+  for (const Key k : keys)
+    ++start[key_a(k) + 1];
+  for (std::size_t a = 0; a < n; ++a)
+    start[a + 1] += start[a];
+  std::vector<std::uint32_t> fill(start.begin(), start.end() - 1);
+  std::vector<Key> sorted(keys.size());
+  for (const Key k : keys)
+    sorted[fill[key_a(k)]++] = k;
+  for (std::size_t a = 0; a < n; ++a)
+    std::sort(sorted.begin() + start[a], sorted.begin() + start[a + 1]);
+  keys.swap(sorted);
+}
+
 std::vector<Spring> springs_from_keys(std::vector<Key>& keys, const std::vector<glm::dvec3>& rest,
                                       const Material& material) {
-  std::sort(keys.begin(), keys.end());
+  sort_keys(keys);
   std::vector<Spring> springs;
   springs.reserve(keys.size());
   for (std::size_t i = 0; i < keys.size(); ++i) {
-    if (i > 0 && keys[i].a == keys[i - 1].a && keys[i].b == keys[i - 1].b) continue;
+    if (i > 0 && (keys[i] >> 2) == (keys[i - 1] >> 2)) continue;  // the same pair
     Spring s;
-    s.a = keys[i].a;
-    s.b = keys[i].b;
-    s.kind = keys[i].kind;
+    s.a = key_a(keys[i]);
+    s.b = key_b(keys[i]);
+    s.kind = key_kind(keys[i]);
     s.rest_m = glm::length(rest[s.b] - rest[s.a]);
     switch (s.kind) {
       case SpringKind::Structural:
@@ -142,7 +180,7 @@ std::vector<Spring> build_springs_near(const Dlfl& mesh, const std::vector<glm::
   edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
   for (EdgeId e : edges)
     add_edge_keys(mesh, e, keys);
-  std::erase_if(keys, [&](const Key& k) { return !region[k.a] && !region[k.b]; });
+  std::erase_if(keys, [&](Key k) { return !region[key_a(k)] && !region[key_b(k)]; });
   return springs_from_keys(keys, rest, material);
 }
 

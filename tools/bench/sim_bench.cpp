@@ -6,6 +6,7 @@
 // along an arc over the top of the 20k-vertex sphere), BVH rebuild included. BM_TwoBodies: the
 // headset session's shape of work (first step with and without SimWorld::prepare(), steady
 // step, a cut tick and the step after it). BM_Refit: the Embree refit of a sphere on its own.
+// BM_MakeBody: a SoftBody made from its solid.
 // Run by hand: build/bin/sim_bench [--benchmark_filter=...]. Goal: p99 <= 1 ms at 20k.
 
 #include <benchmark/benchmark.h>
@@ -296,6 +297,23 @@ void BM_Cut5cm(benchmark::State& state) {
   state.counters["max_ms"] = percentile(samples, 1.0);
 }
 BENCHMARK(BM_Cut5cm)->UseManualTime()->Unit(benchmark::kMillisecond)->Iterations(10);
+
+// Making a body: springs, masses, triangles and the solver's structure from the solid (what a
+// session does for each organ it loads), the Dlfl's build from the polygons left out.
+void BM_MakeBody(benchmark::State& state) {
+  const Shape& shape = sphere(radius_for(state.range(0)));
+  std::size_t springs = 0;
+  for (auto _ : state) {
+    state.PauseTiming();
+    Dlfl mesh = build_oriented_manifold(shape.polygons);
+    state.ResumeTiming();
+    SoftBody body(std::move(mesh), Material{});
+    springs = body.springs().size();
+    benchmark::DoNotOptimize(springs);
+  }
+  state.counters["springs"] = double(springs);
+}
+BENCHMARK(BM_MakeBody)->Arg(2000)->Arg(20000)->Arg(100000)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
