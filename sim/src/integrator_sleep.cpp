@@ -114,10 +114,11 @@ ImplicitIntegrator::System& ImplicitIntegrator::system(Structure& st, const Soft
   auto mark = [&](std::uint32_t i) {
     if (!mask_[i] && st.free_mask[i]) border[i] = 1;
   };
-  for (std::size_t s = 0; s < st.a.size(); ++s) {
-    if (mask_[st.a[s]] != mask_[st.b[s]]) {
-      mark(st.a[s]);
-      mark(st.b[s]);
+  const std::vector<Spring>& springs = body.springs();
+  for (const Spring& sp : springs) {
+    if (mask_[sp.a] != mask_[sp.b]) {
+      mark(sp.a);
+      mark(sp.b);
     }
   }
   const auto& idx = body.triangles().indices;
@@ -138,13 +139,13 @@ ImplicitIntegrator::System& ImplicitIntegrator::system(Structure& st, const Soft
   halo.b.clear();
   halo.rest.clear();
   halo.k.clear();
-  for (std::size_t s = 0; s < st.a.size(); ++s) {
-    const std::uint32_t a = st.a[s], b = st.b[s];
+  for (const Spring& sp : springs) {
+    const std::uint32_t a = sp.a, b = sp.b;
     if (mask_[a] || mask_[b] || !(border[a] || border[b])) continue;
     halo.a.push_back(a);
     halo.b.push_back(b);
-    halo.rest.push_back(st.rest[s]);
-    halo.k.push_back(st.k[s]);
+    halo.rest.push_back(sp.rest_m);
+    halo.k.push_back(sp.k_N_per_m);
   }
   halo.count = halo.a.size();
   const std::size_t padded = (halo.count + 3) / 4 * 4;  // null springs: vertex 0 to itself

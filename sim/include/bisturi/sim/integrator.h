@@ -178,16 +178,22 @@ class ImplicitIntegrator {
       std::vector<float> self_f, inv_f;
       double weight2 = 0.0;
     } diagonal;
+    /// Scratch of update_coarse: the diagonal of P^T A P and one row of it, and the entries
+    /// between aggregates left of the diagonal (aggregate J | class << 30) by aggregate
+    /// (link_start offsets into links).
+    std::vector<double> coarse_diag, coarse_row;
+    std::vector<std::uint32_t> link_start, links, link_scratch;
   };
-  /// The springs of one body generation as arrays, the system over its free vertices (neither
+  /// The solver structure of one body generation: the system over its free vertices (neither
   /// anchored, kinematic nor massless; rebuilt when that set changes), and the sleep state of
   /// the free system's aggregates with the system over the awake ones.
   struct Structure {
     std::uint64_t generation = 0;
-    std::uint64_t lineage = 0;        ///< the body's (SoftBody::lineage)
-    std::vector<std::uint32_t> a, b;  ///< spring ends
-    std::vector<double> rest, k;
-    std::vector<std::uint8_t> spring_class;  ///< index into k_class
+    std::uint64_t lineage = 0;  ///< the body's (SoftBody::lineage)
+    /// The body's springs, read in place (a copy cost 1 ms of a cut's preparation at 20k
+    /// vertices): set by structure() for the step or preparation in progress.
+    const std::vector<Spring>* springs = nullptr;
+    /// The springs' stiffness classes in order of first appearance (set by build_system).
     double k_class[4] = {0.0, 0.0, 0.0, 0.0};
     std::vector<std::uint8_t> free_mask;  ///< per vertex, 1 = free
     System full;
@@ -224,13 +230,26 @@ class ImplicitIntegrator {
   /// vertex wakes).
   static void update_free_rows(Structure& st, const std::vector<std::uint8_t>& free_mask,
                                const std::vector<double>& masses);
-  /// Builds sys over the vertices with mask[i] = 1.
-  static void build_system(const Structure& st, System& sys, const std::vector<std::uint8_t>& mask);
+  /// Builds sys over the vertices with mask[i] = 1 (and st.k_class from st's springs).
+  static void build_system(Structure& st, System& sys, const std::vector<std::uint8_t>& mask);
+  /// build_system's passes over the springs: the rows' counts per class (free_count and
+  /// fixed_count, zeroed) and the stiffness classes found on the way (free slots NaN), returning
+  /// the springs with a solved end; then the spring sets and the rows' entries (from sys.fill).
+  static std::size_t count_entries(const std::vector<Spring>& springs, System& sys,
+                                   double (&classes)[4]);
+  static void fill_entries(const std::vector<Spring>& springs, System& sys,
+                           const double (&classes)[4]);
   /// Groups the system's rows into aggregates of nearby vertices.
   static void aggregate(System& sys);
   /// (Re)factors sys's coarse matrix (over its aggregates, which it must have) for substep
   /// length h when it was built for another h.
   static void update_coarse(System& sys, const Structure& st, const SoftBody& body, double h);
+  /// update_coarse's parts: the diagonal of P^T A P (coarse_diag) and its links; row I left of
+  /// the diagonal into coarse_row (returning its first column written); and the factor's row I
+  /// (columns first..I) from them.
+  static void collect_coarse(System& sys, const SoftBody& body, const double (&w)[4], double h);
+  static std::size_t assemble_coarse_row(System& sys, const double (&w)[4], std::size_t row);
+  static void factor_coarse_row(System& sys, std::size_t row, std::size_t first);
   // ---- Sleeping (integrator_sleep.cpp) ----
   /// The system to solve: the free one while every aggregate is awake, else the awake one.
   System& system(Structure& st, const SoftBody& body);
