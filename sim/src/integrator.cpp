@@ -772,7 +772,7 @@ const T* ImplicitIntegrator::solve(System& st, const double (&w)[4],
   for (const ContactRow& row : contact_rows_) {
     const bool ok = row.d[0] > 0.0 && row.d[1] > 0.0 && row.d[2] > 0.0;
     for (std::size_t l = 0; l < 3; ++l)
-      inv[4 * row.row + l] = static_cast<T>(ok ? 1.0 / row.d[l] : 1.0);
+      inv[std::size_t{4} * row.row + l] = static_cast<T>(ok ? 1.0 / row.d[l] : 1.0);
   }
   d.inv = inv;
   if (!st.agg.empty() && st.coarse_h > 0.0) {
@@ -804,7 +804,7 @@ const T* ImplicitIntegrator::solve(System& st, const double (&w)[4],
   const int it = run_cg(d, max_iterations, tol2, r2);
   for (const ContactRow& row : contact_rows_) {
     for (std::size_t l = 0; l < 3; ++l)
-      inv[4 * row.row + l] = static_cast<T>(dg.inv[4 * row.row + l]);
+      inv[std::size_t{4} * row.row + l] = static_cast<T>(dg.inv[std::size_t{4} * row.row + l]);
   }
   stats.cg_iterations += it;
   stats.relative_residual = std::sqrt(r2 / std::max(b2, 1e-300));
