@@ -10,6 +10,7 @@
 
 #include "bisturi/sim/integrator.h"
 #include "bisturi/sim/soft_body.h"
+#include "bisturi/sim/world.h"
 #include "sim_test_shapes.h"
 
 namespace bisturi::sim {
@@ -102,6 +103,31 @@ TEST(SimEndPass, AnEditBetweenStepsIsSeenByTheNextStep) {
   EXPECT_TRUE(events.empty());
   // Measured: -0.21 m/s; with the stale forces (a broken count) it stays at 0.
   EXPECT_LT(body.velocity(top).z, -0.01);
+}
+
+// In a world, each body keeps its own end pass: two bodies stepped in turn both reuse theirs,
+// with the haptic probe pressing one of them (loads are not edits of the state).
+TEST(SimEndPass, EachBodyOfAWorldReusesItsOwnPass) {
+  WorldOptions options;
+  options.integrator.sleeping = false;
+  SimWorld world(options);
+  for (int b = 0; b < 2; ++b) {
+    SoftBody body = anchored_sphere();
+    for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i)
+      body.set_position(VertexId(i), body.position(VertexId(i)) + glm::dvec3(0.02 * b, 0, 0));
+    world.add_body(std::move(body));
+  }
+  const double top = kCentre + 0.006;
+  int touching = 0;
+  for (int s = 0; s < 20; ++s) {
+    const HapticOutput out = world.step({kCentre, kCentre, top - 0.001 * (s % 3)});
+    touching += out.contact && out.body == 0 ? 1 : 0;
+    if (s == 0) continue;
+    EXPECT_TRUE(world.last_stats(0).reused_end_pass) << "step " << s;
+    EXPECT_TRUE(world.last_stats(1).reused_end_pass) << "step " << s;
+  }
+  EXPECT_GT(touching, 5);
+  EXPECT_TRUE(world.take_events().empty());
 }
 
 }  // namespace
