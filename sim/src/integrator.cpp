@@ -115,6 +115,12 @@ ImplicitIntegrator::Structure& ImplicitIntegrator::structure(const SoftBody& bod
   if (previous != structures_.end()) {
     st = std::move(*previous);
     structures_.erase(previous);
+    // A local refresh from the generation the free system was built for changed the springs of
+    // a few vertices: the system is updated around them (update_system).
+    const SoftBody::SpringChange& change = body.last_spring_change();
+    st.local_change = change.from_generation == st.generation && !st.full.prow.empty();
+    if (st.local_change) st.changed_vertices = change.vertices;
+    st.old_mask.swap(st.free_mask);
     st.free_mask.clear();  // the free system is rebuilt for the new springs
     st.part_dirty = true;
     st.ahead.valid = false;
@@ -134,7 +140,12 @@ ImplicitIntegrator::Structure& ImplicitIntegrator::structure(const SoftBody& bod
 void ImplicitIntegrator::update_free_rows(Structure& st, const std::vector<std::uint8_t>& mask,
                                           const std::vector<double>& masses) {
   if (st.free_mask == mask && !st.full.prow.empty()) return;
-  build_system(st, st.full, mask);
+  if (st.local_change && update_system(st, st.full, mask)) {
+    ++systems_updated_;
+  } else {
+    build_system(st, st.full, mask);
+  }
+  st.local_change = false;
   st.free_mask = mask;  // after the build, which throws on bad springs
   aggregate(st.full);
   // The aggregates' rows, for sleeping whole aggregates.
@@ -211,7 +222,7 @@ void ImplicitIntegrator::build_system(Structure& st, System& sys,
   reset(sys.active, active);
   reset(sys.fixed, springs.size() - active);
   resize_for_growth(sys.pcol, prow[nf]);
-  fill_entries(springs, sys, classes);
+  fill_entries<true>(springs, sys, classes, nullptr);
   // Unused classes weigh 0 (they have no entries).
   for (std::size_t k = 0; k < 4; ++k)
     st.k_class[k] = std::isnan(classes[k]) ? 0.0 : classes[k];
@@ -219,6 +230,147 @@ void ImplicitIntegrator::build_system(Structure& st, System& sys,
   for (std::size_t i = 0; i < nf; ++i) {
     if (fill[4 * i + 3] != prow[i + 1]) pcol[prow[i + 1] - 1] = static_cast<std::uint32_t>(i);
   }
+}
+
+bool ImplicitIntegrator::update_system(Structure& st, System& sys,
+                                       const std::vector<std::uint8_t>& mask) {
+  const std::vector<std::uint8_t>& old_mask = st.old_mask;
+  const std::size_t n_old = old_mask.size(), n = mask.size();
+  if (n < n_old || !std::equal(old_mask.begin(), old_mask.end(), mask.begin())) return false;
+  const std::vector<Spring>& springs = *st.springs;
+  // The classes, numbered by first appearance: the same numbering as before, or a full build.
+  double classes[4];
+  std::uint32_t used = 0;
+  for (std::size_t k = 0; k < 4; ++k) {
+    classes[k] = st.k_class[k] > 0.0 ? st.k_class[k] : kNoClass;
+    used += st.k_class[k] > 0.0 ? 1 : 0;
+  }
+  {
+    double seen[4] = {kNoClass, kNoClass, kNoClass, kNoClass};
+    std::uint32_t count = 0;
+    for (std::size_t s = 0; s < springs.size() && count < used; ++s) {
+      const double k = springs[s].k_N_per_m;
+      if (class_of(seen, k) < 4) continue;
+      if (count == 4 || !(k == classes[count])) return false;
+      seen[count++] = k;
+    }
+    if (count != used) return false;
+  }
+  // Rows: the old ones keep their numbers (their vertices' constraints did not change), the new
+  // vertices' rows come after them.
+  const std::size_t nf_old = sys.vertex.size();
+  sys.compact.resize(n, kNotFree);
+  for (std::size_t i = n_old; i < n; ++i) {
+    if (!mask[i]) continue;
+    sys.compact[i] = static_cast<std::uint32_t>(sys.vertex.size());
+    sys.vertex.push_back(static_cast<std::uint32_t>(i));
+  }
+  const std::size_t nf = sys.vertex.size();
+  // Dirty: the changed vertices and the new ones; only their rows are made again.
+  std::vector<std::uint8_t>& dirty = st.dirty;
+  dirty.assign(n, 0);
+  for (const std::uint32_t v : st.changed_vertices)
+    if (v < n) dirty[v] = 1;
+  for (std::size_t i = n_old; i < n; ++i)
+    dirty[i] = 1;
+  const std::uint32_t* compact = sys.compact.data();
+  sys.free_count.resize(4 * nf, 0);
+  sys.fixed_count.resize(4 * nf, 0);
+  std::uint32_t* free = sys.free_count.data();
+  std::uint32_t* fixed = sys.fixed_count.data();
+  for (std::size_t i = 0; i < nf; ++i) {
+    if (!dirty[sys.vertex[i]]) continue;
+    std::fill(free + 4 * i, free + 4 * i + 4, 0u);
+    std::fill(fixed + 4 * i, fixed + 4 * i + 4, 0u);
+  }
+  // The dirty rows' counts, from the springs with a dirty end (as count_entries).
+  std::size_t active = 0;
+  for (const Spring& sp : springs) {
+    const std::uint32_t ca = compact[sp.a], cb = compact[sp.b];
+    active += (ca != kNotFree || cb != kNotFree) ? 1 : 0;
+    if (!dirty[sp.a] && !dirty[sp.b]) continue;
+    const std::uint32_t cls = class_of(classes, sp.k_N_per_m);
+    if (cls == 4) return false;  // a new stiffness: build_system makes everything again
+    if (ca != kNotFree && dirty[sp.a]) ++(cb != kNotFree ? free : fixed)[4 * ca + cls];
+    if (cb != kNotFree && dirty[sp.b]) ++(ca != kNotFree ? free : fixed)[4 * cb + cls];
+  }
+  // The new row offsets; the old ones are kept to copy the clean rows from.
+  sys.prow_old.swap(sys.prow);
+  sys.pcol_old.swap(sys.pcol);
+  const std::uint32_t* prow_old = sys.prow_old.data();
+  const std::uint32_t* pcol_old = sys.pcol_old.data();
+  resize_for_growth(sys.prow, nf + 1);
+  resize_for_growth(sys.fill, 4 * nf);
+  std::uint32_t* prow = sys.prow.data();
+  std::uint32_t* fill = sys.fill.data();
+  prow[0] = 0;
+  for (std::size_t i = 0; i < nf; ++i) {
+    std::uint32_t at = prow[i];
+    for (std::size_t k = 0; k < 4; ++k) {
+      fill[4 * i + k] = at;
+      at += free[4 * i + k];
+    }
+    prow[i + 1] = at + ((at - prow[i]) & 1u);
+  }
+  resize_for_growth(sys.pcol, prow[nf]);
+  std::uint32_t* pcol = sys.pcol.data();
+  for (std::size_t i = 0; i < nf_old; ++i) {
+    if (dirty[sys.vertex[i]]) continue;
+    std::copy(pcol_old + prow_old[i], pcol_old + prow_old[i + 1], pcol + prow[i]);
+  }
+  // The spring sets in full, and the dirty rows' entries (in spring order, as fill_entries).
+  auto reset = [](System::SpringSet& set, std::size_t count) {
+    const std::size_t padded = (count + 3) / 4 * 4;
+    set.count = count;
+    for (auto* ends : {&set.a, &set.b}) {
+      resize_for_growth(*ends, padded);
+      std::fill(ends->begin() + static_cast<std::ptrdiff_t>(count), ends->end(), 0u);
+    }
+    for (auto* values : {&set.rest, &set.k}) {
+      resize_for_growth(*values, padded);
+      std::fill(values->begin() + static_cast<std::ptrdiff_t>(count), values->end(), 0.0);
+    }
+  };
+  reset(sys.active, active);
+  reset(sys.fixed, springs.size() - active);
+  fill_entries<false>(springs, sys, classes, dirty.data());
+  for (std::size_t i = 0; i < nf; ++i) {
+    if (dirty[sys.vertex[i]] && fill[4 * i + 3] != prow[i + 1]) {
+      pcol[prow[i + 1] - 1] = static_cast<std::uint32_t>(i);
+    }
+  }
+  sys.id = next_system_id.fetch_add(1, std::memory_order_relaxed);
+  sys.agg.clear();
+  sys.coarse_h = -1.0;
+  sys.fixed_energy_valid = false;
+  return true;
+}
+
+std::string ImplicitIntegrator::check_free_system(const SoftBody& body) {
+  const auto held = std::find_if(structures_.begin(), structures_.end(), [&](const Structure& s) {
+    return s.generation == body.derived_generation();
+  });
+  if (held == structures_.end()) return "no structure for the body's generation";
+  const Structure& st = *held;
+  if (st.full.prow.empty()) return "no free system yet";
+  Structure fresh;
+  fresh.springs = &body.springs();
+  build_system(fresh, fresh.full, st.free_mask);
+  const System &a = st.full, &b = fresh.full;
+  auto same = [](const auto& x, const auto& y) { return x.size() == y.size() && x == y; };
+  if (!std::equal(std::begin(st.k_class), std::end(st.k_class), std::begin(fresh.k_class)))
+    return "stiffness classes";
+  if (!same(a.vertex, b.vertex) || !same(a.compact, b.compact)) return "row numbering";
+  if (!same(a.free_count, b.free_count) || !same(a.fixed_count, b.fixed_count)) return "row counts";
+  if (!same(a.prow, b.prow)) return "row offsets";
+  if (!same(a.pcol, b.pcol)) return "row entries";
+  auto same_set = [&](const System::SpringSet& x, const System::SpringSet& y) {
+    return x.count == y.count && same(x.a, y.a) && same(x.b, y.b) && same(x.rest, y.rest) &&
+           same(x.k, y.k);
+  };
+  if (!same_set(a.active, b.active)) return "active springs";
+  if (!same_set(a.fixed, b.fixed)) return "fixed springs";
+  return {};
 }
 
 std::size_t ImplicitIntegrator::count_entries(const std::vector<Spring>& springs, System& sys,
@@ -245,8 +397,9 @@ std::size_t ImplicitIntegrator::count_entries(const std::vector<Spring>& springs
   return active;
 }
 
+template <bool AllRows>
 void ImplicitIntegrator::fill_entries(const std::vector<Spring>& springs, System& sys,
-                                      const double (&classes)[4]) {
+                                      const double (&classes)[4], const std::uint8_t* dirty) {
   // The two spring sets in spring order (those with a solved end and the others), and each
   // spring between solved vertices as an entry in both its rows.
   const std::uint32_t* compact = sys.compact.data();
@@ -270,9 +423,17 @@ void ImplicitIntegrator::fill_entries(const std::vector<Spring>& springs, System
     *active_rest++ = sp.rest_m;
     *active_k++ = sp.k_N_per_m;
     if (ca == kNotFree || cb == kNotFree) continue;
-    const std::uint32_t cls = class_of(classes, sp.k_N_per_m);
-    pcol[fill[4 * ca + cls]++] = cb | (cls << 30);
-    pcol[fill[4 * cb + cls]++] = ca | (cls << 30);
+    if constexpr (AllRows) {
+      const std::uint32_t cls = class_of(classes, sp.k_N_per_m);
+      pcol[fill[4 * ca + cls]++] = cb | (cls << 30);
+      pcol[fill[4 * cb + cls]++] = ca | (cls << 30);
+    } else {
+      // Only the rows of dirty vertices (update_system copies the others).
+      if (!dirty[sp.a] && !dirty[sp.b]) continue;
+      const std::uint32_t cls = class_of(classes, sp.k_N_per_m);
+      if (dirty[sp.a]) pcol[fill[4 * ca + cls]++] = cb | (cls << 30);
+      if (dirty[sp.b]) pcol[fill[4 * cb + cls]++] = ca | (cls << 30);
+    }
   }
 }
 

@@ -107,6 +107,8 @@ bool SoftBody::refresh_topology() {
   if (mesh_.topology_version() == topology_version_) return false;
   resize_arrays();
   springs_ = build_springs(mesh_, rest_->raw(), material_);
+  spring_change_.from_generation = 0;
+  spring_change_.vertices.clear();
   rebuild_masses();
   finish_refresh(true);
   return true;
@@ -152,7 +154,23 @@ bool SoftBody::refresh_topology_local(std::span<const VertexId> touched) {
   // In place (no new multi-megabyte array: fresh pages cost more than the merge): drop the
   // region's springs, then merge the new ones in from the back.
   auto less = [](const Spring& x, const Spring& y) { return x.a != y.a ? x.a < y.a : x.b < y.b; };
-  std::erase_if(springs_, [&](const Spring& s) { return region[s.a] || region[s.b]; });
+  // The vertices whose springs may change: the region and the other ends of its springs.
+  std::vector<std::uint32_t>& changed = spring_change_.vertices;
+  changed = verts;
+  auto note = [&](const Spring& s) {
+    if (!region[s.a]) changed.push_back(s.a);
+    if (!region[s.b]) changed.push_back(s.b);
+  };
+  for (const Spring& s : near)
+    note(s);
+  std::erase_if(springs_, [&](const Spring& s) {
+    const bool in_region = region[s.a] || region[s.b];
+    if (in_region) note(s);
+    return in_region;
+  });
+  std::sort(changed.begin(), changed.end());
+  changed.erase(std::unique(changed.begin(), changed.end()), changed.end());
+  spring_change_.from_generation = derived_generation_;
   std::size_t i = springs_.size(), j = near.size();
   springs_.resize(i + j);
   for (std::size_t out = i + j; j > 0;) {

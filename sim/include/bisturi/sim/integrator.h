@@ -124,6 +124,12 @@ class ImplicitIntegrator {
   /// Wakes every sleeping vertex of `body`: for callers that move vertices directly
   /// (set_position, set_velocity, positions()), which the integrator does not see.
   void wake(const SoftBody& body);
+  /// A consistency check for tests: empty when the free system the integrator holds for the
+  /// body's current generation is, array for array, what a build from scratch gives (after cuts
+  /// it is updated around them), else what differs. Call after a step or prepare().
+  [[nodiscard]] std::string check_free_system(const SoftBody& body);
+  /// How many free systems were updated around a cut rather than built again.
+  [[nodiscard]] std::uint64_t systems_updated() const { return systems_updated_; }
 
  private:
   /// A linear system over a set of solved vertices (the free ones, or the awake ones when some
@@ -137,7 +143,8 @@ class ImplicitIntegrator {
     /// compact index | stiffness class << 30, grouped by class, each row padded to an even
     /// length with itself.
     std::vector<std::uint32_t> prow, pcol;
-    std::vector<std::uint32_t> fill;  ///< scratch of the build: per row and class
+    std::vector<std::uint32_t> fill;                ///< scratch of the build: per row and class
+    std::vector<std::uint32_t> prow_old, pcol_old;  ///< scratch of update_system
     /// Per row and class (4 per row): springs to solved neighbours, and springs to vertices
     /// held fixed (they weigh on the diagonal only).
     std::vector<std::uint32_t> free_count, fixed_count;
@@ -196,6 +203,13 @@ class ImplicitIntegrator {
     /// The springs' stiffness classes in order of first appearance (set by build_system).
     double k_class[4] = {0.0, 0.0, 0.0, 0.0};
     std::vector<std::uint8_t> free_mask;  ///< per vertex, 1 = free
+    /// After a local refresh of the body's springs (SoftBody::last_spring_change) from the
+    /// generation `full` was built for: the mask it was built with and the vertices whose springs
+    /// may differ, so that update_system can update it around them.
+    bool local_change = false;
+    std::vector<std::uint8_t> old_mask;
+    std::vector<std::uint32_t> changed_vertices;
+    std::vector<std::uint8_t> dirty;  ///< scratch of update_system: per vertex
     System full;
     /// Per aggregate of `full`: its rows (agg_start offsets into agg_rows), awake flag, steps
     /// in a row under the sleep thresholds, and for a sleeping one the pressure factor it fell
@@ -228,17 +242,24 @@ class ImplicitIntegrator {
   Structure& structure(const SoftBody& body);
   /// Rebuilds st's free system when free_mask differs from the mask it was built for (every
   /// vertex wakes).
-  static void update_free_rows(Structure& st, const std::vector<std::uint8_t>& free_mask,
-                               const std::vector<double>& masses);
+  void update_free_rows(Structure& st, const std::vector<std::uint8_t>& free_mask,
+                        const std::vector<double>& masses);
   /// Builds sys over the vertices with mask[i] = 1 (and st.k_class from st's springs).
   static void build_system(Structure& st, System& sys, const std::vector<std::uint8_t>& mask);
+  /// build_system's result for st.full after a local change of the springs (st.local_change),
+  /// made by updating the rows of the changed vertices only: the same arrays, entry for entry.
+  /// Returns false when it cannot (a vertex's constraint changed, a new stiffness or another
+  /// order of the classes): sys is then left half made, for build_system to make again.
+  static bool update_system(Structure& st, System& sys, const std::vector<std::uint8_t>& mask);
   /// build_system's passes over the springs: the rows' counts per class (free_count and
   /// fixed_count, zeroed) and the stiffness classes found on the way (free slots NaN), returning
-  /// the springs with a solved end; then the spring sets and the rows' entries (from sys.fill).
+  /// the springs with a solved end; then the spring sets and the rows' entries (from sys.fill;
+  /// with AllRows false only the rows of vertices with dirty[v] set).
   static std::size_t count_entries(const std::vector<Spring>& springs, System& sys,
                                    double (&classes)[4]);
+  template <bool AllRows>
   static void fill_entries(const std::vector<Spring>& springs, System& sys,
-                           const double (&classes)[4]);
+                           const double (&classes)[4], const std::uint8_t* dirty);
   /// Groups the system's rows into aggregates of nearby vertices.
   static void aggregate(System& sys);
   /// (Re)factors sys's coarse matrix (over its aggregates, which it must have) for substep
@@ -308,6 +329,7 @@ class ImplicitIntegrator {
                     bool energy_check, double elastic_after) const;
 
   std::vector<Structure> structures_;
+  std::uint64_t systems_updated_ = 0;
   std::vector<glm::dvec3> saved_x_, saved_v_;
   std::vector<glm::dvec3> f_, grad_;  ///< per vertex: spring forces, volume gradient (x 6)
   /// The thread team (options.threads > 1), and the spring forces and volume gradients of its

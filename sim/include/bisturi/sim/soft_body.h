@@ -119,6 +119,15 @@ class SoftBody {
   /// (the rest is kept), triangles are rebuilt. Gives the springs and (to rounding) the masses
   /// of a full rebuild.
   bool refresh_topology_local(std::span<const VertexId> touched);
+  /// What the last refresh changed, for data derived from the springs: when it was a local one,
+  /// the generation it started from and the vertices whose springs may differ (the region and
+  /// the other ends of its springs, before and after; sorted); after a full refresh
+  /// from_generation is 0.
+  struct SpringChange {
+    std::uint64_t from_generation = 0;
+    std::vector<std::uint32_t> vertices;
+  };
+  [[nodiscard]] const SpringChange& last_spring_change() const { return spring_change_; }
   [[nodiscard]] std::uint64_t topology_version() const { return topology_version_; }
   /// Unique over every body of the process and every rebuild of the derived data: a cache key
   /// for data derived from springs and masses (the integrator's solver structure).
@@ -169,6 +178,7 @@ class SoftBody {
   std::vector<ContactTerm> contacts_;
   std::vector<Spring> springs_;
   SurfaceTriangles triangles_;
+  SpringChange spring_change_;
   SurfaceTriangles spare_triangles_;  ///< the triangulation before last, as storage
   bool closed_ = false;
   double rest_volume_m3_ = 0.0;
