@@ -40,6 +40,37 @@ void assign_for_growth(std::vector<T>& v, std::size_t n, const T& value) {
   std::fill(v.begin(), v.end(), value);
 }
 
+/// A spring set of `count` springs, padded with null springs (vertex 0 to itself) to a
+/// multiple of 4; the springs are to be written.
+template <class SpringSet>
+void reset_spring_set(SpringSet& set, std::size_t count) {
+  const std::size_t padded = (count + 3) / 4 * 4;
+  set.count = count;
+  for (auto* ends : {&set.a, &set.b}) {
+    resize_for_growth(*ends, padded);
+    std::fill(ends->begin() + static_cast<std::ptrdiff_t>(count), ends->end(), 0u);
+  }
+  for (auto* values : {&set.rest, &set.k}) {
+    resize_for_growth(*values, padded);
+    std::fill(values->begin() + static_cast<std::ptrdiff_t>(count), values->end(), 0.0);
+  }
+}
+
+/// The rows' offsets (prow, nf + 1) from their counts per class (4 per row), each row padded to
+/// an even length, and per row and class the first entry to fill.
+void row_offsets(const std::uint32_t* free_count, std::size_t nf, std::uint32_t* prow,
+                 std::uint32_t* fill) {
+  prow[0] = 0;
+  for (std::size_t i = 0; i < nf; ++i) {
+    std::uint32_t at = prow[i];
+    for (std::size_t k = 0; k < 4; ++k) {
+      fill[4 * i + k] = at;
+      at += free_count[4 * i + k];
+    }
+    prow[i + 1] = at + ((at - prow[i]) & 1u);
+  }
+}
+
 /// vertex: the vertices with mask[i] = 1 in order; compact: vertex -> row (kNotFree if none).
 void number_rows(const std::vector<std::uint8_t>& mask, std::vector<std::uint32_t>& vertex,
                  std::vector<std::uint32_t>& compact) {
@@ -183,30 +214,9 @@ void ImplicitIntegrator::build_system(Structure& st, System& sys,
   resize_for_growth(sys.prow, nf + 1);
   std::uint32_t* fill = sys.fill.data();  // per row and class: the next entry to fill
   std::uint32_t* prow = sys.prow.data();
-  prow[0] = 0;
-  for (std::size_t i = 0; i < nf; ++i) {
-    std::uint32_t at = prow[i];
-    for (std::size_t k = 0; k < 4; ++k) {
-      fill[4 * i + k] = at;
-      at += free_count[4 * i + k];
-    }
-    prow[i + 1] = at + ((at - prow[i]) & 1u);
-  }
-  // The spring sets padded with null springs (vertex 0 to itself).
-  auto reset = [](System::SpringSet& set, std::size_t count) {
-    const std::size_t padded = (count + 3) / 4 * 4;
-    set.count = count;
-    for (auto* ends : {&set.a, &set.b}) {
-      resize_for_growth(*ends, padded);
-      std::fill(ends->begin() + static_cast<std::ptrdiff_t>(count), ends->end(), 0u);
-    }
-    for (auto* values : {&set.rest, &set.k}) {
-      resize_for_growth(*values, padded);
-      std::fill(values->begin() + static_cast<std::ptrdiff_t>(count), values->end(), 0.0);
-    }
-  };
-  reset(sys.active, active);
-  reset(sys.fixed, springs.size() - active);
+  row_offsets(free_count, nf, prow, fill);
+  reset_spring_set(sys.active, active);
+  reset_spring_set(sys.fixed, springs.size() - active);
   resize_for_growth(sys.pcol, prow[nf]);
   fill_entries<true>(springs, sys, classes, nullptr);
   // Unused classes weigh 0 (they have no entries).
@@ -289,15 +299,7 @@ bool ImplicitIntegrator::update_system(Structure& st, System& sys,
   resize_for_growth(sys.fill, 4 * nf);
   std::uint32_t* prow = sys.prow.data();
   std::uint32_t* fill = sys.fill.data();
-  prow[0] = 0;
-  for (std::size_t i = 0; i < nf; ++i) {
-    std::uint32_t at = prow[i];
-    for (std::size_t k = 0; k < 4; ++k) {
-      fill[4 * i + k] = at;
-      at += free[4 * i + k];
-    }
-    prow[i + 1] = at + ((at - prow[i]) & 1u);
-  }
+  row_offsets(free, nf, prow, fill);
   resize_for_growth(sys.pcol, prow[nf]);
   std::uint32_t* pcol = sys.pcol.data();
   for (std::size_t i = 0; i < nf_old; ++i) {
@@ -305,20 +307,8 @@ bool ImplicitIntegrator::update_system(Structure& st, System& sys,
     std::copy(pcol_old + prow_old[i], pcol_old + prow_old[i + 1], pcol + prow[i]);
   }
   // The spring sets in full, and the dirty rows' entries (in spring order, as fill_entries).
-  auto reset = [](System::SpringSet& set, std::size_t count) {
-    const std::size_t padded = (count + 3) / 4 * 4;
-    set.count = count;
-    for (auto* ends : {&set.a, &set.b}) {
-      resize_for_growth(*ends, padded);
-      std::fill(ends->begin() + static_cast<std::ptrdiff_t>(count), ends->end(), 0u);
-    }
-    for (auto* values : {&set.rest, &set.k}) {
-      resize_for_growth(*values, padded);
-      std::fill(values->begin() + static_cast<std::ptrdiff_t>(count), values->end(), 0.0);
-    }
-  };
-  reset(sys.active, active);
-  reset(sys.fixed, springs.size() - active);
+  reset_spring_set(sys.active, active);
+  reset_spring_set(sys.fixed, springs.size() - active);
   fill_entries<false>(springs, sys, classes, dirty.data());
   for (std::size_t i = 0; i < nf; ++i) {
     if (dirty[sys.vertex[i]] && fill[4 * i + 3] != prow[i + 1]) {
