@@ -34,6 +34,23 @@ glm::dvec3* member_array(std::vector<glm::dvec3>& first,
   return others[t - 1].data();
 }
 
+/// The volume term applies to closed bodies with a rest volume (their fans are closed).
+bool has_volume_term(const SoftBody& body) {
+  return body.closed() && body.rest_volume_m3() > 0.0;
+}
+
+/// The enclosed volume for 6 V = six_v, measured outward whatever the faces' winding (as
+/// SoftBody::volume_m3()).
+double outward_volume(const SoftBody& body, double six_v) {
+  return body.orientation() * (six_v / 6.0);
+}
+
+/// The volume term's energy 1/2 K (V - V0)^2 / V0.
+double volume_term_energy(const SoftBody& body, double volume) {
+  const double v0 = body.rest_volume_m3();
+  return 0.5 * body.material().bulk_modulus_Pa * (volume - v0) * (volume - v0) / v0;
+}
+
 }  // namespace
 
 void ImplicitIntegrator::free_mask(const SoftBody& body) {
@@ -459,11 +476,9 @@ double ImplicitIntegrator::end_pass(Structure& st, System& sys, const SoftBody& 
   ahead.elastic = spring_pass(sys, body, ahead.h, true);
   ahead.six_v = 0.0;
   double elastic = ahead.elastic;
-  if (body.closed() && body.rest_volume_m3() > 0.0) {
+  if (has_volume_term(body)) {
     ahead.six_v = volume_pass(body);
-    const double v0 = body.rest_volume_m3();
-    const double dv = body.orientation() * (ahead.six_v / 6.0) - v0;
-    elastic += 0.5 * body.material().bulk_modulus_Pa * dv * dv / v0;
+    elastic += volume_term_energy(body, outward_volume(body, ahead.six_v));
   }
   ahead.system = sys.id;
   ahead.members = members();
@@ -547,7 +562,7 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
   // volume comes out of the same pass (x_0 . N = x_0 . (x_1 x x_2)). The term applies to closed
   // bodies only, whose fans are closed.
   double p6 = 0.0, volume_energy = 0.0;
-  const bool volume_term = body.closed() && body.rest_volume_m3() > 0.0;
+  const bool volume_term = has_volume_term(body);
   if (volume_term) {
     double six_v = ahead.six_v;
     if (reuse) {
@@ -555,11 +570,11 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
     } else {
       six_v = volume_pass(body);
     }
-    const double volume = body.orientation() * (six_v / 6.0);  // as SoftBody::volume_m3()
+    const double volume = outward_volume(body, six_v);
     const double v0 = body.rest_volume_m3();
-    // volume_m3() is measured outward whatever the faces' winding; the gradient follows it.
+    // The volume is measured outward whatever the faces' winding; the gradient follows it.
     p6 = body.orientation() * mat.bulk_modulus_Pa * (v0 - volume) / v0 / 6.0;
-    volume_energy = 0.5 * mat.bulk_modulus_Pa * (volume - v0) * (volume - v0) / v0;
+    volume_energy = volume_term_energy(body, volume);
   }
   p6_ = p6;
   // Sleeping aggregates whose residual can now exceed the tolerance wake; the forces are taken

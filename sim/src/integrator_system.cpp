@@ -71,6 +71,27 @@ void row_offsets(const std::uint32_t* free_count, std::size_t nf, std::uint32_t*
   }
 }
 
+/// The last entry of each row padded to an even length (row_offsets) is the row itself: in_i -
+/// in_i adds an exact zero to the product.
+void pad_rows(const std::uint32_t* free_count, std::size_t nf, const std::uint32_t* prow,
+              std::uint32_t* pcol) {
+  for (std::size_t i = 0; i < nf; ++i) {
+    const std::uint32_t entries =
+        free_count[4 * i] + free_count[4 * i + 1] + free_count[4 * i + 2] + free_count[4 * i + 3];
+    if (prow[i + 1] - prow[i] != entries) pcol[prow[i + 1] - 1] = static_cast<std::uint32_t>(i);
+  }
+}
+
+/// Marks a system as made anew: a new id, and no aggregates, coarse factor or fixed springs'
+/// energy yet.
+template <class System>
+void start_build(System& sys) {
+  sys.id = next_system_id.fetch_add(1, std::memory_order_relaxed);
+  sys.agg.clear();
+  sys.coarse_h = -1.0;
+  sys.fixed_energy_valid = false;
+}
+
 /// vertex: the vertices with mask[i] = 1 in order; compact: vertex -> row (kNotFree if none).
 void number_rows(const std::vector<std::uint8_t>& mask, std::vector<std::uint32_t>& vertex,
                  std::vector<std::uint32_t>& compact) {
@@ -193,10 +214,7 @@ void ImplicitIntegrator::update_free_rows(Structure& st, const std::vector<std::
 
 void ImplicitIntegrator::build_system(Structure& st, System& sys,
                                       const std::vector<std::uint8_t>& mask) {
-  sys.id = next_system_id.fetch_add(1, std::memory_order_relaxed);
-  sys.agg.clear();
-  sys.coarse_h = -1.0;
-  sys.fixed_energy_valid = false;
+  start_build(sys);
   number_rows(mask, sys.vertex, sys.compact);
   const std::size_t nf = sys.vertex.size();
   const std::vector<Spring>& springs = *st.springs;
@@ -222,10 +240,7 @@ void ImplicitIntegrator::build_system(Structure& st, System& sys,
   // Unused classes weigh 0 (they have no entries).
   for (std::size_t k = 0; k < 4; ++k)
     st.k_class[k] = std::isnan(classes[k]) ? 0.0 : classes[k];
-  std::uint32_t* pcol = sys.pcol.data();
-  for (std::size_t i = 0; i < nf; ++i) {
-    if (fill[4 * i + 3] != prow[i + 1]) pcol[prow[i + 1] - 1] = static_cast<std::uint32_t>(i);
-  }
+  pad_rows(free_count, nf, prow, sys.pcol.data());
 }
 
 bool ImplicitIntegrator::update_system(Structure& st, System& sys,
@@ -310,15 +325,8 @@ bool ImplicitIntegrator::update_system(Structure& st, System& sys,
   reset_spring_set(sys.active, active);
   reset_spring_set(sys.fixed, springs.size() - active);
   fill_entries<false>(springs, sys, classes, dirty.data());
-  for (std::size_t i = 0; i < nf; ++i) {
-    if (dirty[sys.vertex[i]] && fill[4 * i + 3] != prow[i + 1]) {
-      pcol[prow[i + 1] - 1] = static_cast<std::uint32_t>(i);
-    }
-  }
-  sys.id = next_system_id.fetch_add(1, std::memory_order_relaxed);
-  sys.agg.clear();
-  sys.coarse_h = -1.0;
-  sys.fixed_energy_valid = false;
+  pad_rows(free, nf, prow, pcol);
+  start_build(sys);
   return true;
 }
 
