@@ -206,14 +206,13 @@ bool SoftBody::refresh_topology_local(std::span<const VertexId> touched) {
   // triangulation before last: fresh pages cost more than the copy).
   triangulate_changed_faces(mesh_, triangles_, faces, spare_triangles_);
   std::swap(triangles_, spare_triangles_);
-  // A closed body stays closed unless a changed face is labelled; an open one is checked in full.
-  const bool was_closed = closed_;
-  closed_ = material_.bulk_modulus_Pa > 0.0;
-  if (was_closed) {
+  // A closed body stays closed unless a changed face is labelled (the others kept their labels);
+  // an open one is checked in full.
+  if (closed_) {
     for (const FaceId f : faces)
       if (mesh_.alive(f) && mesh_.is_bounding(f)) closed_ = false;
   } else {
-    closed_ = closed_ && !any_bounding_face();
+    closed_ = material_.bulk_modulus_Pa > 0.0 && !any_bounding_face();
   }
   finish_refresh(false);
   return true;

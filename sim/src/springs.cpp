@@ -75,8 +75,6 @@ void add_edge_keys(const Dlfl& mesh, EdgeId e, std::vector<Key>& keys) {
   add_pair(keys, u.idx, w.idx, SpringKind::Bending);
 }
 
-/// Sorted keys to springs: one per vertex pair, a structural spring winning over shear and
-/// bending on the same pair.
 /// Sorts the keys: a counting sort by the first end, then each vertex's few keys by std::sort
 /// (a comparison sort of the whole list was most of the time of making a body).
 void sort_keys(std::vector<Key>& keys) {
@@ -101,6 +99,8 @@ void sort_keys(std::vector<Key>& keys) {
   keys.swap(sorted);
 }
 
+/// Sorted keys to springs: one per vertex pair, a structural spring winning over shear and
+/// bending on the same pair.
 std::vector<Spring> springs_from_keys(std::vector<Key>& keys, const std::vector<glm::dvec3>& rest,
                                       const Material& material) {
   sort_keys(keys);
@@ -218,8 +218,8 @@ SurfaceTriangles triangulate_surface(const Dlfl& mesh) {
 
 void triangulate_changed_faces(const Dlfl& mesh, const SurfaceTriangles& before,
                                std::span<const FaceId> changed, SurfaceTriangles& out) {
-  // A merge in face order of the unchanged faces' runs of triangles (copied while the face is
-  // alive) and the changed faces (triangulated again at the end, then moved into place).
+  // The changed faces are triangulated again first; then a merge in face order of their
+  // triangles and the unchanged faces' runs of old triangles (copied while the face is alive).
   SurfaceTriangles fresh;
   for (const FaceId f : changed)
     if (mesh.alive(f) && real_face(mesh, f)) add_face_triangles(mesh, f, fresh);
