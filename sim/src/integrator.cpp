@@ -15,14 +15,23 @@
 #include <glm/geometric.hpp>
 
 #include "cg_solver.h"
+#include "integrator_shared.h"
 #include "spring_kernels.h"
 #include "step_threads.h"
 #include "volume_kernels.h"
 
 namespace bisturi::sim {
+
+using integrator_detail::cg_tolerances;
+using integrator_detail::CgTolerances;
+using integrator_detail::has_volume_term;
+using integrator_detail::kNotFree;
+using integrator_detail::outward_volume;
+using integrator_detail::pressure_factor;
+using integrator_detail::volume_term_energy;
+
 namespace {
 
-constexpr std::uint32_t kNotFree = std::numeric_limits<std::uint32_t>::max();
 constexpr double kNeverQuiet = std::numeric_limits<double>::infinity();
 
 /// The array team member t accumulates into: `first` (zeroed by the caller) for member 0, its
@@ -32,23 +41,6 @@ glm::dvec3* member_array(std::vector<glm::dvec3>& first,
   if (t == 0) return first.data();
   others[t - 1].assign(first.size(), glm::dvec3(0.0));
   return others[t - 1].data();
-}
-
-/// The volume term applies to closed bodies with a rest volume (their fans are closed).
-bool has_volume_term(const SoftBody& body) {
-  return body.closed() && body.rest_volume_m3() > 0.0;
-}
-
-/// The enclosed volume for 6 V = six_v, measured outward whatever the faces' winding (as
-/// SoftBody::volume_m3()).
-double outward_volume(const SoftBody& body, double six_v) {
-  return body.orientation() * (six_v / 6.0);
-}
-
-/// The volume term's energy 1/2 K (V - V0)^2 / V0.
-double volume_term_energy(const SoftBody& body, double volume) {
-  const double v0 = body.rest_volume_m3();
-  return 0.5 * body.material().bulk_modulus_Pa * (volume - v0) * (volume - v0) / v0;
 }
 
 }  // namespace
@@ -94,6 +86,13 @@ StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& opti
     return stats;
   }
   Structure& st = structure(body);
+  if (options.far_field_interval > 1) {
+    if (std::optional<StepStats> multirate =
+            step_multirate(body, st, options, events, body_index, step_index)) {
+      return *multirate;
+    }
+  }
+  st.multirate.groups.valid = false;  // a single-rate step moves every group
   if (options.sleeping && sleeps_entirely(st, body)) {
     stats.free_vertices = static_cast<std::uint32_t>(st.full.vertex.size());
     body.clear_forces();
@@ -107,11 +106,7 @@ StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& opti
   auto& v = body.velocities();
   saved_x_ = x;
   saved_v_ = v;
-  const auto& masses = body.masses();
-  bool any_kinematic = false;
-  for (std::size_t i = 0; i < masses.size(); ++i) {
-    if (body.kinematic(VertexId(static_cast<std::uint32_t>(i)))) any_kinematic = true;
-  }
+  const bool any_kinematic = body.kinematic_count() > 0;
   const bool energy_check = !any_kinematic;
   double energy_before = 0.0;
   // Kinematic vertices move their neighbours every step: nothing sleeps while there are any.
@@ -156,19 +151,23 @@ StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& opti
 }
 
 std::string ImplicitIntegrator::check(const SoftBody& body, const IntegratorOptions& options,
-                                      double energy_before, bool energy_check,
-                                      double elastic_after) const {
+                                      double energy_before, bool energy_check, double elastic_after,
+                                      const std::vector<std::uint32_t>* only) const {
   const auto& x = body.positions();
   const auto& v = body.velocities();
   const auto& m = body.masses();
   const auto& fext = body.external_forces();
   const glm::dvec3 g = options.gravity_m_s2;
   const double max_speed2 = options.max_speed_m_s * options.max_speed_m_s;
+  // The vertices swept: all, or `only`.
+  const std::size_t n = only != nullptr ? only->size() : x.size();
+  const std::uint32_t* list = only != nullptr ? only->data() : nullptr;
+  auto vertex = [list](std::size_t k) { return list != nullptr ? std::size_t{list[k]} : k; };
   // One sweep: the external forces' work over the step, finiteness, the fastest vertex and the
   // kinetic and gravitational energies.
   double work = 0.0, sum = 0.0, fastest = 0.0, kinetic = 0.0, potential = 0.0;
-  const std::size_t n = x.size();
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t i = vertex(k);
     const glm::dvec3 xi = x[i], vi = v[i];
     work += glm::dot(fext[i], xi - saved_x_[i]);
     sum += xi.x + xi.y + xi.z + vi.x + vi.y + vi.z;
@@ -179,14 +178,16 @@ std::string ImplicitIntegrator::check(const SoftBody& body, const IntegratorOpti
   }
   if (!std::isfinite(work)) return "non-finite external force";
   if (!std::isfinite(sum) || !std::isfinite(fastest)) {
-    for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t k = 0; k < n; ++k) {
+      const std::size_t i = vertex(k);
       const double s = x[i].x + x[i].y + x[i].z + v[i].x + v[i].y + v[i].z;
       if (!std::isfinite(s)) return "non-finite state at vertex " + std::to_string(i);
     }
     return "non-finite state";
   }
   if (fastest > max_speed2) {
-    for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t k = 0; k < n; ++k) {
+      const std::size_t i = vertex(k);
       if (glm::dot(v[i], v[i]) > max_speed2) {
         return "vertex " + std::to_string(i) + " faster than " +
                std::to_string(options.max_speed_m_s) + " m/s";
@@ -498,6 +499,42 @@ StepThreads* ImplicitIntegrator::team(const IntegratorOptions& options) {
   return team_.get();
 }
 
+void ImplicitIntegrator::gather_contacts(const System& sys, const SoftBody& body, double h2,
+                                         std::vector<double>* step_residual, const Structure& st) {
+  // Contacts: k n n^T blocks on the diagonal, their h^2 H v term on the right-hand side.
+  const auto& v = body.velocities();
+  const std::size_t n = v.size(), nf = sys.vertex.size();
+  const System::Diagonal& dg = sys.diagonal;
+  contacts_.clear();
+  contact_rows_.clear();
+  if (contact_slot_.size() < nf) contact_slot_.resize(nf, kNotFree);
+  for (const SoftBody::ContactTerm& ct : body.contacts()) {
+    const std::uint32_t i = ct.vertex;
+    if (i >= n || !free_[i] || sys.compact[i] == kNotFree) continue;
+    const std::size_t ci = sys.compact[i];
+    if (step_residual != nullptr) (*step_residual)[st.full.agg[st.full.compact[i]]] = kNeverQuiet;
+    const double kc = h2 * ct.stiffness_N_per_m;
+    const glm::dvec3 nn = ct.normal;
+    contacts_.insert(contacts_.end(), {double(ci), nn.x, nn.y, nn.z, kc});
+    const double nv = kc * glm::dot(nn, v[i]);
+    rhs_[4 * ci] -= nv * nn.x;
+    rhs_[4 * ci + 1] -= nv * nn.y;
+    rhs_[4 * ci + 2] -= nv * nn.z;
+    std::uint32_t& slot = contact_slot_[ci];
+    if (slot == kNotFree) {
+      slot = static_cast<std::uint32_t>(contact_rows_.size());
+      const double d = dg.value[ci];
+      contact_rows_.push_back({static_cast<std::uint32_t>(ci), {d, d, d}});
+    }
+    double* d = contact_rows_[slot].d;
+    d[0] += kc * nn.x * nn.x;
+    d[1] += kc * nn.y * nn.y;
+    d[2] += kc * nn.z * nn.z;
+  }
+  for (const ContactRow& row : contact_rows_)
+    contact_slot_[row.row] = kNotFree;
+}
+
 ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structure& st,
                                                         const IntegratorOptions& options, double h,
                                                         double fraction, StepStats& stats,
@@ -571,9 +608,8 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
       six_v = volume_pass(body);
     }
     const double volume = outward_volume(body, six_v);
-    const double v0 = body.rest_volume_m3();
     // The volume is measured outward whatever the faces' winding; the gradient follows it.
-    p6 = body.orientation() * mat.bulk_modulus_Pa * (v0 - volume) / v0 / 6.0;
+    p6 = pressure_factor(body, volume);
     volume_energy = volume_term_energy(body, volume);
   }
   p6_ = p6;
@@ -627,43 +663,11 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
     st.step_residual[A] += row_residual_[ci];
     if (volume_term) st.step_gradient[A] += row_gradient_[ci];
   }
-  // Contacts: k n n^T blocks on the diagonal, their h^2 H v term on the right-hand side.
-  contacts_.clear();
-  contact_rows_.clear();
-  if (contact_slot_.size() < nf) contact_slot_.resize(nf, kNotFree);
-  for (const SoftBody::ContactTerm& ct : body.contacts()) {
-    const std::uint32_t i = ct.vertex;
-    if (i >= n || !free_[i]) continue;
-    const std::size_t ci = sys->compact[i];
-    st.step_residual[full_agg[full_compact[i]]] = kNeverQuiet;
-    const double kc = h2 * ct.stiffness_N_per_m;
-    const glm::dvec3 nn = ct.normal;
-    contacts_.insert(contacts_.end(), {double(ci), nn.x, nn.y, nn.z, kc});
-    const double nv = kc * glm::dot(nn, v[i]);
-    rhs_[4 * ci] -= nv * nn.x;
-    rhs_[4 * ci + 1] -= nv * nn.y;
-    rhs_[4 * ci + 2] -= nv * nn.z;
-    std::uint32_t& slot = contact_slot_[ci];
-    if (slot == kNotFree) {
-      slot = static_cast<std::uint32_t>(contact_rows_.size());
-      const double d = dg.value[ci];
-      contact_rows_.push_back({static_cast<std::uint32_t>(ci), {d, d, d}});
-    }
-    double* d = contact_rows_[slot].d;
-    d[0] += kc * nn.x * nn.x;
-    d[1] += kc * nn.y * nn.y;
-    d[2] += kc * nn.z * nn.z;
-  }
-  for (const ContactRow& row : contact_rows_)
-    contact_slot_[row.row] = kNotFree;
+  gather_contacts(*sys, body, h2, &st.step_residual, st);
   // The solve starts from the warm start, the last step's dv. It stops at the relative tolerance
   // or when the residual force is below the absolute one (see IntegratorOptions).
   auto& warm = body.warm_start();
-  const double g2 = glm::dot(g, g);
-  const double frac2 = options.cg_weight_fraction * options.cg_weight_fraction;
-  const double floor2 = options.cg_force_floor_N * options.cg_force_floor_N;
-  const double abs_tol2 = h2 * (frac2 * g2 * weight2 + floor2 * double(nf));
-  const double rel_tol2 = options.cg_relative_tolerance * options.cg_relative_tolerance;
+  const CgTolerances tol = cg_tolerances(options, h, weight2, nf);
   // float reaches a relative residual of about 1e-6 (its rounding of b and A p): below 1e-5
   // the solve runs in double.
   if (options.cg_coarse_level) {
@@ -689,9 +693,9 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
     });
   };
   if (options.cg_relative_tolerance >= 1e-5) {
-    apply(solve<float>(*sys, w, warm, options.max_cg_iterations, rel_tol2, abs_tol2, stats));
+    apply(solve<float>(*sys, w, warm, options.max_cg_iterations, tol.rel2, tol.abs2, stats));
   } else {
-    apply(solve<double>(*sys, w, warm, options.max_cg_iterations, rel_tol2, abs_tol2, stats));
+    apply(solve<double>(*sys, w, warm, options.max_cg_iterations, tol.rel2, tol.abs2, stats));
   }
   // Vertices outside the solve keep no warm start.
   const std::uint32_t* compact = sys->compact.data();

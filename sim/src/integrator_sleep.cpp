@@ -9,6 +9,7 @@
 #include <glm/geometric.hpp>
 
 #include "bisturi/sim/integrator.h"
+#include "integrator_shared.h"
 
 namespace bisturi::sim {
 namespace {
@@ -162,7 +163,7 @@ bool ImplicitIntegrator::wake_by_forces(Structure& st, const System& sys, const 
   const System& full = st.full;
   const auto& m = body.masses();
   const glm::dvec3 g = options.gravity_m_s2;
-  const bool volume_term = body.closed() && body.rest_volume_m3() > 0.0;
+  const bool volume_term = integrator_detail::has_volume_term(body);
   // The border: its forces are complete (springs to awake vertices in the active set, the others
   // in the halo) and its velocity is zero. Their squared residuals are summed per aggregate into
   // step_residual (the right-hand side's pass refills it after).

@@ -228,25 +228,37 @@ bool SoftBody::any_bounding_face() const {
 void SoftBody::set_anchored(VertexId v, bool anchored) {
   (*anchored_)[v] = anchored ? 1 : 0;
   if (anchored) (*v_)[v] = glm::dvec3(0.0);
+  ++constraint_edits_;
 }
 
 void SoftBody::set_kinematic_target(VertexId v, const glm::dvec3& target_m) {
-  kinematic_[v.idx] = 1;
+  if (!kinematic_[v.idx]) {
+    kinematic_[v.idx] = 1;
+    ++kinematic_count_;
+    ++constraint_edits_;
+  }
   target_[v.idx] = target_m;
 }
 
 void SoftBody::release_kinematic(VertexId v) {
+  if (!kinematic_[v.idx]) return;
   kinematic_[v.idx] = 0;
+  --kinematic_count_;
+  ++constraint_edits_;
 }
 
 void SoftBody::add_contact(VertexId v, const glm::dvec3& normal, double depth_m,
                            double stiffness_N_per_m) {
   force_[v.idx] += (stiffness_N_per_m * depth_m) * normal;
   contacts_.push_back({v.idx, normal, stiffness_N_per_m});
+  loaded_.push_back(v.idx);
 }
 
 void SoftBody::clear_forces() {
-  std::fill(force_.begin(), force_.end(), glm::dvec3(0.0));
+  // Only add_force and add_contact write forces, and they list the vertex.
+  for (const std::uint32_t i : loaded_)
+    force_[i] = glm::dvec3(0.0);
+  loaded_.clear();
   contacts_.clear();
 }
 

@@ -18,4 +18,11 @@ double volume_gradient(const std::uint32_t* indices, std::size_t first, std::siz
 double six_volume(const std::uint32_t* indices, std::size_t first, std::size_t last,
                   const glm::dvec3* x);
 
+/// volume_gradient over the triangles listed in tris[0..count) instead of a range.
+double volume_gradient_of(const std::uint32_t* indices, const std::uint32_t* tris,
+                          std::size_t count, const glm::dvec3* x, glm::dvec3* grad);
+/// six_volume over the triangles listed in tris[0..count).
+double six_volume_of(const std::uint32_t* indices, const std::uint32_t* tris, std::size_t count,
+                     const glm::dvec3* x);
+
 }  // namespace bisturi::sim

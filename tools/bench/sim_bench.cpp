@@ -77,13 +77,13 @@ double percentile(std::vector<double> v, double q) {
 // Full step: the probe presses 0..3 mm into the top of the sphere and back (a 2 Hz sine), the
 // lower third is anchored, gravity on, default material and integrator options. The second
 // argument is the thread count (1: single thread; 0: every core for the integrator and Embree).
-void BM_FullStep(benchmark::State& state) {
-  const Shape& shape = sphere(radius_for(state.range(0)));
+void full_step(benchmark::State& state, std::int64_t vertices, bool all, int interval) {
+  const Shape& shape = sphere(radius_for(vertices));
   WorldOptions options;
   const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
-  const bool all = state.range(1) == 0;
   options.embree_threads = all ? 0 : 1;
   options.integrator.threads = all ? cores : 1;
+  options.integrator.far_field_interval = interval;
   SimWorld world(options);
   const std::uint32_t id =
       world.add_body(SoftBody(build_oriented_manifold(shape.polygons), Material{}));
@@ -133,6 +133,10 @@ void BM_FullStep(benchmark::State& state) {
   state.counters["events"] = double(world.take_events().size());
   state.counters["awake"] = awake / double(std::max<std::size_t>(samples.size(), 1));
 }
+
+void BM_FullStep(benchmark::State& state) {
+  full_step(state, state.range(0), state.range(1) == 0, 1);
+}
 BENCHMARK(BM_FullStep)
     ->Args({2000, 1})
     ->Args({20000, 1})
@@ -140,6 +144,21 @@ BENCHMARK(BM_FullStep)
     ->Args({2000, 0})
     ->Args({20000, 0})
     ->Args({100000, 0})
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond)
+    ->Iterations(3000);
+
+// The same scene with multirate stepping (IntegratorOptions::far_field_interval = the second
+// argument): the near region every step, one of that many blocks of the rest per step. One
+// thread (the regions' solves run on the calling thread); Embree with one thread.
+void BM_Multirate(benchmark::State& state) {
+  full_step(state, state.range(0), false, static_cast<int>(state.range(1)));
+}
+BENCHMARK(BM_Multirate)
+    ->Args({2000, 8})
+    ->Args({20000, 8})
+    ->Args({20000, 16})
+    ->Args({100000, 16})
     ->UseManualTime()
     ->Unit(benchmark::kMicrosecond)
     ->Iterations(3000);

@@ -44,6 +44,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -85,6 +86,19 @@ struct IntegratorOptions {
   /// of threads - 1 helpers). The parts are fixed by the thread count, so a run is bit-identical
   /// to another with the same count; different counts round differently (reductions split).
   unsigned threads = 1;
+  /// Multirate stepping (docs/sim/integrator.md, "Tenth pass"). With far_field_interval = N > 1
+  /// a step solves the near region - the aggregates with a loaded vertex (an external force or a
+  /// contact), widened by near_rings rings of aggregates - with a step of dt, and one of N blocks
+  /// of the other aggregates with a step of N dt, in turn, while the rest of the body is held.
+  /// A step then costs the region and one block instead of the whole organ. An aggregate stays
+  /// near until it has been without a load for near_linger_steps steps and its block's turn
+  /// comes, so that it leaves with its time accounted for; one that joins the region loses the
+  /// part of its block's period that had passed (at most (N - 1) dt). Sleeping is off in this
+  /// mode, its solves run on the calling thread, and a body with kinematic vertices (a grasp)
+  /// takes single-rate steps. 1 (the default): every free vertex every step.
+  int far_field_interval = 1;
+  int near_rings = 1;
+  int near_linger_steps = 1000;
 };
 
 enum class SimEventKind : std::uint8_t { RolledBack, Frozen };
@@ -191,6 +205,20 @@ class ImplicitIntegrator {
     std::vector<double> coarse_diag, coarse_row;
     std::vector<std::uint32_t> link_start, links, link_scratch;
   };
+  /// 6 V of a body by groups of triangles (multirate): a group per aggregate of the free system
+  /// (the triangles whose first free corner is in it) and one for the triangles without a free
+  /// corner. The volume is their sum in group order; a region's solve recomputes the groups it
+  /// moved.
+  struct MultirateGroups {
+    std::vector<std::uint32_t> start, tris;  ///< per group (start offsets into tris)
+    std::vector<std::uint32_t> tri_group;    ///< per triangle
+    std::vector<double> six_v;               ///< per group
+    bool valid = false;
+    [[nodiscard]] double total() const;
+    /// Recomputes the listed groups' sums at positions x.
+    void recompute(const std::vector<std::uint32_t>& list,
+                   const std::vector<std::uint32_t>& indices, const std::vector<glm::dvec3>& x);
+  };
   /// The solver structure of one body generation: the system over its free vertices (neither
   /// anchored, kinematic nor massless; rebuilt when that set changes), and the sleep state of
   /// the free system's aggregates with the system over the awake ones.
@@ -225,6 +253,36 @@ class ImplicitIntegrator {
     std::uint32_t asleep = 0;  ///< sleeping aggregates
     System part;               ///< the awake vertices' system (when asleep > 0)
     bool part_dirty = true;
+    /// Multirate stepping (IntegratorOptions::far_field_interval): regions of the free system
+    /// solved on their own, and the volume kept by groups of triangles.
+    struct Region {
+      System sys;  ///< over the region's rows; the other vertices are held
+      /// The triangles with a corner among the rows (their gradient is needed), the vertices
+      /// the region's passes write (rows, ends of its springs, corners of its triangles), and
+      /// the volume groups of its triangles (their sums change when the rows move).
+      std::vector<std::uint32_t> tris, touched, groups;
+      bool dirty = true;
+    };
+    struct Multirate {
+      std::uint64_t system = 0;  ///< the full System::id it was made for (0: none)
+      int interval = 0;
+      std::uint64_t tick = 0;
+      /// Per aggregate of the full system: its block, whether it is in the near region, the
+      /// last tick it had a load, and whether it is wanted there this tick.
+      std::vector<std::uint32_t> block_of;
+      std::vector<std::uint8_t> near, want;
+      std::vector<std::uint64_t> loaded_tick;
+      /// The aggregates' neighbours (adj_start offsets into adj).
+      std::vector<std::uint32_t> adj_start, adj;
+      Region near_region;
+      std::vector<Region> blocks;
+      MultirateGroups groups;
+      std::uint64_t state_edits = 0;  ///< SoftBody::state_edits() after the last tick
+      /// SoftBody::constraint_edits() and derived_generation() of the last constraint pass.
+      std::uint64_t constraint_edits = 0, constraint_generation = 0;
+      std::vector<std::uint8_t> flags;             ///< scratch: aggregates of a block region
+      std::vector<std::uint32_t> ring, next_ring;  ///< scratch of update_near
+    } multirate;
     /// The force pass taken at the end of the last accepted step, at its end state and for a
     /// substep of dt (the guard's energies come out of it): the next step's first substep uses
     /// it instead of its own while the state, the system and the team are what they were.
@@ -325,8 +383,42 @@ class ImplicitIntegrator {
                  int max_iterations, double rel_tol2, double abs_tol2, StepStats& stats);
   /// Empty when the state is fine, else the reason. elastic_after: the end state's elastic
   /// energy (end_pass), used when energy_check is set.
+  /// With `only`, the sweep covers those vertices (a region's rows) instead of all.
   std::string check(const SoftBody& body, const IntegratorOptions& options, double energy_before,
-                    bool energy_check, double elastic_after) const;
+                    bool energy_check, double elastic_after,
+                    const std::vector<std::uint32_t>* only = nullptr) const;
+  /// The contacts on sys's rows: their k n n^T blocks (contacts_, contact_rows_) and their
+  /// h^2 H v term taken off rhs_.
+  void gather_contacts(const System& sys, const SoftBody& body, double h2,
+                       std::vector<double>* step_residual, const Structure& st);
+  // ---- Multirate (integrator_multirate.cpp) ----
+  /// One step with IntegratorOptions::far_field_interval > 1 (see there); nothing (and nothing
+  /// done) when the body has kinematic vertices.
+  std::optional<StepStats> step_multirate(SoftBody& body, Structure& st,
+                                          const IntegratorOptions& options,
+                                          std::vector<SimEvent>& events, std::uint32_t body_index,
+                                          std::uint64_t step_index);
+  /// The blocks, the aggregates' neighbours and the volume groups for st.full (again when it
+  /// was rebuilt or the interval changed).
+  static void make_multirate(Structure& st, const SoftBody& body, int interval);
+  /// The near region for this tick's loads (SoftBody::loaded_vertices).
+  void update_near(Structure& st, const SoftBody& body, const IntegratorOptions& options);
+  /// Makes region's system and lists over the aggregates with flags[a] set.
+  void build_region(Structure& st, const SoftBody& body, Structure::Region& region,
+                    const std::vector<std::uint8_t>& flags);
+  /// A step of length h over the region with the guard (rollback, smaller substeps); false
+  /// when the body froze.
+  bool solve_region(SoftBody& body, Structure& st, Structure::Region& region,
+                    const IntegratorOptions& options, double h, StepStats& stats,
+                    std::vector<SimEvent>& events, std::uint32_t body_index,
+                    std::uint64_t step_index);
+  /// One backward Euler substep of length h over the region; energy_out as in substep().
+  void region_substep(SoftBody& body, Structure& st, Structure::Region& region,
+                      const IntegratorOptions& options, double h, StepStats& stats,
+                      double* energy_out);
+  /// The region's elastic energy at the current state: its springs and the volume term.
+  double region_elastic(const Structure& st, const Structure::Region& region,
+                        const SoftBody& body) const;
 
   std::vector<Structure> structures_;
   std::uint64_t systems_updated_ = 0;
@@ -343,6 +435,8 @@ class ImplicitIntegrator {
   /// The team for options.threads (created or resized here); nullptr for one thread.
   StepThreads* team(const IntegratorOptions& options);
   std::vector<std::uint8_t> free_, mask_;
+  /// Multirate: the velocities a region's spring pass reads (the rows', zero elsewhere).
+  std::vector<glm::dvec3> held_v_;
   std::vector<std::uint32_t> loaded_;  ///< vertices with an external force this step
   double p6_ = 0.0;                    ///< the last substep's pressure factor
   // Solver data over the free vertices, four lanes (x, y, z, zero pad) per vertex: the

@@ -82,9 +82,18 @@ class SoftBody {
   void release_kinematic(VertexId v);
   [[nodiscard]] bool kinematic(VertexId v) const { return kinematic_[v.idx] != 0; }
   [[nodiscard]] const glm::dvec3& kinematic_target(VertexId v) const { return target_[v.idx]; }
+  /// Vertices with a kinematic target now.
+  [[nodiscard]] std::size_t kinematic_count() const { return kinematic_count_; }
+  /// Counts the calls that change which vertices are constrained (an anchor set or cleared, a
+  /// kinematic target set on a free vertex or released): with derived_generation() (masses),
+  /// data computed from the constraints stays valid while it does not move.
+  [[nodiscard]] std::uint64_t constraint_edits() const { return constraint_edits_; }
 
   /// External force (N) on v for the next step only (contacts, haptic reaction).
-  void add_force(VertexId v, const glm::dvec3& force_N) { force_[v.idx] += force_N; }
+  void add_force(VertexId v, const glm::dvec3& force_N) {
+    force_[v.idx] += force_N;
+    loaded_.push_back(v.idx);
+  }
   [[nodiscard]] const std::vector<glm::dvec3>& external_forces() const { return force_; }
   /// A penalty contact on v for the next step only: the force stiffness * depth along the unit
   /// normal, with its stiffness (stiffness * n n^T) handed to the implicit solve, so a stiff
@@ -96,6 +105,9 @@ class SoftBody {
     double stiffness_N_per_m = 0.0;
   };
   [[nodiscard]] const std::vector<ContactTerm>& contacts() const { return contacts_; }
+  /// The vertices given a force or a contact since the last clear_forces(), in call order (a
+  /// vertex may be listed more than once): the only ones with a nonzero external force.
+  [[nodiscard]] const std::vector<std::uint32_t>& loaded_vertices() const { return loaded_; }
   /// Clears the external forces and contacts.
   void clear_forces();
 
@@ -172,6 +184,9 @@ class SoftBody {
   PropertyArray<VertexTag, std::uint8_t>* anchored_ = nullptr;
   std::vector<double> mass_;
   std::vector<std::uint8_t> kinematic_;
+  std::size_t kinematic_count_ = 0;
+  std::uint64_t constraint_edits_ = 0;
+  std::vector<std::uint32_t> loaded_;  ///< see loaded_vertices()
   std::vector<glm::dvec3> target_;
   std::vector<glm::dvec3> force_;
   std::vector<glm::dvec3> warm_;
