@@ -33,13 +33,25 @@ double ImplicitIntegrator::MultirateGroups::total() const {
   return sum;
 }
 
-void ImplicitIntegrator::MultirateGroups::recompute(const std::vector<std::uint32_t>& list,
-                                                    const std::vector<std::uint32_t>& indices,
-                                                    const std::vector<glm::dvec3>& x) {
-  for (const std::uint32_t g : list) {
-    six_v[g] =
-        six_volume_of(indices.data(), tris.data() + start[g], start[g + 1] - start[g], x.data());
+void ImplicitIntegrator::MultirateGroups::update(const std::vector<std::uint32_t>& triangles,
+                                                 const std::vector<std::uint32_t>& groups_to_sum,
+                                                 const std::vector<std::uint32_t>& indices,
+                                                 const std::vector<glm::dvec3>& x) {
+  six_volumes_of(indices.data(), triangles.data(), triangles.size(), x.data(), tri_six_v.data());
+  for (const std::uint32_t g : groups_to_sum) {
+    double sum = 0.0;
+    for (std::uint32_t k = start[g]; k < start[g + 1]; ++k)
+      sum += tri_six_v[tris[k]];
+    six_v[g] = sum;
   }
+}
+
+void ImplicitIntegrator::MultirateGroups::update_all(const std::vector<std::uint32_t>& indices,
+                                                     const std::vector<glm::dvec3>& x) {
+  std::vector<std::uint32_t> all_groups(six_v.size());
+  for (std::size_t g = 0; g < all_groups.size(); ++g)
+    all_groups[g] = static_cast<std::uint32_t>(g);
+  update(tris, all_groups, indices, x);
 }
 
 void ImplicitIntegrator::make_multirate(Structure& st, const SoftBody& body, int interval) {
@@ -104,6 +116,7 @@ void ImplicitIntegrator::make_multirate(Structure& st, const SoftBody& body, int
   for (std::size_t t = 0; t < nt; ++t)
     groups.tris[fill[groups.tri_group[t]]++] = static_cast<std::uint32_t>(t);
   groups.six_v.assign(nc + 1, 0.0);
+  groups.tri_six_v.assign(nt, 0.0);
   groups.valid = false;
   mr.near_region.dirty = true;
   mr.blocks.resize(blocks);
@@ -316,7 +329,7 @@ void ImplicitIntegrator::region_substep(SoftBody& body, Structure& st, Structure
   } else {
     apply(solve<double>(sys, w, warm, options.max_cg_iterations, tol.rel2, tol.abs2, stats));
   }
-  groups.recompute(region.groups, idx, x);
+  groups.update(region.tris, region.groups, idx, x);
 }
 
 bool ImplicitIntegrator::solve_region(SoftBody& body, Structure& st, Structure::Region& region,
@@ -358,7 +371,7 @@ bool ImplicitIntegrator::solve_region(SoftBody& body, Structure& st, Structure::
       v[i] = saved_v_[i];
       warm[i] = glm::dvec3(0.0);
     }
-    st.multirate.groups.recompute(region.groups, body.triangles().indices, x);
+    st.multirate.groups.update(region.tris, region.groups, body.triangles().indices, x);
   }
   events.push_back({SimEventKind::Frozen, body_index, step_index, 1 << options.max_retry_halvings,
                     "still diverging with the smallest substep: the solid is frozen"});
@@ -405,10 +418,7 @@ std::optional<StepStats> ImplicitIntegrator::step_multirate(SoftBody& body, Stru
     make_multirate(st, body, options.far_field_interval);
   // The groups' sums hold while only this mode's solves move the body.
   if (!mr.groups.valid || !untouched) {
-    std::vector<std::uint32_t> all(mr.groups.six_v.size());
-    for (std::size_t g = 0; g < all.size(); ++g)
-      all[g] = static_cast<std::uint32_t>(g);
-    mr.groups.recompute(all, body.triangles().indices, body.positions());
+    mr.groups.update_all(body.triangles().indices, body.positions());
     mr.groups.valid = true;
   }
   update_near(st, body, options);

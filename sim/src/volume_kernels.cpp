@@ -64,12 +64,10 @@ double six_volume(const std::uint32_t* indices, std::size_t first, std::size_t l
   return six_v;
 }
 
-double six_volume_of(const std::uint32_t* indices, const std::uint32_t* tris, std::size_t count,
-                     const glm::dvec3* x) {
-  double six_v = 0.0;
+void six_volumes_of(const std::uint32_t* indices, const std::uint32_t* tris, std::size_t count,
+                    const glm::dvec3* x, double* out) {
   for (std::size_t k = 0; k < count; ++k)
-    six_v += triangle_six_volume(indices, tris[k], x);
-  return six_v;
+    out[tris[k]] = triangle_six_volume(indices, tris[k], x);
 }
 
 }  // namespace bisturi::sim

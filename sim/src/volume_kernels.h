@@ -21,8 +21,8 @@ double six_volume(const std::uint32_t* indices, std::size_t first, std::size_t l
 /// volume_gradient over the triangles listed in tris[0..count) instead of a range.
 double volume_gradient_of(const std::uint32_t* indices, const std::uint32_t* tris,
                           std::size_t count, const glm::dvec3* x, glm::dvec3* grad);
-/// six_volume over the triangles listed in tris[0..count).
-double six_volume_of(const std::uint32_t* indices, const std::uint32_t* tris, std::size_t count,
-                     const glm::dvec3* x);
+/// Each listed triangle's 6 V (x0 . (x1 x x2)) into out[triangle].
+void six_volumes_of(const std::uint32_t* indices, const std::uint32_t* tris, std::size_t count,
+                    const glm::dvec3* x, double* out);
 
 }  // namespace bisturi::sim

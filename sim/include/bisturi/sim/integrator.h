@@ -213,11 +213,15 @@ class ImplicitIntegrator {
     std::vector<std::uint32_t> start, tris;  ///< per group (start offsets into tris)
     std::vector<std::uint32_t> tri_group;    ///< per triangle
     std::vector<double> six_v;               ///< per group
+    std::vector<double> tri_six_v;           ///< per triangle
     bool valid = false;
     [[nodiscard]] double total() const;
-    /// Recomputes the listed groups' sums at positions x.
-    void recompute(const std::vector<std::uint32_t>& list,
-                   const std::vector<std::uint32_t>& indices, const std::vector<glm::dvec3>& x);
+    /// The listed triangles' 6 V at positions x, then the listed groups' sums.
+    void update(const std::vector<std::uint32_t>& triangles,
+                const std::vector<std::uint32_t>& groups_to_sum,
+                const std::vector<std::uint32_t>& indices, const std::vector<glm::dvec3>& x);
+    /// Every triangle and group at positions x.
+    void update_all(const std::vector<std::uint32_t>& indices, const std::vector<glm::dvec3>& x);
   };
   /// The solver structure of one body generation: the system over its free vertices (neither
   /// anchored, kinematic nor massless; rebuilt when that set changes), and the sleep state of
