@@ -39,18 +39,7 @@ void anchor_below(SoftBody& body, double z) {
 double strip_sag(int interval, std::vector<SimEvent>& events) {
   const std::size_t n = 10;
   const double cell_mm = 10.0;
-  Material mat;
-  mat.structural_N_per_m = 5.0;
-  mat.shear_N_per_m = 0.0;
-  mat.bending_N_per_m = 0.0;
-  mat.density_kg_per_m3 = 1000.0;
-  mat.thickness_m = 0.001;
-  mat.bulk_modulus_Pa = 0.0;
-  mat.drag_per_s = 20.0;
-  SoftBody body(testing::hanging_sheet(1, n, cell_mm), mat);
-  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
-    if (body.position(VertexId(i)).z > -1e-9) body.set_anchored(VertexId(i), true);
-  }
+  SoftBody body = testing::hanging_strip(n);
   IntegratorOptions opt;
   opt.cg_relative_tolerance = 1e-9;
   opt.max_cg_iterations = 100;

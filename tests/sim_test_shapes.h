@@ -6,6 +6,7 @@
 #include "bisturi/scene/shapes.h"
 #include "bisturi/scene/volume/marching_cubes.h"
 #include "bisturi/scene/volume/phantoms.h"
+#include "bisturi/sim/soft_body.h"
 
 namespace bisturi::sim::testing {
 
@@ -20,6 +21,24 @@ inline Dlfl hanging_sheet(std::size_t nx, std::size_t ny, double cell_mm) {
   for (auto& p : m.positions)
     p = Dlfl::Vec3(p.x, 0.0, -p.y);
   return build_oriented_manifold(m);
+}
+
+/// The hanging strip of the sag tests: a one-cell-wide strip of `cells` quads of 10 mm hanging
+/// from its anchored top row, with structural springs only (5 N/m), 1 kg/m^2 and drag 20/s.
+inline SoftBody hanging_strip(std::size_t cells) {
+  Material mat;
+  mat.structural_N_per_m = 5.0;
+  mat.shear_N_per_m = 0.0;
+  mat.bending_N_per_m = 0.0;
+  mat.density_kg_per_m3 = 1000.0;
+  mat.thickness_m = 0.001;
+  mat.bulk_modulus_Pa = 0.0;
+  mat.drag_per_s = 20.0;
+  SoftBody body(hanging_sheet(1, cells, 10.0), mat);
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+    if (body.position(VertexId(i)).z > -1e-9) body.set_anchored(VertexId(i), true);
+  }
+  return body;
 }
 
 /// A closed sphere of radius radius_mm centred at (c, c, c) with c = (dims - 1) / 2 mm.

@@ -22,13 +22,8 @@
 
 namespace bisturi::sim {
 
-using integrator_detail::cg_tolerances;
-using integrator_detail::CgTolerances;
-using integrator_detail::has_volume_term;
-using integrator_detail::kNotFree;
-using integrator_detail::outward_volume;
-using integrator_detail::pressure_factor;
-using integrator_detail::volume_term_energy;
+// The helpers the integrator's files share (integrator_shared.h).
+using namespace integrator_detail;  // NOLINT(google-build-using-namespace)
 
 namespace {
 

@@ -18,13 +18,8 @@
 
 namespace bisturi::sim {
 
-using integrator_detail::cg_tolerances;
-using integrator_detail::CgTolerances;
-using integrator_detail::has_volume_term;
-using integrator_detail::kNotFree;
-using integrator_detail::outward_volume;
-using integrator_detail::pressure_factor;
-using integrator_detail::volume_term_energy;
+// The helpers the integrator's files share (integrator_shared.h).
+using namespace integrator_detail;  // NOLINT(google-build-using-namespace)
 
 double ImplicitIntegrator::MultirateGroups::total() const {
   double sum = 0.0;
@@ -165,25 +160,9 @@ void ImplicitIntegrator::update_near(Structure& st, const SoftBody& body,
 void ImplicitIntegrator::build_region(Structure& st, const SoftBody& body,
                                       Structure::Region& region,
                                       const std::vector<std::uint8_t>& flags) {
-  const System& full = st.full;
   const std::size_t n = st.free_mask.size();
-  const std::size_t nc = full.coarse_count;
-  mask_.assign(n, 0);
-  std::vector<std::uint32_t> remap(nc, kNotFree);
-  std::uint32_t count = 0;
-  for (std::size_t a = 0; a < nc; ++a) {
-    if (!flags[a]) continue;
-    remap[a] = count++;
-    for (std::uint32_t e = st.agg_start[a]; e < st.agg_start[a + 1]; ++e)
-      mask_[full.vertex[st.agg_rows[e]]] = 1;
-  }
   System& sys = region.sys;
-  build_system(st, sys, mask_);
-  // The region's aggregates, renumbered in order, are its coarse level (as the sleeping part's).
-  sys.agg.resize(sys.vertex.size());
-  for (std::size_t r = 0; r < sys.vertex.size(); ++r)
-    sys.agg[r] = remap[full.agg[full.compact[sys.vertex[r]]]];
-  sys.coarse_count = count;
+  build_over_aggregates(st, sys, flags);
   // What its passes visit: the triangles with a corner among the rows, the vertices the spring
   // and triangle passes write, and the volume groups of those triangles.
   const auto& idx = body.triangles().indices;

@@ -90,25 +90,9 @@ void ImplicitIntegrator::wake_loaded(Structure& st, const SoftBody& body) {
 ImplicitIntegrator::System& ImplicitIntegrator::system(Structure& st, const SoftBody& body) {
   if (st.asleep == 0) return st.full;
   if (!st.part_dirty) return st.part;
-  const System& full = st.full;
   const std::size_t n = st.free_mask.size();
-  const std::size_t nc = full.coarse_count;
-  mask_.assign(n, 0);
-  std::vector<std::uint32_t> remap(nc, kNone);
-  std::uint32_t awake_count = 0;
-  for (std::size_t a = 0; a < nc; ++a) {
-    if (!st.awake[a]) continue;
-    remap[a] = awake_count++;
-    for (std::uint32_t e = st.agg_start[a]; e < st.agg_start[a + 1]; ++e)
-      mask_[full.vertex[st.agg_rows[e]]] = 1;
-  }
   System& part = st.part;
-  build_system(st, part, mask_);
-  // The awake aggregates, renumbered in order, are the part's coarse level.
-  part.agg.resize(part.vertex.size());
-  for (std::size_t r = 0; r < part.vertex.size(); ++r)
-    part.agg[r] = remap[full.agg[full.compact[part.vertex[r]]]];
-  part.coarse_count = awake_count;
+  build_over_aggregates(st, part, st.awake);
   // The border: sleeping free vertices that share a spring or a triangle with an awake one (the
   // forces and the pressure gradient on them change when it moves).
   std::vector<std::uint8_t> border(n, 0);

@@ -212,6 +212,26 @@ void ImplicitIntegrator::update_free_rows(Structure& st, const std::vector<std::
   st.part_dirty = true;
 }
 
+void ImplicitIntegrator::build_over_aggregates(Structure& st, System& sys,
+                                               const std::vector<std::uint8_t>& flags) {
+  const System& full = st.full;
+  const std::size_t nc = full.coarse_count;
+  mask_.assign(st.free_mask.size(), 0);
+  std::vector<std::uint32_t> remap(nc, kNotFree);
+  std::uint32_t count = 0;
+  for (std::size_t a = 0; a < nc; ++a) {
+    if (!flags[a]) continue;
+    remap[a] = count++;
+    for (std::uint32_t e = st.agg_start[a]; e < st.agg_start[a + 1]; ++e)
+      mask_[full.vertex[st.agg_rows[e]]] = 1;
+  }
+  build_system(st, sys, mask_);
+  sys.agg.resize(sys.vertex.size());
+  for (std::size_t r = 0; r < sys.vertex.size(); ++r)
+    sys.agg[r] = remap[full.agg[full.compact[sys.vertex[r]]]];
+  sys.coarse_count = count;
+}
+
 void ImplicitIntegrator::build_system(Structure& st, System& sys,
                                       const std::vector<std::uint8_t>& mask) {
   start_build(sys);

@@ -16,6 +16,7 @@
 #include <cmath>
 #include <cstdio>
 #include <map>
+#include <memory>
 #include <thread>
 #include <vector>
 
@@ -162,6 +163,79 @@ BENCHMARK(BM_Multirate)
     ->UseManualTime()
     ->Unit(benchmark::kMicrosecond)
     ->Iterations(3000);
+
+// What multirate stepping changes: the bench scene of BM_FullStep run single-rate and with the
+// interval (second argument) side by side for 3.2 s of the 2 Hz probing, from the rest shape or
+// after both settled (third argument: single-rate steps with the probe away first). Counters: the
+// RMS of the haptic force's difference over the run against the single-rate force's RMS, and at the
+// end the largest distance between the two bodies' vertices within 10 mm of the probe and
+// beyond, each against the largest displacement from rest of the single-rate body there.
+void BM_MultirateAccuracy(benchmark::State& state) {
+  const Shape& shape = sphere(radius_for(state.range(0)));
+  const double c = shape.centre_mm * 1e-3;
+  const double r = shape.radius_mm * 1e-3;
+  auto make = [&](int interval) {
+    WorldOptions options;
+    options.embree_threads = 1;
+    options.integrator.far_field_interval = interval;
+    auto world = std::make_unique<SimWorld>(options);
+    SoftBody& body =
+        world->body(world->add_body(SoftBody(build_oriented_manifold(shape.polygons), Material{})));
+    for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+      const VertexId v(i);
+      if (body.mesh().alive(v) && body.position(v).z < c - r / 3.0) body.set_anchored(v, true);
+    }
+    return world;
+  };
+  for (auto _ : state) {
+    auto single = make(1);
+    auto multi = make(1);
+    // Both settle single-rate for the third argument's steps with the probe away, then the
+    // second switches over.
+    const glm::dvec3 away(c, c, c + r + 0.01);
+    for (std::int64_t s = 0; s < state.range(2); ++s) {
+      single->step(away);
+      multi->step(away);
+    }
+    multi->options().integrator.far_field_interval = static_cast<int>(state.range(1));
+    double diff2 = 0.0, force2 = 0.0;
+    for (int s = 0; s < 3200; ++s) {
+      const double depth = 0.0015 * (1.0 - std::cos(2.0 * 3.141592653589793 * 2.0 * s * 1e-3));
+      const glm::dvec3 tip(c, c, c + r + 0.001 - depth);
+      const glm::dvec3 a = single->step(tip).force_N, b = multi->step(tip).force_N;
+      diff2 += glm::dot(a - b, a - b);
+      force2 += glm::dot(a, a);
+    }
+    const SoftBody& bs = single->body(0);
+    const SoftBody& bm = multi->body(0);
+    const glm::dvec3 top(c, c, c + r);
+    double near_moved = 0.0, near_diff = 0.0, far_moved = 0.0, far_diff = 0.0;
+    for (std::uint32_t i = 0; i < bs.mesh().vertex_capacity(); ++i) {
+      const VertexId v(i);
+      if (!bs.mesh().alive(v)) continue;
+      const bool near = glm::length(bs.rest_position(v) - top) < 0.010;
+      const double moved = glm::length(bs.position(v) - bs.rest_position(v));
+      const double diff = glm::length(bs.position(v) - bm.position(v));
+      (near ? near_moved : far_moved) = std::max(near ? near_moved : far_moved, moved);
+      (near ? near_diff : far_diff) = std::max(near ? near_diff : far_diff, diff);
+    }
+    state.counters["force_rms_diff"] = std::sqrt(diff2 / std::max(force2, 1e-300));
+    state.counters["near_diff"] = near_diff / std::max(near_moved, 1e-300);
+    state.counters["far_diff"] = far_diff / std::max(far_moved, 1e-300);
+    state.counters["near_moved_um"] = near_moved * 1e6;
+    state.counters["far_moved_um"] = far_moved * 1e6;
+    state.counters["events"] = double(multi->take_events().size() + single->take_events().size());
+  }
+}
+BENCHMARK(BM_MultirateAccuracy)
+    ->Args({2000, 2, 0})
+    ->Args({2000, 8, 0})
+    ->Args({2000, 8, 3000})
+    ->Args({20000, 4, 0})
+    ->Args({20000, 16, 0})
+    ->Args({20000, 16, 3000})
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
 
 // The Embree refit alone (part of BM_FullStep): every vertex moves by 1 um, then the surface BVH
 // of the sphere is refitted (single thread).

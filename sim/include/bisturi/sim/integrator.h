@@ -306,6 +306,9 @@ class ImplicitIntegrator {
   /// vertex wakes).
   void update_free_rows(Structure& st, const std::vector<std::uint8_t>& free_mask,
                         const std::vector<double>& masses);
+  /// Builds sys over the rows of the full system's aggregates with flags[a] set, its coarse
+  /// level those aggregates renumbered in order; leaves the vertices' mask in mask_.
+  void build_over_aggregates(Structure& st, System& sys, const std::vector<std::uint8_t>& flags);
   /// Builds sys over the vertices with mask[i] = 1 (and st.k_class from st's springs).
   static void build_system(Structure& st, System& sys, const std::vector<std::uint8_t>& mask);
   /// build_system's result for st.full after a local change of the springs (st.local_change),
