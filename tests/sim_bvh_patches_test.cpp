@@ -1,6 +1,7 @@
 // The two-level surface BVH (sim/src/collision.cpp with bvh_patches.*): a body of several
 // patches answers closest-point, nearby-triangle and ray queries exactly as a brute-force pass
-// over every triangle does, before and after a cut, and a cut rebuilds only some patches.
+// over every triangle does, before and after a cut, and a cut rebuilds only some patches; a
+// refit commits only the patches whose vertices moved and answers as a BVH built anew does.
 
 #include <gtest/gtest.h>
 
@@ -246,6 +247,131 @@ TEST(SimBvhPatches, APatchWithManyDeadTrianglesIsRebuilt) {
       cut_around({.loose_triangles = 1000000, .stale_share = 0.02});
   EXPECT_TRUE(grew_then_shrank(loose))
       << "largest " << *std::max_element(loose.begin(), loose.end());
+}
+
+/// Moves every live vertex within `radius` of `centre` by `shift`; returns how many moved.
+std::size_t move_region(SoftBody& body, const glm::dvec3& centre, double radius,
+                        const glm::dvec3& shift) {
+  std::size_t moved = 0;
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+    const VertexId v(i);
+    if (!body.mesh().alive(v) || glm::length(body.position(v) - centre) > radius) continue;
+    body.set_position(v, body.position(v) + shift);
+    ++moved;
+  }
+  return moved;
+}
+
+/// Closest points around focus from `bvh` (refitted) and from a BVH built anew on the same
+/// body: the same triangle and the same point.
+void expect_same_as_fresh(const SoftBody& body, const SurfaceBvh& bvh, std::uint32_t seed,
+                          const glm::dvec3& focus, double spread) {
+  CollisionDevice device(1);
+  const SurfaceBvh fresh(device, body);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  for (int i = 0; i < 200; ++i) {
+    const glm::dvec3 p = focus + spread * glm::dvec3(unit(rng), unit(rng), unit(rng));
+    const SurfacePoint want = fresh.closest_point(body, p);
+    const SurfacePoint got = bvh.closest_point(body, p);
+    ASSERT_TRUE(want.found && got.found) << "query " << i;
+    EXPECT_EQ(got.triangle, want.triangle) << "query " << i;
+    EXPECT_EQ(got.point_m, want.point_m) << "query " << i;
+  }
+}
+
+const glm::dvec3 kTop(kCentre, kCentre, kCentre + kRadius);
+// Far enough sideways that the old bounds of the moved region are farther from a query at its
+// new place than the unmoved surface is: a region left unrefitted gives other answers.
+const glm::dvec3 kSideways(0.006, 0.0, 0.0);
+
+TEST(SimBvhPatches, MovingOneRegionRefitsOnlyItsPatches) {
+  CollisionDevice device(1);
+  SoftBody body(testing::sphere(56, 25.0), Material{});
+  SurfaceBvh bvh(device, body);
+  ASSERT_EQ(bvh.loose_triangles(), 0u);
+  const std::size_t filled = bvh.patch_count() - 1;  // the loose patch is empty
+  ASSERT_GE(filled, 4u);
+  ASSERT_GT(move_region(body, kTop, 0.004, kSideways), 10u);
+  bvh.update(body);
+  EXPECT_GT(bvh.last_refitted_patches(), 0u);
+  EXPECT_LT(bvh.last_refitted_patches(), filled);
+  expect_same_as_fresh(body, bvh, 21, kTop + kSideways, 0.006);
+  expect_queries_match(body, bvh, 23, kTop + kSideways, 0.006, 60);
+}
+
+TEST(SimBvhPatches, AVertexOnAPatchBorderRefitsEveryPatchThatUsesIt) {
+  CollisionDevice device(1);
+  SoftBody body(testing::sphere(56, 25.0), Material{});
+  SurfaceBvh bvh(device, body);
+  // Each live vertex alone pulled 6 mm outwards until one refits two patches (it lies on a
+  // border); the others go back.
+  std::size_t most = 0;
+  VertexId spike;
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity() && most < 2; ++i) {
+    spike = VertexId(i);
+    if (!body.mesh().alive(spike)) continue;
+    const glm::dvec3 was = body.position(spike);
+    body.set_position(spike, was + 0.006 * glm::normalize(was - glm::dvec3(kCentre)));
+    bvh.update(body);
+    most = std::max(most, bvh.last_refitted_patches());
+    if (most >= 2) break;
+    body.set_position(spike, was);
+    bvh.update(body);
+  }
+  ASSERT_GE(most, 2u) << "no vertex refitted two patches";
+  // The spike's triangles in each patch are where their BVHs say.
+  expect_same_as_fresh(body, bvh, 43, body.position(spike), 0.004);
+}
+
+TEST(SimBvhPatches, MovingNothingRefitsNoPatch) {
+  CollisionDevice device(1);
+  SoftBody body(testing::sphere(56, 25.0), Material{});
+  SurfaceBvh bvh(device, body);
+  const std::uint64_t refits = bvh.refits();
+  bvh.update(body);
+  EXPECT_EQ(bvh.last_refitted_patches(), 0u);
+  move_region(body, kTop, 0.004, kSideways);
+  bvh.update(body);
+  ASSERT_GT(bvh.last_refitted_patches(), 0u);
+  bvh.update(body);  // the moved region stays where it went
+  EXPECT_EQ(bvh.last_refitted_patches(), 0u);
+  EXPECT_EQ(bvh.refits(), refits + 3);
+  expect_same_as_fresh(body, bvh, 27, kTop + kSideways, 0.006);
+}
+
+TEST(SimBvhPatches, MovingEveryVertexRefitsEveryFilledPatch) {
+  CollisionDevice device(1);
+  SoftBody body(testing::sphere(56, 25.0), Material{});
+  SurfaceBvh bvh(device, body);
+  ASSERT_EQ(bvh.loose_triangles(), 0u);
+  for (glm::dvec3& p : body.positions())
+    p.z += 1e-6;  // a few float steps at 5 cm
+  bvh.update(body);
+  EXPECT_EQ(bvh.last_refitted_patches(), bvh.patch_count() - 1);
+  expect_same_as_fresh(body, bvh, 29, glm::dvec3(kCentre), kRadius * 1.2);
+}
+
+TEST(SimBvhPatches, APartialRefitAfterACutAnswersAsAFreshBvh) {
+  WorldOptions options;
+  options.integrator.gravity_m_s2 = glm::dvec3(0.0);
+  SimWorld world(options);
+  world.add_body(SoftBody(testing::sphere(56, 25.0), Material{}));
+  const CutResult cut = world.cut(0, top_meridian_arc());
+  ASSERT_GT(cut.new_vertices.size(), 2u);
+  const SurfaceBvh& bvh = world.bvh(0);
+  ASSERT_GT(bvh.loose_triangles(), 0u) << "the cut should fill the loose patch";
+  // After the cut's rebuild every patch was committed, the loose one too.
+  EXPECT_EQ(bvh.last_refitted_patches(), bvh.patch_count());
+  // The incision and the region around it (the loose patch's triangles among them) move.
+  SoftBody& body = world.body(0);
+  ASSERT_GT(move_region(body, kTop, 0.004, kSideways), 10u);
+  world.prepare_body(0);  // refits the BVH
+  EXPECT_GT(bvh.last_refitted_patches(), 0u);
+  EXPECT_LT(bvh.last_refitted_patches(), bvh.patch_count());
+  expect_same_as_fresh(body, bvh, 31, kTop + kSideways, 0.006);
+  expect_queries_match(body, bvh, 37, kTop + kSideways, 0.006, 60);
+  expect_queries_match(body, bvh, 41, glm::dvec3(kCentre), kRadius * 1.2, 60);
 }
 
 }  // namespace

@@ -28,7 +28,7 @@ void SimWorld::prepare() {
 
 void SimWorld::prepare_body(std::uint32_t i) {
   integrator_.prepare(bodies_[i], options_.integrator);
-  bvhs_[i].update(bodies_[i]);  // the first refit after a build costs more than later ones
+  bvhs_[i].update(bodies_[i]);  // a topology change (a cut) updates the patches now
   if (!options_.contact.enabled) return;
   // The user-geometry copies rtcCollide works on, built by a query whose result is not used.
   for (std::uint32_t j = 0; j < bodies_.size(); ++j) {

@@ -1,11 +1,12 @@
 #pragma once
 // Collision on deforming soft bodies through Embree (kept private to sim: no Embree type in a
 // public header). One SurfaceBvh per body: a two-level triangle BVH (one per patch of about 4096
-// triangles, and a top level over them) refitted every step; when the body's topology version
-// moves, the patches whose triangles changed much are rebuilt, the others keep their BVHs
-// (see rebuild_changed in collision.cpp); closest-point and ray queries for the
-// haptic proxy and the scalpel; and, on request, a user-geometry copy for rtcCollide (Embree's
-// collide works on user geometry only) that finds the triangle pairs of tissue-tissue contact.
+// triangles, and a top level over them) refitted every step, only the patches whose vertices
+// moved; when the body's topology version moves, the patches whose triangles changed much are
+// rebuilt, the others keep their BVHs (see rebuild_changed in collision.cpp); closest-point and
+// ray queries for the haptic proxy and the scalpel; and, on request, a user-geometry copy for
+// rtcCollide (Embree's collide works on user geometry only) that finds the triangle pairs of
+// tissue-tissue contact.
 
 #include <cstdint>
 #include <memory>
@@ -65,6 +66,9 @@ class SurfaceBvh {
   /// refitted).
   [[nodiscard]] std::size_t patch_count() const;
   [[nodiscard]] std::size_t last_rebuilt_patches() const;
+  /// Patches the last update committed: on a refit, those with a vertex whose position (in
+  /// float) moved, 0 when none did; after a build or topology update, every non-empty one.
+  [[nodiscard]] std::size_t last_refitted_patches() const;
   /// Triangles in the loose patch: those a cut added to patches it left unrebuilt (their BVHs
   /// keep the cut's dead triangles, which queries skip). Back to 0 when those are rebuilt.
   [[nodiscard]] std::size_t loose_triangles() const;
