@@ -96,6 +96,10 @@ struct IntegratorOptions {
   /// part of its block's period that had passed (at most (N - 1) dt). Sleeping is off in this
   /// mode, its solves run on the calling thread, and a body with kinematic vertices (a grasp)
   /// takes single-rate steps. 1 (the default): every free vertex every step.
+  /// Experimental: a step costs about a fifth of a single-rate one at 20k vertices, but the far
+  /// field relaxes its global shape far more slowly (each block moves against held neighbours):
+  /// the organ's sag under gravity and its bulge under the probe lag behind a single-rate body
+  /// by a large share (docs/sim/integrator.md, "Tenth pass", has the figures).
   int far_field_interval = 1;
   int near_rings = 1;
   int near_linger_steps = 1000;
