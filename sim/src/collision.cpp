@@ -481,8 +481,10 @@ SurfaceBvh::SurfaceBvh(SurfaceBvh&&) noexcept = default;
 SurfaceBvh& SurfaceBvh::operator=(SurfaceBvh&&) noexcept = default;
 
 void SurfaceBvh::update(const SoftBody& body) {
+  // Vertex slots past the shared buffer (slots made without a topology change) need a build.
   if (body.topology_version() != impl_->version ||
-      impl_->indices.size() != body.triangles().indices.size()) {
+      impl_->indices.size() != body.triangles().indices.size() ||
+      body.positions().size() > impl_->vertex_capacity) {
     impl_->rebuild_changed(body);
     return;
   }

@@ -95,8 +95,8 @@ class SurfaceBvh {
   std::unique_ptr<Impl> impl_;
 };
 
-/// Closest point on triangle (a, b, c) to p, with its barycentric coordinates.
+/// Closest point on triangle (a, b, c) to p, with its barycentric coordinates in bc.
 glm::dvec3 closest_point_on_triangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
-                                     const glm::dvec3& c, glm::dvec3& barycentric);
+                                     const glm::dvec3& c, glm::dvec3& bc);
 
 }  // namespace bisturi::sim
