@@ -36,6 +36,11 @@
 // anchoring, grasping and cutting wake the whole body (docs/sim/integrator.md, "Fourth
 // performance pass").
 //
+// Multirate (IntegratorOptions::far_field_interval, experimental): a step solves the region
+// around the loads with dt and one block of the rest with a longer step, holding the others, and
+// costs a fraction of a full step; its far field relaxes much more slowly than a single-rate
+// body's (integrator_multirate.cpp; docs/sim/integrator.md, "Tenth pass").
+//
 // The guard: after a step, a state with a non-finite value, a vertex faster than max_speed, or
 // an energy rise larger than the work of the external forces plus a tolerance is a divergence.
 // The body is rolled back to the state before the step and the step is retried with 2, 4, 8...
