@@ -118,6 +118,15 @@ std::vector<glm::dvec3> top_meridian_arc() {
   return points;
 }
 
+/// A world with the 25 mm sphere and no gravity (the cuts' tests).
+SimWorld weightless_sphere_world() {
+  WorldOptions options;
+  options.integrator.gravity_m_s2 = glm::dvec3(0.0);
+  SimWorld world(options);
+  world.add_body(SoftBody(testing::sphere(56, 25.0), Material{}));
+  return world;
+}
+
 TEST(SimBvhPatches, QueriesMatchBruteForceOnEveryPatch) {
   CollisionDevice device(1);
   const SoftBody body(testing::sphere(56, 25.0), Material{});
@@ -127,10 +136,7 @@ TEST(SimBvhPatches, QueriesMatchBruteForceOnEveryPatch) {
 }
 
 TEST(SimBvhPatches, ACutRebuildsSomePatchesAndQueriesStillMatch) {
-  WorldOptions options;
-  options.integrator.gravity_m_s2 = glm::dvec3(0.0);
-  SimWorld world(options);
-  world.add_body(SoftBody(testing::sphere(56, 25.0), Material{}));
+  SimWorld world = weightless_sphere_world();
   const std::size_t patches = world.bvh(0).patch_count();
   const std::uint64_t rebuilds = world.bvh(0).rebuilds();
   const CutResult cut = world.cut(0, top_meridian_arc());
@@ -173,10 +179,7 @@ TEST(SimBvhPatches, RaysPassThroughTheDeadTrianglesOfAnOpenedIncision) {
   // The far lip is moved away from the near one, in either direction (one of them opens the
   // incision; the dead triangles of the kept patches still span it).
   for (const double gap : {0.0015, -0.0015}) {
-    WorldOptions options;
-    options.integrator.gravity_m_s2 = glm::dvec3(0.0);
-    SimWorld world(options);
-    world.add_body(SoftBody(testing::sphere(56, 25.0), Material{}));
+    SimWorld world = weightless_sphere_world();
     const CutResult cut = world.cut(0, top_meridian_arc());
     ASSERT_GT(cut.new_vertices.size(), 2u);
     ASSERT_GT(world.bvh(0).loose_triangles(), 0u) << "the cut should keep stale patches";
@@ -353,10 +356,7 @@ TEST(SimBvhPatches, MovingEveryVertexRefitsEveryFilledPatch) {
 }
 
 TEST(SimBvhPatches, APartialRefitAfterACutAnswersAsAFreshBvh) {
-  WorldOptions options;
-  options.integrator.gravity_m_s2 = glm::dvec3(0.0);
-  SimWorld world(options);
-  world.add_body(SoftBody(testing::sphere(56, 25.0), Material{}));
+  SimWorld world = weightless_sphere_world();
   const CutResult cut = world.cut(0, top_meridian_arc());
   ASSERT_GT(cut.new_vertices.size(), 2u);
   const SurfaceBvh& bvh = world.bvh(0);

@@ -41,6 +41,10 @@ inline SoftBody hanging_strip(std::size_t cells) {
   return body;
 }
 
+/// The sphere(24, 8 mm) squashed to 80 % of its height about its centre, without drag or spring
+/// damping: with no gravity it rings, and backward Euler may only lose its energy.
+inline SoftBody squashed_sphere();
+
 /// A closed sphere of radius radius_mm centred at (c, c, c) with c = (dims - 1) / 2 mm.
 inline Dlfl sphere(std::int64_t dims, double radius_mm) {
   PhantomOptions o;
@@ -49,6 +53,16 @@ inline Dlfl sphere(std::int64_t dims, double radius_mm) {
   o.spacing = glm::dvec3(1.0);
   o.a = radius_mm;
   return extract_isosurface(make_phantom(o));
+}
+
+inline SoftBody squashed_sphere() {
+  Material mat;
+  mat.drag_per_s = 0.0;
+  mat.spring_damping_N_s_per_m = 0.0;
+  SoftBody body(sphere(24, 8.0), mat);
+  for (auto& p : body.positions())
+    p.z = 0.0115 + (p.z - 0.0115) * 0.8;
+  return body;
 }
 
 }  // namespace bisturi::sim::testing
