@@ -23,13 +23,8 @@ SimWorld sphere_world(const HapticOptions& haptic) {
   options.haptic = haptic;
   options.integrator.gravity_m_s2 = glm::dvec3(0.0);  // the probe alone loads the tissue
   SimWorld world(options);
-  Material firm;  // firm enough that the probe stays on the cap it presses
-  firm.structural_N_per_m = 3000.0;
-  firm.shear_N_per_m = 1000.0;
-  firm.bending_N_per_m = 300.0;
-  firm.bulk_modulus_Pa = 20000.0;
-  firm.drag_per_s = 20.0;
-  const std::uint32_t id = world.add_body(SoftBody(testing::sphere(24, 8.0), firm));
+  const std::uint32_t id =
+      world.add_body(SoftBody(testing::sphere(24, 8.0), testing::firm_material()));
   SoftBody& body = world.body(id);
   for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
     if (body.position(VertexId(i)).z < kCentre) body.set_anchored(VertexId(i), true);

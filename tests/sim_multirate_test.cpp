@@ -66,7 +66,7 @@ TEST(SimMultirate, HangingStripReachesTheSingleRateSag) {
   EXPECT_NEAR(multi, single, 0.01 * single);
 }
 
-/// A world with the sphere (the haptic test's firm material, no gravity) under the probe.
+/// A world with the firm sphere of the haptic tests (no gravity) under the probe.
 SimWorld probe_world(int interval) {
   WorldOptions options;
   options.haptic.max_force_N = 100.0;
@@ -74,13 +74,8 @@ SimWorld probe_world(int interval) {
   options.integrator.gravity_m_s2 = glm::dvec3(0.0);
   options.integrator.far_field_interval = interval;
   SimWorld world(options);
-  Material firm;
-  firm.structural_N_per_m = 3000.0;
-  firm.shear_N_per_m = 1000.0;
-  firm.bending_N_per_m = 300.0;
-  firm.bulk_modulus_Pa = 20000.0;
-  firm.drag_per_s = 20.0;
-  const std::uint32_t id = world.add_body(SoftBody(testing::sphere(24, 8.0), firm));
+  const std::uint32_t id =
+      world.add_body(SoftBody(testing::sphere(24, 8.0), testing::firm_material()));
   anchor_below(world.body(id), 0.0115);
   return world;
 }

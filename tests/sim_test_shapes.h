@@ -41,6 +41,17 @@ inline SoftBody hanging_strip(std::size_t cells) {
   return body;
 }
 
+/// A firm tissue: the probe stays on the cap of sphere(24, 8 mm) it presses.
+inline Material firm_material() {
+  Material firm;
+  firm.structural_N_per_m = 3000.0;
+  firm.shear_N_per_m = 1000.0;
+  firm.bending_N_per_m = 300.0;
+  firm.bulk_modulus_Pa = 20000.0;
+  firm.drag_per_s = 20.0;
+  return firm;
+}
+
 /// The sphere(24, 8 mm) squashed to 80 % of its height about its centre, without drag or spring
 /// damping: with no gravity it rings, and backward Euler may only lose its energy.
 inline SoftBody squashed_sphere();

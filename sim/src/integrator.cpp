@@ -637,15 +637,12 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
   run_parts(step_team_, nf, [&](std::size_t first, std::size_t last, unsigned) {
     for (std::size_t ci = first; ci < last; ++ci) {
       const std::uint32_t i = vertex[ci];
-      glm::dvec3 f = m[i] * g + fext[i] - drag * m[i] * v[i] + f_[i];
-      if (volume_term) f += p6 * grad_[i];
+      const glm::dvec3 f =
+          net_force(m[i], g, fext[i], drag, v[i], f_[i], volume_term, p6, grad_[i]);
       // A loaded vertex does not sleep (the load is applied again step after step).
       row_residual_[ci] = fext[i] != glm::dvec3(0.0) ? kNeverQuiet : glm::dot(f, f);
       row_gradient_[ci] = volume_term ? glm::dot(grad_[i], grad_[i]) : 0.0;
-      rhs_[4 * ci] = h * f.x;
-      rhs_[4 * ci + 1] = h * f.y;
-      rhs_[4 * ci + 2] = h * f.z;
-      rhs_[4 * ci + 3] = 0.0;
+      store_rhs_row(rhs_.data() + 4 * ci, h, f);
     }
   });
   const double weight2 = dg.weight2;

@@ -55,7 +55,6 @@ void ImplicitIntegrator::make_multirate(Structure& st, const SoftBody& body, int
   const std::size_t nc = full.coarse_count;
   const auto blocks = static_cast<std::size_t>(interval);
   mr.system = full.id;
-  mr.interval = interval;
   mr.tick = 0;
   // Blocks: runs of aggregates in their numbering. Aggregates are seeded along the vertex
   // order, so on a mesh numbered by position a run is a band of the surface, which keeps a
@@ -279,12 +278,8 @@ void ImplicitIntegrator::region_substep(SoftBody& body, Structure& st, Structure
   const double drag = mat.drag_per_s;
   for (std::size_t ci = 0; ci < nf; ++ci) {
     const std::uint32_t i = vertex[ci];
-    glm::dvec3 f = m[i] * g + fext[i] - drag * m[i] * v[i] + f_[i];
-    if (volume_term) f += p6 * grad_[i];
-    rhs_[4 * ci] = h * f.x;
-    rhs_[4 * ci + 1] = h * f.y;
-    rhs_[4 * ci + 2] = h * f.z;
-    rhs_[4 * ci + 3] = 0.0;
+    store_rhs_row(rhs_.data() + 4 * ci, h,
+                  net_force(m[i], g, fext[i], drag, v[i], f_[i], volume_term, p6, grad_[i]));
   }
   gather_contacts(sys, body, h * h, nullptr, st);
   if (options.cg_coarse_level) {
@@ -379,21 +374,18 @@ std::optional<StepStats> ImplicitIntegrator::step_multirate(SoftBody& body, Stru
   const std::uint64_t generation = body.derived_generation();
   if (!untouched || constraints != st.multirate.constraint_edits ||
       generation != st.multirate.constraint_generation || st.free_mask.empty()) {
-    const auto& m = body.masses();
-    const std::size_t n = m.size();
+    free_mask(body);  // kinematic vertices are none here
     auto& v = body.velocities();
-    free_.resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      const bool is_free = m[i] > 0.0 && !body.anchored(VertexId(static_cast<std::uint32_t>(i)));
-      if (!is_free) v[i] = glm::dvec3(0.0);
-      free_[i] = is_free ? 1 : 0;
+    for (std::size_t i = 0; i < free_.size(); ++i) {
+      if (!free_[i]) v[i] = glm::dvec3(0.0);
     }
-    update_free_rows(st, free_, m);
+    update_free_rows(st, free_, body.masses());
     st.multirate.constraint_edits = constraints;
     st.multirate.constraint_generation = generation;
   }
   Structure::Multirate& mr = st.multirate;
-  if (mr.system != st.full.id || mr.interval != options.far_field_interval)
+  const auto interval = static_cast<std::size_t>(options.far_field_interval);
+  if (mr.system != st.full.id || mr.blocks.size() != interval)
     make_multirate(st, body, options.far_field_interval);
   // The groups' sums hold while only this mode's solves move the body.
   if (!mr.groups.valid || !untouched) {
@@ -411,7 +403,7 @@ std::optional<StepStats> ImplicitIntegrator::step_multirate(SoftBody& body, Stru
     }
   }
   // This step's block of the far field, with the interval's length.
-  const auto block = static_cast<std::uint32_t>(mr.tick % std::uint64_t(mr.interval));
+  const auto block = static_cast<std::uint32_t>(mr.tick % interval);
   Structure::Region& far = mr.blocks[block];
   if (alive && far.dirty) {
     mr.flags.resize(mr.near.size());
@@ -420,7 +412,7 @@ std::optional<StepStats> ImplicitIntegrator::step_multirate(SoftBody& body, Stru
     build_region(st, body, far, mr.flags);
   }
   if (alive && !far.sys.vertex.empty()) {
-    alive = solve_region(body, st, far, options, options.dt_s * mr.interval, stats, events,
+    alive = solve_region(body, st, far, options, options.dt_s * double(interval), stats, events,
                          body_index, step_index);
   }
   // Near aggregates of this block without a load for the linger time leave the region: their

@@ -39,6 +39,24 @@ inline double pressure_factor(const SoftBody& body, double volume) {
   return body.orientation() * body.material().bulk_modulus_Pa * (v0 - volume) / v0 / 6.0;
 }
 
+/// A solved vertex's net force at the start of a substep: weight, external load, drag, its
+/// springs' forces (with the h H v term) and, for closed bodies, the pressure.
+inline glm::dvec3 net_force(double mass, const glm::dvec3& g, const glm::dvec3& external,
+                            double drag, const glm::dvec3& velocity, const glm::dvec3& springs,
+                            bool volume_term, double p6, const glm::dvec3& gradient) {
+  glm::dvec3 f = mass * g + external - drag * mass * velocity + springs;
+  if (volume_term) f += p6 * gradient;
+  return f;
+}
+
+/// A right-hand-side row, four lanes: h f and a zero pad.
+inline void store_rhs_row(double* row, double h, const glm::dvec3& f) {
+  row[0] = h * f.x;
+  row[1] = h * f.y;
+  row[2] = h * f.z;
+  row[3] = 0.0;
+}
+
 /// The solve's squared tolerances for a substep of length h over rows of summed squared masses
 /// weight2: the absolute one (the residual force under cg_weight_fraction of the weights, or
 /// the floor per row, times h) and the relative one.

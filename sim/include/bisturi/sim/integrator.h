@@ -278,7 +278,6 @@ class ImplicitIntegrator {
     };
     struct Multirate {
       std::uint64_t system = 0;  ///< the full System::id it was made for (0: none)
-      int interval = 0;
       std::uint64_t tick = 0;
       /// Per aggregate of the full system: its block, whether it is in the near region, the
       /// last tick it had a load, and whether it is wanted there this tick.
