@@ -33,7 +33,7 @@ constexpr double kNeverQuiet = std::numeric_limits<double>::infinity();
 /// own zeroed array of the same size for the others.
 glm::dvec3* member_array(std::vector<glm::dvec3>& first,
                          std::vector<std::vector<glm::dvec3>>& others, unsigned t) {
-  if (t == 0) return first.data();
+  if (t == 0 || others.empty()) return first.data();  // a sequential team shares `first`
   others[t - 1].assign(first.size(), glm::dvec3(0.0));
   return others[t - 1].data();
 }
@@ -396,7 +396,7 @@ double ImplicitIntegrator::spring_pass(System& sys, const SoftBody& body, double
   // Member t takes a run of the springs into its own force array (member 0 into f_), then the
   // arrays are added in member order, each member a run of vertices.
   const System::SpringSet& sa = sys.active;
-  f_parts_.resize(members() - 1);
+  f_parts_.resize(array_members() - 1);
   std::array<double, kMaxThreads> partial{};
   run_parts(
       step_team_, sa.a.size(),
@@ -451,7 +451,7 @@ double ImplicitIntegrator::volume_pass(const SoftBody& body) {
   grad_.assign(x.size(), glm::dvec3(0.0));
   // Member t takes a run of the triangles into its own gradient array (member 0 into grad_).
   const unsigned n = members();
-  grad_parts_.resize(n - 1);
+  grad_parts_.resize(array_members() - 1);
   std::array<double, kMaxThreads> partial{};
   run_parts(step_team_, nt, [&](std::size_t first, std::size_t last, unsigned t) {
     partial[t] = volume_gradient(idx, first, last, x.data(), member_array(grad_, grad_parts_, t));
@@ -487,7 +487,12 @@ unsigned ImplicitIntegrator::members() const {
   return step_team_ != nullptr ? step_team_->size() : 1;
 }
 
+unsigned ImplicitIntegrator::array_members() const {
+  return step_team_ != nullptr && !step_team_->sequential() ? step_team_->size() : 1;
+}
+
 StepThreads* ImplicitIntegrator::team(const IntegratorOptions& options) {
+  if (team_ && team_->sequential()) return team_.get();  // a far-field solver's, for good
   const unsigned want = std::min(options.threads, kMaxThreads);
   if (want <= 1) return nullptr;
   if (!team_ || team_->size() != want) team_ = std::make_shared<StepThreads>(want);

@@ -1,9 +1,9 @@
 // Multirate stepping for the implicit integrator (IntegratorOptions::far_field_interval,
-// docs/sim/integrator.md "Tenth pass"): every step solves the near region (the aggregates
-// around the loads) with dt and one block of the far field with N dt, holding the rest. Each
-// solve is the single-rate substep restricted to a region: its springs, the triangles around
-// its rows, its rows' check; the volume is kept as a sum of groups of triangles, of which a
-// solve recomputes those it moved.
+// docs/sim/integrator.md "Eleventh pass"): every step solves the near region (the aggregates
+// around the loads) with dt, holding the rest, and runs a slice of the far field's job
+// (integrator_far_field.cpp). The near solve is the single-rate substep restricted to a region:
+// its springs, the triangles around its rows, its rows' check; the volume is kept as a sum of
+// groups of triangles, of which a solve recomputes those it moved.
 
 #include <algorithm>
 #include <cmath>
@@ -49,19 +49,12 @@ void ImplicitIntegrator::MultirateGroups::update_all(const std::vector<std::uint
   update(tris, all_groups, indices, x);
 }
 
-void ImplicitIntegrator::make_multirate(Structure& st, const SoftBody& body, int interval) {
+void ImplicitIntegrator::make_multirate(Structure& st, const SoftBody& body) {
   Structure::Multirate& mr = st.multirate;
   const System& full = st.full;
   const std::size_t nc = full.coarse_count;
-  const auto blocks = static_cast<std::size_t>(interval);
   mr.system = full.id;
   mr.tick = 0;
-  // Blocks: runs of aggregates in their numbering. Aggregates are seeded along the vertex
-  // order, so on a mesh numbered by position a run is a band of the surface, which keeps a
-  // block's border (the springs to held vertices) short.
-  mr.block_of.resize(nc);
-  for (std::size_t a = 0; a < nc; ++a)
-    mr.block_of[a] = static_cast<std::uint32_t>(a * blocks / std::max<std::size_t>(nc, 1));
   mr.near.assign(nc, 0);
   mr.want.assign(nc, 0);
   mr.loaded_tick.assign(nc, 0);
@@ -113,9 +106,6 @@ void ImplicitIntegrator::make_multirate(Structure& st, const SoftBody& body, int
   groups.tri_six_v.assign(nt, 0.0);
   groups.valid = false;
   mr.near_region.dirty = true;
-  mr.blocks.resize(blocks);
-  for (Structure::Region& region : mr.blocks)
-    region.dirty = true;
 }
 
 void ImplicitIntegrator::update_near(Structure& st, const SoftBody& body,
@@ -145,14 +135,13 @@ void ImplicitIntegrator::update_near(Structure& st, const SoftBody& body,
     }
     mr.ring.swap(mr.next_ring);
   }
-  // Wanted aggregates join at once (their blocks must leave them out from now on).
+  // Wanted aggregates join at once (with the state the far field last gave them).
   for (std::size_t a = 0; a < mr.want.size(); ++a) {
     if (!mr.want[a]) continue;
     mr.loaded_tick[a] = mr.tick;
     if (mr.near[a]) continue;
     mr.near[a] = 1;
     mr.near_region.dirty = true;
-    mr.blocks[mr.block_of[a]].dirty = true;
   }
 }
 
@@ -360,77 +349,79 @@ std::optional<StepStats> ImplicitIntegrator::step_multirate(SoftBody& body, Stru
                                                             std::vector<SimEvent>& events,
                                                             std::uint32_t body_index,
                                                             std::uint64_t step_index) {
-  // Kinematic vertices (a grasp) move their neighbours every step: single-rate steps then.
-  if (body.kinematic_count() > 0) return std::nullopt;
+  Structure::Multirate& mr = st.multirate;
+  // Kinematic vertices (a grasp) move their neighbours every step: single-rate steps then, and
+  // the far field starts again from the state they leave.
+  if (body.kinematic_count() > 0) {
+    mr.far_stale = true;
+    return std::nullopt;
+  }
   // Read before the non-const views below count as edits.
-  const bool untouched = st.multirate.state_edits == body.state_edits();
+  const bool untouched = mr.state_edits == body.state_edits() && !mr.far_stale;
   StepStats stats;
-  step_team_ = nullptr;  // the regions are small: no team
+  step_team_ = nullptr;  // the near region is small: no team
   st.ahead.valid = false;
   wake_all(st);
   // Constraints (anchored and massless vertices stand still), again only when they or the
   // state were edited since the last step.
   const std::uint64_t constraints = body.constraint_edits();
   const std::uint64_t generation = body.derived_generation();
-  if (!untouched || constraints != st.multirate.constraint_edits ||
-      generation != st.multirate.constraint_generation || st.free_mask.empty()) {
+  if (!untouched || constraints != mr.constraint_edits || generation != mr.constraint_generation ||
+      st.free_mask.empty()) {
     free_mask(body);  // kinematic vertices are none here
     auto& v = body.velocities();
     for (std::size_t i = 0; i < free_.size(); ++i) {
       if (!free_[i]) v[i] = glm::dvec3(0.0);
     }
     update_free_rows(st, free_, body.masses());
-    st.multirate.constraint_edits = constraints;
-    st.multirate.constraint_generation = generation;
+    mr.constraint_edits = constraints;
+    mr.constraint_generation = generation;
   }
-  Structure::Multirate& mr = st.multirate;
-  const auto interval = static_cast<std::size_t>(options.far_field_interval);
-  if (mr.system != st.full.id || mr.blocks.size() != interval)
-    make_multirate(st, body, options.far_field_interval);
+  const auto interval = static_cast<std::uint64_t>(options.far_field_interval);
+  if (mr.system != st.full.id) make_multirate(st, body);
+  // The far field's copy: made again for another topology or set of constraints, its state
+  // rewritten when the body was edited from outside; a new period starts either way.
+  if (far_follow(st, body, options, untouched)) mr.tick = 0;
   // The groups' sums hold while only this mode's solves move the body.
   if (!mr.groups.valid || !untouched) {
     mr.groups.update_all(body.triangles().indices, body.positions());
     mr.groups.valid = true;
   }
-  update_near(st, body, options);
+  const std::uint64_t phase = mr.tick % interval;
   bool alive = true;
+  if (phase == 0) {
+    // The last period's far field, now; its vertices moved, so every group is summed again.
+    alive = far_apply(st, body, stats, events, body_index, step_index);
+    if (alive) mr.groups.update_all(body.triangles().indices, body.positions());
+  }
+  update_near(st, body, options);
+  if (alive && phase == 0) {
+    far_start(st, body, step_index);
+    // Near aggregates without a load for the linger time leave the region: the job just
+    // started has their state, and solves them from now on.
+    for (std::size_t a = 0; a < mr.near.size(); ++a) {
+      if (!mr.near[a] || mr.want[a]) continue;
+      if (mr.tick - mr.loaded_tick[a] < std::uint64_t(std::max(options.near_linger_steps, 0)))
+        continue;
+      mr.near[a] = 0;
+      mr.near_region.dirty = true;
+    }
+  }
   // The near region, every step.
-  if (std::find(mr.near.begin(), mr.near.end(), std::uint8_t{1}) != mr.near.end()) {
+  if (alive && std::find(mr.near.begin(), mr.near.end(), std::uint8_t{1}) != mr.near.end()) {
     if (mr.near_region.dirty) build_region(st, body, mr.near_region, mr.near);
     if (!mr.near_region.sys.vertex.empty()) {
       alive = solve_region(body, st, mr.near_region, options, options.dt_s, stats, events,
                            body_index, step_index);
     }
   }
-  // This step's block of the far field, with the interval's length.
-  const auto block = static_cast<std::uint32_t>(mr.tick % interval);
-  Structure::Region& far = mr.blocks[block];
-  if (alive && far.dirty) {
-    mr.flags.resize(mr.near.size());
-    for (std::size_t a = 0; a < mr.near.size(); ++a)
-      mr.flags[a] = mr.block_of[a] == block && !mr.near[a] ? 1 : 0;
-    build_region(st, body, far, mr.flags);
-  }
-  if (alive && !far.sys.vertex.empty()) {
-    alive = solve_region(body, st, far, options, options.dt_s * double(interval), stats, events,
-                         body_index, step_index);
-  }
-  // Near aggregates of this block without a load for the linger time leave the region: their
-  // block's next turn, N steps on, covers the N steps after this one.
-  if (alive) {
-    for (std::size_t a = 0; a < mr.near.size(); ++a) {
-      if (!mr.near[a] || mr.block_of[a] != block || mr.want[a]) continue;
-      if (mr.tick - mr.loaded_tick[a] < std::uint64_t(std::max(options.near_linger_steps, 0)))
-        continue;
-      mr.near[a] = 0;
-      mr.near_region.dirty = true;
-      far.dirty = true;
-    }
-  }
+  // A slice of the far field's job.
+  if (alive) far_slice(*mr.far, phase, interval);
   ++mr.tick;
   body.clear_forces();
   stats.free_vertices = static_cast<std::uint32_t>(st.full.vertex.size());
   mr.state_edits = body.state_edits();
+  mr.far_stale = !alive;
   return stats;
 }
 

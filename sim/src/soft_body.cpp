@@ -58,6 +58,47 @@ SoftBody::SoftBody(Dlfl mesh, const Material& material)
   rest_volume_m3_ = closed_ ? std::abs(v0) : 0.0;
 }
 
+SoftBody::SoftBody(const SoftBody& other)
+    : mesh_(other.mesh_),
+      material_(other.material_),
+      mass_(other.mass_),
+      kinematic_(other.kinematic_),
+      kinematic_count_(other.kinematic_count_),
+      constraint_edits_(other.constraint_edits_),
+      loaded_(other.loaded_),
+      target_(other.target_),
+      force_(other.force_),
+      warm_(other.warm_),
+      contacts_(other.contacts_),
+      springs_(other.springs_),
+      triangles_(other.triangles_),
+      spring_change_(other.spring_change_),
+      closed_(other.closed_),
+      rest_volume_m3_(other.rest_volume_m3_),
+      orientation_(other.orientation_),
+      topology_version_(other.topology_version_),
+      derived_generation_(++g_generation),
+      lineage_(++g_lineage),
+      state_edits_(other.state_edits_),
+      frozen_(other.frozen_) {
+  // The state arrays live in the copied mesh's properties.
+  auto& props = mesh_.vertex_properties();
+  x_ = &props.get<glm::dvec3>("sim.position_m");
+  v_ = &props.get<glm::dvec3>("sim.velocity_m_s");
+  rest_ = &props.get<glm::dvec3>("sim.rest_position_m");
+  anchored_ = &props.get<std::uint8_t>("sim.anchored");
+  // A fresh lineage: nothing derived from the original's springs is reused for the copy.
+  spring_change_.from_generation = 0;
+}
+
+void SoftBody::set_loads_from(const SoftBody& other) {
+  clear_forces();
+  for (const std::uint32_t i : other.loaded_)
+    force_[i] = other.force_[i];  // the sum of its calls; assigning twice is harmless
+  loaded_ = other.loaded_;
+  contacts_ = other.contacts_;
+}
+
 void SoftBody::resize_arrays() {
   const std::size_t n = mesh_.vertex_capacity();
   mass_.assign(n, 0.0);

@@ -20,9 +20,13 @@ constexpr std::uint64_t kPartMask = 0xffffffffu;
 
 StepThreads::StepThreads(unsigned threads) {
   claim_.store(kPartMask, std::memory_order_relaxed);  // generation 0: no part to claim
-  for (unsigned t = 1; t < std::max(1u, threads); ++t)
+  parts_ = std::max(1u, threads);
+  for (unsigned t = 1; t < parts_; ++t)
     workers_.emplace_back([this] { work(); });
 }
+
+StepThreads::StepThreads(unsigned parts, std::function<void()> after_part)
+    : parts_(std::max(1u, parts)), after_part_(std::move(after_part)) {}
 
 StepThreads::~StepThreads() {
   stop_.store(true, std::memory_order_release);
@@ -33,6 +37,13 @@ StepThreads::~StepThreads() {
 }
 
 void StepThreads::run(const std::function<void(unsigned)>& job) {
+  if (sequential()) {
+    for (unsigned t = 0; t < parts_; ++t) {
+      job(t);
+      after_part_();
+    }
+    return;
+  }
   if (workers_.empty()) {
     job(0);
     return;

@@ -22,11 +22,17 @@ constexpr unsigned kMaxThreads = 64;
 class StepThreads {
  public:
   explicit StepThreads(unsigned threads);
+  /// A sequential team: no threads; run(job) calls job(0), ..., job(parts - 1) in turn on the
+  /// calling thread and `after_part` after each (the multirate far field suspends its fiber
+  /// there when its slice of the step is used up). Its parts run one at a time, so they may
+  /// share arrays (sequential()).
+  StepThreads(unsigned parts, std::function<void()> after_part);
   ~StepThreads();
   StepThreads(const StepThreads&) = delete;
   StepThreads& operator=(const StepThreads&) = delete;
 
-  [[nodiscard]] unsigned size() const { return static_cast<unsigned>(workers_.size()) + 1; }
+  [[nodiscard]] unsigned size() const { return parts_; }
+  [[nodiscard]] bool sequential() const { return static_cast<bool>(after_part_); }
   void run(const std::function<void(unsigned)>& job);
 
  private:
@@ -34,6 +40,8 @@ class StepThreads {
   /// Claims and runs parts of the current job until none is left.
   void run_claimed_parts();
 
+  unsigned parts_ = 1;
+  std::function<void()> after_part_;  ///< set for a sequential team
   std::vector<std::thread> workers_;
   const std::function<void(unsigned)>* job_ = nullptr;
   /// The job's generation (high 32 bits) and the next part to claim (low 32): a claim is a

@@ -27,6 +27,8 @@ class PropertyArrayBase {
   virtual void reset(std::uint32_t i) = 0;
   /// Keeps entry old at new_index[old] for every old entry whose new_index is valid.
   virtual void renumber(const std::vector<std::uint32_t>& new_index, std::size_t new_size) = 0;
+  /// A deep copy (for copying a whole mesh).
+  [[nodiscard]] virtual std::unique_ptr<PropertyArrayBase> clone() const = 0;
 };
 
 /// One attribute per element, indexed by that element's handle.
@@ -53,6 +55,9 @@ class PropertyArray final : public PropertyArrayBase {
     }
     data_ = std::move(out);
   }
+  [[nodiscard]] std::unique_ptr<PropertyArrayBase> clone() const override {
+    return std::make_unique<PropertyArray>(*this);
+  }
 
  private:
   std::vector<T> data_;
@@ -63,6 +68,19 @@ class PropertyArray final : public PropertyArrayBase {
 template <class Tag>
 class PropertyRegistry {
  public:
+  PropertyRegistry() = default;
+  /// Copies every array (references into the source stay with the source).
+  PropertyRegistry(const PropertyRegistry& other) : size_(other.size_) {
+    for (const auto& [name, a] : other.arrays_)
+      arrays_.emplace(name, a->clone());
+  }
+  PropertyRegistry& operator=(const PropertyRegistry& other) {
+    if (this != &other) *this = PropertyRegistry(other);
+    return *this;
+  }
+  PropertyRegistry(PropertyRegistry&&) noexcept = default;
+  PropertyRegistry& operator=(PropertyRegistry&&) noexcept = default;
+  ~PropertyRegistry() = default;
   /// Adds an array named `name` (throws if the name is taken). The reference stays valid until
   /// the array is removed.
   template <class T>

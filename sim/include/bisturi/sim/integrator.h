@@ -37,9 +37,10 @@
 // performance pass").
 //
 // Multirate (IntegratorOptions::far_field_interval, experimental): a step solves the region
-// around the loads with dt and one block of the rest with a longer step, holding the others, and
-// costs a fraction of a full step; its far field relaxes much more slowly than a single-rate
-// body's (integrator_multirate.cpp; docs/sim/integrator.md, "Tenth pass").
+// around the loads with dt, the rest held, and a slice of one longer step over the whole body
+// that lands a period later; it costs a fraction of a full step, and its far field relaxes as a
+// body stepped with the longer step does (integrator_multirate.cpp, integrator_far_field.cpp;
+// docs/sim/integrator.md, "Eleventh pass").
 //
 // The guard: after a step, a state with a non-finite value, a vertex faster than max_speed, or
 // an energy rise larger than the work of the external forces plus a tolerance is a divergence.
@@ -91,20 +92,19 @@ struct IntegratorOptions {
   /// of threads - 1 helpers). The parts are fixed by the thread count, so a run is bit-identical
   /// to another with the same count; different counts round differently (reductions split).
   unsigned threads = 1;
-  /// Multirate stepping (docs/sim/integrator.md, "Tenth pass"). With far_field_interval = N > 1
-  /// a step solves the near region - the aggregates with a loaded vertex (an external force or a
-  /// contact), widened by near_rings rings of aggregates - with a step of dt, and one of N blocks
-  /// of the other aggregates with a step of N dt, in turn, while the rest of the body is held.
-  /// A step then costs the region and one block instead of the whole organ. An aggregate stays
-  /// near until it has been without a load for near_linger_steps steps and its block's turn
-  /// comes, so that it leaves with its time accounted for; one that joins the region loses the
-  /// part of its block's period that had passed (at most (N - 1) dt). Sleeping is off in this
-  /// mode, its solves run on the calling thread, and a body with kinematic vertices (a grasp)
-  /// takes single-rate steps. 1 (the default): every free vertex every step.
-  /// Experimental: a step costs about a fifth of a single-rate one at 20k vertices, but the far
-  /// field relaxes its global shape far more slowly (each block moves against held neighbours):
-  /// the organ's sag under gravity and its bulge under the probe lag behind a single-rate body
-  /// by a large share (docs/sim/integrator.md, "Tenth pass", has the figures).
+  /// Multirate stepping (docs/sim/integrator.md, "Eleventh pass"). With far_field_interval =
+  /// N > 1 a step solves the near region - the aggregates with a loaded vertex (an external
+  /// force or a contact), widened by near_rings rings of aggregates - with a step of dt, the
+  /// rest of the body held. The far field is one single-rate step of N dt over the whole body,
+  /// made on a copy of it in slices over the N steps of a period (a fiber on the calling thread:
+  /// one core) and applied to the vertices outside the near region at the next period's start.
+  /// A step then costs the region and an N-th of a full step, and runs stay bit-identical (the
+  /// result does not depend on where the slices end). An aggregate stays near until it has been
+  /// without a load for near_linger_steps steps, and leaves at a period's start. Sleeping is
+  /// off in this mode, its solves run on the calling thread, and a body with kinematic vertices
+  /// (a grasp) takes single-rate steps. 1 (the default): every free vertex every step.
+  /// Experimental: the far field lags a period behind and relaxes as a body stepped with N dt
+  /// does, which is more slowly than one stepped with dt (docs/sim/integrator.md has figures).
   int far_field_interval = 1;
   int near_rings = 1;
   int near_linger_steps = 1000;
@@ -235,6 +235,8 @@ class ImplicitIntegrator {
   /// The solver structure of one body generation: the system over its free vertices (neither
   /// anchored, kinematic nor massless; rebuilt when that set changes), and the sleep state of
   /// the free system's aggregates with the system over the awake ones.
+  /// The multirate far field: a copy of the body advanced by a solver of its own in a fiber.
+  struct FarField;
   struct Structure {
     std::uint64_t generation = 0;
     std::uint64_t lineage = 0;  ///< the body's (SoftBody::lineage)
@@ -278,21 +280,22 @@ class ImplicitIntegrator {
     };
     struct Multirate {
       std::uint64_t system = 0;  ///< the full System::id it was made for (0: none)
-      std::uint64_t tick = 0;
-      /// Per aggregate of the full system: its block, whether it is in the near region, the
-      /// last tick it had a load, and whether it is wanted there this tick.
-      std::vector<std::uint32_t> block_of;
+      std::uint64_t tick = 0;    ///< steps since the far field's period started (mod N)
+      /// Per aggregate of the full system: whether it is in the near region, the last tick it
+      /// had a load, and whether it is wanted there this tick.
       std::vector<std::uint8_t> near, want;
       std::vector<std::uint64_t> loaded_tick;
       /// The aggregates' neighbours (adj_start offsets into adj).
       std::vector<std::uint32_t> adj_start, adj;
       Region near_region;
-      std::vector<Region> blocks;
       MultirateGroups groups;
+      /// The far field's copy of the body, its solver and its job (integrator_far_field.cpp).
+      std::shared_ptr<FarField> far;
+      /// The copy's state no longer follows the body's (single-rate steps, a freeze).
+      bool far_stale = false;
       std::uint64_t state_edits = 0;  ///< SoftBody::state_edits() after the last tick
       /// SoftBody::constraint_edits() and derived_generation() of the last constraint pass.
       std::uint64_t constraint_edits = 0, constraint_generation = 0;
-      std::vector<std::uint8_t> flags;             ///< scratch: aggregates of a block region
       std::vector<std::uint32_t> ring, next_ring;  ///< scratch of update_near
     } multirate;
     /// The force pass taken at the end of the last accepted step, at its end state and for a
@@ -413,9 +416,8 @@ class ImplicitIntegrator {
                                           const IntegratorOptions& options,
                                           std::vector<SimEvent>& events, std::uint32_t body_index,
                                           std::uint64_t step_index);
-  /// The blocks, the aggregates' neighbours and the volume groups for st.full (again when it
-  /// was rebuilt or the interval changed).
-  static void make_multirate(Structure& st, const SoftBody& body, int interval);
+  /// The aggregates' neighbours and the volume groups for st.full (again when it was rebuilt).
+  static void make_multirate(Structure& st, const SoftBody& body);
   /// The near region for this tick's loads (SoftBody::loaded_vertices).
   void update_near(Structure& st, const SoftBody& body, const IntegratorOptions& options);
   /// Makes region's system and lists over the aggregates with flags[a] set.
@@ -434,6 +436,30 @@ class ImplicitIntegrator {
   /// The region's elastic energy at the current state: its springs and the volume term.
   double region_elastic(const Structure& st, const Structure::Region& region,
                         const SoftBody& body) const;
+  // ---- Multirate far field (integrator_far_field.cpp) ----
+  /// Makes st's far field follow body: a new copy for another topology, set of constraints or
+  /// step length, the copy's state rewritten after edits from outside (untouched false) or a
+  /// freeze. True when it did either: a new period starts.
+  static bool far_follow(Structure& st, const SoftBody& body, const IntegratorOptions& options,
+                         bool untouched);
+  /// A new copy of body for st's far field, its solver prepared (a job part-way in the old
+  /// one is run to its end first).
+  static void far_reset(Structure& st, const SoftBody& body, const IntegratorOptions& options);
+  /// The copy takes body's state (after edits from outside); a job part-way is ended, its
+  /// result dropped.
+  static void far_sync(FarField& ff, const SoftBody& body);
+  /// Runs the job part-way to its end.
+  static void finish_far_job(FarField& ff);
+  /// At a period's start: the last job's result into the far vertices (outside the near
+  /// aggregates), its events reported; false when it froze (the body is frozen then).
+  bool far_apply(Structure& st, SoftBody& body, StepStats& stats, std::vector<SimEvent>& events,
+                 std::uint32_t body_index, std::uint64_t step_index);
+  /// At a period's start: the copy takes the near aggregates' state and body's loads, and the
+  /// next job starts.
+  static void far_start(Structure& st, const SoftBody& body, std::uint64_t step_index);
+  /// Runs the job for this step's share of its estimated time (at the period's last step, to
+  /// its end).
+  static void far_slice(FarField& ff, std::size_t phase, std::size_t interval);
 
   std::vector<Structure> structures_;
   std::uint64_t systems_updated_ = 0;
@@ -445,6 +471,8 @@ class ImplicitIntegrator {
   StepThreads* step_team_ = nullptr;  ///< the team of the step in progress
   /// The members of the step's team (1 without one).
   [[nodiscard]] unsigned members() const;
+  /// The members with force arrays of their own (1 for a sequential team, whose parts share).
+  [[nodiscard]] unsigned array_members() const;
   std::vector<std::vector<glm::dvec3>> f_parts_, grad_parts_;
   std::vector<std::uint32_t> row_parts_;  ///< first row of each member's part of the product
   /// The team for options.threads (created or resized here); nullptr for one thread.

@@ -28,7 +28,9 @@ class SoftBody {
 
   SoftBody(SoftBody&&) noexcept = default;
   SoftBody& operator=(SoftBody&&) noexcept = default;
-  SoftBody(const SoftBody&) = delete;
+  /// A deep copy (mesh, state, derived data) with its own lineage and generation: a solver may
+  /// advance it apart from the original (the multirate far field does).
+  SoftBody(const SoftBody& other);
   SoftBody& operator=(const SoftBody&) = delete;
 
   [[nodiscard]] const Dlfl& mesh() const { return mesh_; }
@@ -110,6 +112,9 @@ class SoftBody {
   [[nodiscard]] const std::vector<std::uint32_t>& loaded_vertices() const { return loaded_; }
   /// Clears the external forces and contacts.
   void clear_forces();
+  /// Replaces this body's external forces and contacts with those given to `other` since its
+  /// last clear_forces() (`other` is a copy of this body: the same vertices).
+  void set_loads_from(const SoftBody& other);
 
   // ---- Derived data ----
   [[nodiscard]] const std::vector<Spring>& springs() const { return springs_; }
