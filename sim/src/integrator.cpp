@@ -56,6 +56,9 @@ void ImplicitIntegrator::prepare(SoftBody& body, const IntegratorOptions& option
   free_mask(body);
   update_free_rows(st, free_, body.masses());
   if (options.cg_coarse_level) update_coarse(st.full, st, body, options.dt_s);
+  // Multirate: the far field's copy and its solver now, not in the next step (tens of
+  // milliseconds at 20k vertices, which would hold that step up).
+  if (options.far_field_interval > 1 && body.kinematic_count() == 0) far_reset(st, body, options);
   // Scratch at its working size, so the first step allocates nothing.
   const std::size_t n = body.positions().size();
   const std::size_t n4 = 4 * st.full.vertex.size();
@@ -101,6 +104,7 @@ StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& opti
   auto& v = body.velocities();
   saved_x_ = x;
   saved_v_ = v;
+  checkpoint();
   const bool any_kinematic = body.kinematic_count() > 0;
   const bool energy_check = !any_kinematic;
   double energy_before = 0.0;
@@ -118,8 +122,10 @@ StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& opti
       const bool first = attempt == 0 && s == 0 && energy_check;
       sys = &substep(body, st, options, h, double(s + 1) / substeps, trial,
                      first ? &energy_before : nullptr, first && untouched);
+      checkpoint();
     }
     const double elastic_after = energy_check ? end_pass(st, *sys, body, options) : 0.0;
+    checkpoint();
     const std::string reason = check(body, options, energy_before, energy_check, elastic_after);
     if (reason.empty()) {
       trial.rolled_back = attempt > 0;
@@ -487,6 +493,10 @@ unsigned ImplicitIntegrator::members() const {
   return step_team_ != nullptr ? step_team_->size() : 1;
 }
 
+void ImplicitIntegrator::checkpoint() const {
+  if (step_team_ != nullptr) step_team_->checkpoint();
+}
+
 unsigned ImplicitIntegrator::array_members() const {
   return step_team_ != nullptr && !step_team_->sequential() ? step_team_->size() : 1;
 }
@@ -575,6 +585,7 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
     }
   }
   update_free_rows(st, free_, m);
+  checkpoint();
   if (st.asleep > 0) wake_loaded(st, body);
   System* sys = &system(st, body);
 

@@ -40,22 +40,33 @@ using Clock = std::chrono::steady_clock;
 constexpr unsigned kFarParts = 16;
 /// The least a slice runs (a job with no estimate yet runs this much per step).
 constexpr double kMinSliceS = 30e-6;
+/// Vertices the job copies between two chances to suspend.
+constexpr std::size_t kCopyPiece = 2048;
 
 }  // namespace
 
 struct ImplicitIntegrator::FarField {
   explicit FarField(const SoftBody& original) : body(original) {}
+  /// In the job: back to the step when the slice is used up (elsewhere, nothing).
+  void suspend_when_due() const {
+    if (Fiber::current() == &fiber && Clock::now() >= deadline) Fiber::suspend();
+  }
 
   SoftBody body;  ///< the copy the job advances
   ImplicitIntegrator solver;
   Fiber fiber;
   IntegratorOptions options;  ///< the caller's, single-rate, with dt_s = N dt
+  int interval = 1;           ///< N
   /// The main body's derived generation and constraint edits the copy was made for.
   std::uint64_t generation = 0, constraints = 0;
   /// The job: its events and stats, whether it has ended with a result not yet applied.
   std::vector<SimEvent> events;
   StepStats stats;
   bool result = false;
+  /// The last result, kept aside by the job that followed it (its first act) for the steps
+  /// that apply it, and per aggregate of the full system whether it still has to.
+  std::vector<glm::dvec3> pending_x, pending_v;
+  std::vector<std::uint8_t> agg_pending;
   /// Scheduling: the current slice's end, the job's time so far, the last whole job's time.
   Clock::time_point deadline = Clock::time_point::max();
   double job_s = 0.0, estimate_s = 0.0;
@@ -67,14 +78,13 @@ void ImplicitIntegrator::far_reset(Structure& st, const SoftBody& body,
   ff->generation = body.derived_generation();
   ff->constraints = body.constraint_edits();
   ff->options = options;
+  ff->interval = options.far_field_interval;
   ff->options.far_field_interval = 1;
   ff->options.sleeping = false;  // the copy's state is rewritten every period
   ff->options.dt_s = options.dt_s * double(options.far_field_interval);
   ff->body.clear_forces();
   FarField* raw = ff.get();
-  ff->solver.team_ = std::make_shared<StepThreads>(kFarParts, [raw] {
-    if (Fiber::current() == &raw->fiber && Clock::now() >= raw->deadline) Fiber::suspend();
-  });
+  ff->solver.team_ = std::make_shared<StepThreads>(kFarParts, [raw] { raw->suspend_when_due(); });
   ff->solver.prepare(ff->body, ff->options);
   if (st.multirate.far) ff->estimate_s = st.multirate.far->estimate_s;
   st.multirate.far = std::move(ff);  // a job part-way in the old one is run to its end
@@ -89,7 +99,8 @@ bool ImplicitIntegrator::far_follow(Structure& st, const SoftBody& body,
     far_reset(st, body, options);
     return true;
   }
-  if (!untouched || ff->body.frozen()) {
+  // A copy that froze is made to follow again once its result has frozen the body (far_finish).
+  if (!untouched || (ff->body.frozen() && !ff->result)) {
     far_sync(*st.multirate.far, body);
     return true;
   }
@@ -100,6 +111,7 @@ void ImplicitIntegrator::far_sync(FarField& ff, const SoftBody& body) {
   finish_far_job(ff);
   ff.result = false;
   ff.events.clear();
+  std::fill(ff.agg_pending.begin(), ff.agg_pending.end(), std::uint8_t{0});
   ff.body.positions() = body.positions();
   ff.body.velocities() = body.velocities();
   ff.body.unfreeze();
@@ -113,10 +125,11 @@ void ImplicitIntegrator::finish_far_job(FarField& ff) {
   ff.job_s += std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-bool ImplicitIntegrator::far_apply(Structure& st, SoftBody& body, StepStats& stats,
-                                   std::vector<SimEvent>& events, std::uint32_t body_index,
-                                   std::uint64_t step_index) {
-  FarField& ff = *st.multirate.far;
+bool ImplicitIntegrator::far_finish(Structure& st, SoftBody& body, StepStats& stats,
+                                    std::vector<SimEvent>& events, std::uint32_t body_index,
+                                    std::uint64_t step_index) {
+  const Structure::Multirate& mr = st.multirate;
+  FarField& ff = *mr.far;
   finish_far_job(ff);
   if (!ff.result) return true;
   ff.result = false;
@@ -135,22 +148,82 @@ bool ImplicitIntegrator::far_apply(Structure& st, SoftBody& body, StepStats& sta
     stats.frozen = true;
     return false;
   }
-  // The far vertices take the job's end state; the near region's rows (its aggregates' during
-  // the period) keep their own.
-  const Structure::Multirate& mr = st.multirate;
+  // The far aggregates take the result in the coming period; the near ones keep their state.
+  ff.agg_pending.resize(mr.near.size());
+  for (std::size_t a = 0; a < mr.near.size(); ++a)
+    ff.agg_pending[a] = mr.near[a] ? 0 : 1;
+  return true;
+}
+
+std::uint32_t ImplicitIntegrator::far_apply_aggregate(Structure& st, SoftBody& body,
+                                                      std::uint32_t a, bool from_copy) {
+  Structure::Multirate& mr = st.multirate;
+  FarField& ff = *mr.far;
+  ff.agg_pending[a] = 0;
+  const auto& px = from_copy ? ff.body.positions() : ff.pending_x;
+  const auto& pv = from_copy ? ff.body.velocities() : ff.pending_v;
   auto& x = body.positions();
   auto& v = body.velocities();
-  const auto& fx = ff.body.positions();
-  const auto& fv = ff.body.velocities();
-  const std::vector<std::uint32_t>& rows = st.full.vertex;
-  for (std::size_t r = 0; r < rows.size(); ++r) {
-    if (mr.near[st.full.agg[r]]) continue;
-    const std::uint32_t i = rows[r];
-    x[i] = fx[i];
-    v[i] = fv[i];
-    ++stats.awake_vertices;  // moved by this step
+  for (std::uint32_t e = st.agg_start[a]; e < st.agg_start[a + 1]; ++e) {
+    const std::uint32_t i = st.full.vertex[st.agg_rows[e]];
+    x[i] = px[i];
+    v[i] = pv[i];
   }
-  return true;
+  MultirateGroups& groups = mr.groups;
+  mr.group_marked.resize(groups.six_v.size(), 0);
+  for (std::uint32_t k = mr.tri_start[a]; k < mr.tri_start[a + 1]; ++k) {
+    const std::uint32_t t = mr.tris[k];
+    mr.moved_tris.push_back(t);
+    const std::uint32_t g = groups.tri_group[t];
+    if (mr.group_marked[g]) continue;
+    mr.group_marked[g] = 1;
+    mr.moved_groups.push_back(g);
+  }
+  return st.agg_start[a + 1] - st.agg_start[a];
+}
+
+std::uint32_t ImplicitIntegrator::far_apply(Structure& st, SoftBody& body, std::size_t phase,
+                                            std::size_t interval) {
+  Structure::Multirate& mr = st.multirate;
+  FarField& ff = *mr.far;
+  if (ff.agg_pending.empty()) return 0;
+  mr.moved_tris.clear();
+  mr.moved_groups.clear();
+  std::uint32_t moved = 0;
+  const std::size_t nc = ff.agg_pending.size();
+  // This phase's block: phases 1 .. N - 1 take runs of aggregates in turn. At a period's start
+  // the job has not kept the result aside yet: it is still the copy's state.
+  std::size_t first = 0, last = 0;
+  if (phase > 0) {
+    first = nc * (phase - 1) / (interval - 1);
+    last = nc * phase / (interval - 1);
+  }
+  for (std::size_t k = first; k < last; ++k) {
+    const std::uint32_t a = mr.block_order[k];
+    if (ff.agg_pending[a]) moved += far_apply_aggregate(st, body, a, false);
+  }
+  for (std::size_t a = 0; a < nc; ++a) {
+    // One that joined the near region takes it before its first near solve.
+    if (ff.agg_pending[a] && mr.near[a])
+      moved += far_apply_aggregate(st, body, static_cast<std::uint32_t>(a), phase == 0);
+  }
+  if (phase == 0) {
+    // The near region's neighbours at once: its solves hold them, and the next job pairs its
+    // state with theirs.
+    for (std::size_t a = 0; a < nc; ++a) {
+      if (!mr.near[a]) continue;
+      for (std::uint32_t e = mr.adj_start[a]; e < mr.adj_start[a + 1]; ++e) {
+        if (ff.agg_pending[mr.adj[e]]) moved += far_apply_aggregate(st, body, mr.adj[e], true);
+      }
+    }
+  }
+  if (!mr.moved_tris.empty()) {
+    // A triangle listed by two aggregates is summed twice: the same value.
+    mr.groups.update(mr.moved_tris, mr.moved_groups, body.triangles().indices, body.positions());
+    for (const std::uint32_t g : mr.moved_groups)
+      mr.group_marked[g] = 0;
+  }
+  return moved;
 }
 
 void ImplicitIntegrator::far_start(Structure& st, const SoftBody& body, std::uint64_t step_index) {
@@ -172,6 +245,20 @@ void ImplicitIntegrator::far_start(Structure& st, const SoftBody& body, std::uin
   ff.body.set_loads_from(body);
   ff.job_s = 0.0;
   ff.fiber.start([&ff, step_index] {
+    // The last result aside first: the coming steps apply it while this job moves the copy.
+    // In pieces, each followed by a chance to suspend (the copy is about a megabyte at 20k).
+    const auto& rx = std::as_const(ff.body).positions();
+    const auto& rv = std::as_const(ff.body).velocities();
+    ff.pending_x.resize(rx.size());
+    ff.pending_v.resize(rv.size());
+    for (std::size_t first = 0; first < rx.size(); first += kCopyPiece) {
+      const std::size_t last = std::min(rx.size(), first + kCopyPiece);
+      std::copy(rx.begin() + std::ptrdiff_t(first), rx.begin() + std::ptrdiff_t(last),
+                ff.pending_x.begin() + std::ptrdiff_t(first));
+      std::copy(rv.begin() + std::ptrdiff_t(first), rv.begin() + std::ptrdiff_t(last),
+                ff.pending_v.begin() + std::ptrdiff_t(first));
+      ff.suspend_when_due();
+    }
     ff.stats = ff.solver.step(ff.body, ff.options, ff.events, 0, step_index);
     ff.result = true;
   });
@@ -182,9 +269,13 @@ void ImplicitIntegrator::far_slice(FarField& ff, std::size_t phase, std::size_t 
   if (phase + 1 >= interval) {
     finish_far_job(ff);
   } else {
-    // An even share of what the estimate leaves, over the steps left in the period.
+    // An even share of what the estimate leaves, over the steps left in the period but the
+    // last quarter, which is kept for a job that takes longer than the last one did (more CG
+    // iterations, a retry) instead of running it all at the period's last step.
     const double left = std::max(ff.estimate_s - ff.job_s, 0.0);
-    const double slice = std::max(kMinSliceS, left / double(interval - phase));
+    const std::size_t spare = interval / 4;
+    const std::size_t steps = interval - phase > spare + 1 ? interval - phase - spare : 1;
+    const double slice = std::max(kMinSliceS, left / double(steps));
     const Clock::time_point t0 = Clock::now();
     ff.deadline =
         t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(slice));

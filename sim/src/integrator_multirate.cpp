@@ -7,7 +7,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <utility>
 
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
 #include "bisturi/sim/integrator.h"
@@ -20,6 +23,23 @@ namespace bisturi::sim {
 
 // The helpers the integrator's files share (integrator_shared.h).
 using namespace integrator_detail;  // NOLINT(google-build-using-namespace)
+
+namespace {
+
+/// The 30-bit Morton code of a point quantised to 10 bits per axis.
+std::uint32_t morton_code(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
+  auto spread = [](std::uint32_t v) {
+    v &= 0x3ffu;
+    v = (v | (v << 16)) & 0x030000ffu;
+    v = (v | (v << 8)) & 0x0300f00fu;
+    v = (v | (v << 4)) & 0x030c30c3u;
+    v = (v | (v << 2)) & 0x09249249u;
+    return v;
+  };
+  return (spread(x) << 2) | (spread(y) << 1) | spread(z);
+}
+
+}  // namespace
 
 double ImplicitIntegrator::MultirateGroups::total() const {
   double sum = 0.0;
@@ -76,6 +96,63 @@ void ImplicitIntegrator::make_multirate(Structure& st, const SoftBody& body) {
       }
     }
     mr.adj_start[a + 1] = static_cast<std::uint32_t>(mr.adj.size());
+  }
+  // The far field's result is applied in blocks of aggregates taken in the Morton order of
+  // their centres, so that a block is a compact piece of the surface and the BVH refits few of
+  // its patches for it (the aggregates' own numbering follows the vertices', a mesher's order).
+  {
+    const auto& x = body.positions();
+    std::vector<glm::dvec3> centre(nc, glm::dvec3(0.0));
+    glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
+    for (std::size_t r = 0; r < full.vertex.size(); ++r) {
+      const glm::dvec3& p = x[full.vertex[r]];
+      centre[full.agg[r]] += p;
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    }
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> coded(nc);
+    const glm::dvec3 scale = 1023.0 / glm::max(hi - lo, glm::dvec3(1e-12));
+    for (std::uint32_t a = 0; a < nc; ++a) {
+      const double count = double(st.agg_start[a + 1] - st.agg_start[a]);
+      const glm::dvec3 q = (centre[a] / std::max(count, 1.0) - lo) * scale;
+      coded[a] = {morton_code(std::uint32_t(q.x), std::uint32_t(q.y), std::uint32_t(q.z)), a};
+    }
+    std::sort(coded.begin(), coded.end());
+    mr.block_order.resize(nc);
+    for (std::size_t k = 0; k < nc; ++k)
+      mr.block_order[k] = coded[k].second;
+  }
+  // The triangles with a free corner in each aggregate (listed once per aggregate).
+  const auto& tri_idx = body.triangles().indices;
+  const std::size_t ntri = tri_idx.size() / 3;
+  mr.tri_start.assign(nc + 1, 0);
+  auto corner_aggregates = [&](std::size_t t, std::uint32_t(&out)[3]) {
+    std::size_t k = 0;
+    for (std::size_t c = 0; c < 3; ++c) {
+      const std::uint32_t ci = full.compact[tri_idx[3 * t + c]];
+      if (ci == kNotFree) continue;
+      const std::uint32_t a = full.agg[ci];
+      if (std::find(out, out + k, a) == out + k) out[k++] = a;
+    }
+    return k;
+  };
+  for (std::size_t t = 0; t < ntri; ++t) {
+    std::uint32_t aggs[3];
+    const std::size_t k = corner_aggregates(t, aggs);
+    for (std::size_t j = 0; j < k; ++j)
+      ++mr.tri_start[aggs[j] + 1];
+  }
+  for (std::size_t a = 0; a < nc; ++a)
+    mr.tri_start[a + 1] += mr.tri_start[a];
+  mr.tris.resize(mr.tri_start[nc]);
+  {
+    std::vector<std::uint32_t> at(mr.tri_start.begin(), mr.tri_start.end() - 1);
+    for (std::size_t t = 0; t < ntri; ++t) {
+      std::uint32_t aggs[3];
+      const std::size_t k = corner_aggregates(t, aggs);
+      for (std::size_t j = 0; j < k; ++j)
+        mr.tris[at[aggs[j]]++] = static_cast<std::uint32_t>(t);
+    }
   }
   // Volume groups: a triangle belongs to the aggregate of its first free corner, or to the last
   // group when it has none.
@@ -388,13 +465,10 @@ std::optional<StepStats> ImplicitIntegrator::step_multirate(SoftBody& body, Stru
     mr.groups.valid = true;
   }
   const std::uint64_t phase = mr.tick % interval;
-  bool alive = true;
-  if (phase == 0) {
-    // The last period's far field, now; its vertices moved, so every group is summed again.
-    alive = far_apply(st, body, stats, events, body_index, step_index);
-    if (alive) mr.groups.update_all(body.triangles().indices, body.positions());
-  }
+  // At a period's start, the job that ends it (its result is applied over the period).
+  bool alive = phase != 0 || far_finish(st, body, stats, events, body_index, step_index);
   update_near(st, body, options);
+  if (alive) stats.awake_vertices += far_apply(st, body, phase, interval);
   if (alive && phase == 0) {
     far_start(st, body, step_index);
     // Near aggregates without a load for the linger time leave the region: the job just

@@ -34,6 +34,11 @@ class StepThreads {
   [[nodiscard]] unsigned size() const { return parts_; }
   [[nodiscard]] bool sequential() const { return static_cast<bool>(after_part_); }
   void run(const std::function<void(unsigned)>& job);
+  /// A sequential team's hook between two pieces of work that are not parts (nothing for a
+  /// team of threads).
+  void checkpoint() const {
+    if (after_part_) after_part_();
+  }
 
  private:
   void work();

@@ -285,8 +285,12 @@ class ImplicitIntegrator {
       /// had a load, and whether it is wanted there this tick.
       std::vector<std::uint8_t> near, want;
       std::vector<std::uint64_t> loaded_tick;
-      /// The aggregates' neighbours (adj_start offsets into adj).
-      std::vector<std::uint32_t> adj_start, adj;
+      /// The aggregates' neighbours (adj_start offsets into adj), and the triangles with a free
+      /// corner in each (tri_start offsets into tris).
+      std::vector<std::uint32_t> adj_start, adj, tri_start, tris;
+      /// The aggregates in the order the far field's blocks take them (Morton order of their
+      /// centres: a block is a compact piece of the surface).
+      std::vector<std::uint32_t> block_order;
       Region near_region;
       MultirateGroups groups;
       /// The far field's copy of the body, its solver and its job (integrator_far_field.cpp).
@@ -297,6 +301,10 @@ class ImplicitIntegrator {
       /// SoftBody::constraint_edits() and derived_generation() of the last constraint pass.
       std::uint64_t constraint_edits = 0, constraint_generation = 0;
       std::vector<std::uint32_t> ring, next_ring;  ///< scratch of update_near
+      /// Scratch of far_apply_aggregates: the triangles and groups to sum again, the groups'
+      /// marks.
+      std::vector<std::uint32_t> moved_tris, moved_groups;
+      std::vector<std::uint8_t> group_marked;
     } multirate;
     /// The force pass taken at the end of the last accepted step, at its end state and for a
     /// substep of dt (the guard's energies come out of it): the next step's first substep uses
@@ -450,13 +458,23 @@ class ImplicitIntegrator {
   static void far_sync(FarField& ff, const SoftBody& body);
   /// Runs the job part-way to its end.
   static void finish_far_job(FarField& ff);
-  /// At a period's start: the last job's result into the far vertices (outside the near
-  /// aggregates), its events reported; false when it froze (the body is frozen then).
-  bool far_apply(Structure& st, SoftBody& body, StepStats& stats, std::vector<SimEvent>& events,
-                 std::uint32_t body_index, std::uint64_t step_index);
+  /// At a period's start: the last job's events reported and its result kept for the steps
+  /// that apply it; false when it froze (the body is frozen then).
+  bool far_finish(Structure& st, SoftBody& body, StepStats& stats, std::vector<SimEvent>& events,
+                  std::uint32_t body_index, std::uint64_t step_index);
   /// At a period's start: the copy takes the near aggregates' state and body's loads, and the
-  /// next job starts.
+  /// next job starts (it first keeps the last result aside, in the pending state).
   static void far_start(Structure& st, const SoftBody& body, std::uint64_t step_index);
+  /// The last result into the far vertices of this phase's block of aggregates (phases
+  /// 1 .. N - 1 apply one each), and into those that joined the near region since (before
+  /// their first near solve); the volume groups they move are summed again. Returns the
+  /// vertices moved.
+  static std::uint32_t far_apply(Structure& st, SoftBody& body, std::size_t phase,
+                                 std::size_t interval);
+  /// Writes the last result for aggregate a's rows into body (from the copy itself, or from the
+  /// state the job kept aside) and lists the triangles and groups that moved with them.
+  static std::uint32_t far_apply_aggregate(Structure& st, SoftBody& body, std::uint32_t a,
+                                           bool from_copy);
   /// Runs the job for this step's share of its estimated time (at the period's last step, to
   /// its end).
   static void far_slice(FarField& ff, std::size_t phase, std::size_t interval);
@@ -473,6 +491,9 @@ class ImplicitIntegrator {
   [[nodiscard]] unsigned members() const;
   /// The members with force arrays of their own (1 for a sequential team, whose parts share).
   [[nodiscard]] unsigned array_members() const;
+  /// Between two long pieces of a step that are not team parts: a sequential team's hook (the
+  /// multirate far field's solver may suspend there).
+  void checkpoint() const;
   std::vector<std::vector<glm::dvec3>> f_parts_, grad_parts_;
   std::vector<std::uint32_t> row_parts_;  ///< first row of each member's part of the product
   /// The team for options.threads (created or resized here); nullptr for one thread.
