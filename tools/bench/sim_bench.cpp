@@ -178,20 +178,24 @@ BENCHMARK(BM_Multirate)
     ->Unit(benchmark::kMicrosecond)
     ->Iterations(3000);
 
-// What multirate stepping changes: the bench scene of BM_FullStep run single-rate and with the
-// interval (second argument) side by side for 3.2 s of the 2 Hz probing, from the rest shape or
-// after both settled (third argument: single-rate steps with the probe away first). Counters: the
-// RMS of the haptic force's difference over the run against the single-rate force's RMS, and at the
-// end the largest distance between the two bodies' vertices within 10 mm of the probe and
-// beyond, each against the largest displacement from rest of the single-rate body there.
+// What multirate stepping changes, against what the step length changes: the bench scene of
+// BM_FullStep for 3.2 s of the 2 Hz probing, from the rest shape or after settling (third
+// argument: steps with the probe away first), run three times: single-rate with dt / 4 (the
+// reference: four steps per millisecond, the device held over them), single-rate with dt, and
+// multirate with dt and the interval (second argument). Counters, each for the single-rate run
+// (single_*) and the multirate one (multi_*) against the reference: the RMS of the haptic force's
+// difference over the run against the reference force's RMS; at the end the RMS distance of the
+// vertices within 10 mm of the probe (near) and beyond (far) against the RMS displacement from
+// rest of the reference there. And each run's RMS haptic force (*_force_rms_N).
 void BM_MultirateAccuracy(benchmark::State& state) {
   const Shape& shape = sphere(radius_for(state.range(0)));
   const double c = shape.centre_mm * 1e-3;
   const double r = shape.radius_mm * 1e-3;
-  auto make = [&](int interval) {
+  auto make = [&](int interval, int per_ms) {
     WorldOptions options;
     options.embree_threads = 1;
     options.integrator.far_field_interval = interval;
+    options.integrator.dt_s = 1e-3 / per_ms;
     auto world = std::make_unique<SimWorld>(options);
     SoftBody& body =
         world->body(world->add_body(SoftBody(build_oriented_manifold(shape.polygons), Material{})));
@@ -201,44 +205,63 @@ void BM_MultirateAccuracy(benchmark::State& state) {
     }
     return world;
   };
+  constexpr int kFine = 4;
   for (auto _ : state) {
-    auto single = make(1);
-    auto multi = make(1);
-    // Both settle single-rate for the third argument's steps with the probe away, then the
-    // second switches over.
+    auto reference = make(1, kFine);
+    auto single = make(1, 1);
+    auto multi = make(1, 1);
+    // All settle single-rate for the third argument's milliseconds with the probe away, then
+    // the third switches over.
     const glm::dvec3 away(c, c, c + r + 0.01);
     for (std::int64_t s = 0; s < state.range(2); ++s) {
+      for (int k = 0; k < kFine; ++k)
+        reference->step(away);
       single->step(away);
       multi->step(away);
     }
     multi->options().integrator.far_field_interval = static_cast<int>(state.range(1));
-    double diff2 = 0.0, force2 = 0.0;
+    double single_diff2 = 0.0, multi_diff2 = 0.0, force2 = 0.0, single_force2 = 0.0,
+           multi_force2 = 0.0;
     for (int s = 0; s < 3200; ++s) {
       const double depth = 0.0015 * (1.0 - std::cos(2.0 * 3.141592653589793 * 2.0 * s * 1e-3));
       const glm::dvec3 tip(c, c, c + r + 0.001 - depth);
+      glm::dvec3 f;
+      for (int k = 0; k < kFine; ++k)
+        f = reference->step(tip).force_N;
       const glm::dvec3 a = single->step(tip).force_N, b = multi->step(tip).force_N;
-      diff2 += glm::dot(a - b, a - b);
-      force2 += glm::dot(a, a);
+      single_diff2 += glm::dot(a - f, a - f);
+      multi_diff2 += glm::dot(b - f, b - f);
+      force2 += glm::dot(f, f);
+      single_force2 += glm::dot(a, a);
+      multi_force2 += glm::dot(b, b);
     }
-    const SoftBody& bs = single->body(0);
-    const SoftBody& bm = multi->body(0);
+    const SoftBody& ref = reference->body(0);
     const glm::dvec3 top(c, c, c + r);
-    double near_moved = 0.0, near_diff = 0.0, far_moved = 0.0, far_diff = 0.0;
-    for (std::uint32_t i = 0; i < bs.mesh().vertex_capacity(); ++i) {
+    // Per region (0 near, 1 far): the reference's squared displacements, and each run's squared
+    // distances to it.
+    double moved2[2] = {0.0, 0.0}, single2[2] = {0.0, 0.0}, multi2[2] = {0.0, 0.0};
+    for (std::uint32_t i = 0; i < ref.mesh().vertex_capacity(); ++i) {
       const VertexId v(i);
-      if (!bs.mesh().alive(v)) continue;
-      const bool near = glm::length(bs.rest_position(v) - top) < 0.010;
-      const double moved = glm::length(bs.position(v) - bs.rest_position(v));
-      const double diff = glm::length(bs.position(v) - bm.position(v));
-      (near ? near_moved : far_moved) = std::max(near ? near_moved : far_moved, moved);
-      (near ? near_diff : far_diff) = std::max(near ? near_diff : far_diff, diff);
+      if (!ref.mesh().alive(v)) continue;
+      const int region = glm::length(ref.rest_position(v) - top) < 0.010 ? 0 : 1;
+      const glm::dvec3 x = ref.position(v);
+      moved2[region] += glm::dot(x - ref.rest_position(v), x - ref.rest_position(v));
+      const glm::dvec3 ds = single->body(0).position(v) - x, dm = multi->body(0).position(v) - x;
+      single2[region] += glm::dot(ds, ds);
+      multi2[region] += glm::dot(dm, dm);
     }
-    state.counters["force_rms_diff"] = std::sqrt(diff2 / std::max(force2, 1e-300));
-    state.counters["near_diff"] = near_diff / std::max(near_moved, 1e-300);
-    state.counters["far_diff"] = far_diff / std::max(far_moved, 1e-300);
-    state.counters["near_moved_um"] = near_moved * 1e6;
-    state.counters["far_moved_um"] = far_moved * 1e6;
-    state.counters["events"] = double(multi->take_events().size() + single->take_events().size());
+    auto ratio = [](double a2, double b2) { return std::sqrt(a2 / std::max(b2, 1e-300)); };
+    state.counters["reference_force_rms_N"] = std::sqrt(force2 / 3200.0);
+    state.counters["single_force_rms_N"] = std::sqrt(single_force2 / 3200.0);
+    state.counters["multi_force_rms_N"] = std::sqrt(multi_force2 / 3200.0);
+    state.counters["single_force"] = ratio(single_diff2, force2);
+    state.counters["multi_force"] = ratio(multi_diff2, force2);
+    state.counters["single_near"] = ratio(single2[0], moved2[0]);
+    state.counters["multi_near"] = ratio(multi2[0], moved2[0]);
+    state.counters["single_far"] = ratio(single2[1], moved2[1]);
+    state.counters["multi_far"] = ratio(multi2[1], moved2[1]);
+    state.counters["events"] = double(multi->take_events().size() + single->take_events().size() +
+                                      reference->take_events().size());
   }
 }
 BENCHMARK(BM_MultirateAccuracy)
@@ -248,6 +271,7 @@ BENCHMARK(BM_MultirateAccuracy)
     ->Args({20000, 4, 0})
     ->Args({20000, 16, 0})
     ->Args({20000, 16, 3000})
+    ->Args({20000, 32, 0})
     ->Iterations(1)
     ->Unit(benchmark::kMillisecond);
 
