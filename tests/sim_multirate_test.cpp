@@ -224,6 +224,45 @@ TEST(SimMultirate, WithoutLoadsTheFarFieldIsTheSingleRateStepOfTheInterval) {
   EXPECT_LT(relative_difference(single, multi), 1e-4);
 }
 
+TEST(SimMultirate, ChangedOptionsStartAPeriodWithThem) {
+  // A session lengthens dt when it falls behind: the far field's next job takes the new step
+  // (N times it) from the body's state, and its result is the single-rate step of that length.
+  Material mat;
+  mat.drag_per_s = 20.0;
+  SoftBody body(testing::sphere(20, 6.0), mat);
+  anchor_below(body, kCentre);
+  IntegratorOptions opt;
+  opt.far_field_interval = kInterval;
+  // Solved to convergence, so that the result does not hang on the CG's warm start.
+  opt.max_cg_iterations = 200;
+  opt.cg_relative_tolerance = 1e-10;
+  opt.cg_weight_fraction = 1e-12;
+  ImplicitIntegrator integrator;
+  std::vector<SimEvent> events;
+  for (int s = 0; s < 3 * kInterval + 3; ++s)
+    integrator.step(body, opt, events);
+  opt.dt_s = 2e-3;
+  const SoftBody start(body);  // the state the next job starts from
+  // That job's period, then the next, over which its result is applied block by block.
+  for (int s = 0; s < 2 * kInterval; ++s)
+    integrator.step(body, opt, events);
+  EXPECT_TRUE(events.empty());
+  SoftBody reference(start);
+  IntegratorOptions single = opt;
+  single.far_field_interval = 1;
+  single.sleeping = false;
+  single.dt_s = kInterval * 2e-3;
+  ImplicitIntegrator other;
+  other.step(reference, single, events);
+  double moved = 0.0, differs = 0.0;
+  for (std::size_t i = 0; i < body.positions().size(); ++i) {
+    moved = std::max(moved, glm::length(reference.positions()[i] - start.positions()[i]));
+    differs = std::max(differs, glm::length(reference.positions()[i] - body.positions()[i]));
+  }
+  ASSERT_GT(moved, 1e-7);
+  EXPECT_LT(differs, 1e-4 * moved) << "moved " << moved;
+}
+
 TEST(SimMultirate, TheFarFieldSettlesWhereTheSingleRateBodyDoes) {
   // The far field's longer step relaxes the body's global shape more slowly (backward Euler
   // with the springs' bound Hessian moves less per unit of time with a longer step:

@@ -43,6 +43,15 @@ constexpr double kMinSliceS = 30e-6;
 /// Vertices the job copies between two chances to suspend.
 constexpr std::size_t kCopyPiece = 2048;
 
+/// The far field's solver options: the caller's, single-rate, for a step of N dt.
+IntegratorOptions far_options(const IntegratorOptions& options) {
+  IntegratorOptions far = options;
+  far.far_field_interval = 1;
+  far.sleeping = false;  // the copy's state is rewritten every period
+  far.dt_s = options.dt_s * double(options.far_field_interval);
+  return far;
+}
+
 }  // namespace
 
 struct ImplicitIntegrator::FarField {
@@ -77,11 +86,8 @@ void ImplicitIntegrator::far_reset(Structure& st, const SoftBody& body,
   auto ff = std::make_shared<FarField>(body);
   ff->generation = body.derived_generation();
   ff->constraints = body.constraint_edits();
-  ff->options = options;
+  ff->options = far_options(options);
   ff->interval = options.far_field_interval;
-  ff->options.far_field_interval = 1;
-  ff->options.sleeping = false;  // the copy's state is rewritten every period
-  ff->options.dt_s = options.dt_s * double(options.far_field_interval);
   ff->body.clear_forces();
   FarField* raw = ff.get();
   ff->solver.team_ = std::make_shared<StepThreads>(kFarParts, [raw] { raw->suspend_when_due(); });
@@ -92,16 +98,21 @@ void ImplicitIntegrator::far_reset(Structure& st, const SoftBody& body,
 
 bool ImplicitIntegrator::far_follow(Structure& st, const SoftBody& body,
                                     const IntegratorOptions& options, bool untouched) {
-  const FarField* ff = st.multirate.far.get();
+  FarField* ff = st.multirate.far.get();
   if (ff == nullptr || ff->generation != body.derived_generation() ||
-      ff->constraints != body.constraint_edits() ||
-      ff->options.dt_s != options.dt_s * double(options.far_field_interval)) {
+      ff->constraints != body.constraint_edits()) {
     far_reset(st, body, options);
     return true;
   }
+  // Other options (a session lengthens dt when it falls behind): the copy's solver takes them
+  // from a new period on (its coarse level follows the step length by itself).
+  const IntegratorOptions wanted = far_options(options);
   // A copy that froze is made to follow again once its result has frozen the body (far_finish).
-  if (!untouched || (ff->body.frozen() && !ff->result)) {
-    far_sync(*st.multirate.far, body);
+  if (!untouched || (ff->body.frozen() && !ff->result) || !(wanted == ff->options) ||
+      ff->interval != options.far_field_interval) {
+    far_sync(*ff, body);
+    ff->options = wanted;
+    ff->interval = options.far_field_interval;
     return true;
   }
   return false;

@@ -108,6 +108,8 @@ struct IntegratorOptions {
   int far_field_interval = 1;
   int near_rings = 1;
   int near_linger_steps = 1000;
+
+  bool operator==(const IntegratorOptions&) const = default;
 };
 
 enum class SimEventKind : std::uint8_t { RolledBack, Frozen };
@@ -445,9 +447,9 @@ class ImplicitIntegrator {
   double region_elastic(const Structure& st, const Structure::Region& region,
                         const SoftBody& body) const;
   // ---- Multirate far field (integrator_far_field.cpp) ----
-  /// Makes st's far field follow body: a new copy for another topology, set of constraints or
-  /// step length, the copy's state rewritten after edits from outside (untouched false) or a
-  /// freeze. True when it did either: a new period starts.
+  /// Makes st's far field follow body: a new copy for another topology or set of constraints,
+  /// the copy's state rewritten after edits from outside (untouched false), a freeze or other
+  /// options. True when it did either: a new period starts.
   static bool far_follow(Structure& st, const SoftBody& body, const IntegratorOptions& options,
                          bool untouched);
   /// A new copy of body for st's far field, its solver prepared (a job part-way in the old
