@@ -162,6 +162,28 @@ TEST(SimMultirate, AFarFieldThatDivergesIsReportedAndFreezesTheBody) {
   EXPECT_NE(events.front().reason.find("non-finite"), std::string::npos) << events.front().reason;
 }
 
+TEST(SimMultirate, AnIntegratorLeftPartWayThroughAPeriodEndsItsJob) {
+  // The first job has no time estimate yet: after two steps it is part-way in its fiber, and
+  // the integrator's end (its far field's) must run it to its end before freeing what it uses.
+  SoftBody body = testing::squashed_sphere();
+  IntegratorOptions opt;
+  opt.far_field_interval = kInterval;
+  std::vector<SimEvent> events;
+  {
+    ImplicitIntegrator integrator;
+    integrator.step(body, opt, events);
+    integrator.step(body, opt, events);
+  }
+  EXPECT_TRUE(events.empty());
+  // And a new one takes the body on.
+  ImplicitIntegrator again;
+  for (int s = 0; s < 3 * kInterval; ++s)
+    again.step(body, opt, events);
+  EXPECT_TRUE(events.empty());
+  for (const auto& p : body.positions())
+    ASSERT_TRUE(std::isfinite(p.x + p.y + p.z));
+}
+
 /// The scripted probe of SimSoftBody.DeterministicState, in multirate.
 std::uint64_t run_scripted(int steps) {
   WorldOptions options;

@@ -3,9 +3,12 @@
 // copy of it in a fiber, a slice of it per step, so that a step costs the near region's solve
 // and an N-th of the far one. A period of N steps:
 //
-//   step 0 of a period: the last period's result (the copy's state, N dt later than the state it
-//   started from, that is now) is written to the body's far vertices - those outside the near
-//   region; the copy takes the near region's state and this step's loads; its next job starts.
+//   step 0: the last job has ended (its result is the copy's state, N dt on from where it
+//   started, that is now); the near region's neighbours take it at once; the copy takes the
+//   near region's state and this step's loads, and the next job starts. Its first act keeps
+//   the result aside.
+//   steps 1 .. N - 1: a block of aggregates takes the result, and so does any aggregate that
+//   joins the near region.
 //   every step: the near region is solved with dt against the far vertices held; the job runs
 //   until the step's slice of its estimated time is used up (at the period's last step, to its
 //   end).
@@ -56,6 +59,17 @@ IntegratorOptions far_options(const IntegratorOptions& options) {
 
 struct ImplicitIntegrator::FarField {
   explicit FarField(const SoftBody& original) : body(original) {}
+  /// A job part-way is run to its end while the members it uses are alive.
+  ~FarField() {
+    deadline = Clock::time_point::max();
+    try {
+      while (fiber.part_way())
+        fiber.resume();
+    } catch (...) {  // NOLINT(bugprone-empty-catch): a destructor has nobody to tell
+    }
+  }
+  FarField(const FarField&) = delete;
+  FarField& operator=(const FarField&) = delete;
   /// In the job: back to the step when the slice is used up (elsewhere, nothing).
   void suspend_when_due() const {
     if (Fiber::current() == &fiber && Clock::now() >= deadline) Fiber::suspend();
