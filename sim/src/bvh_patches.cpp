@@ -7,27 +7,13 @@
 
 #include <glm/common.hpp>
 
+#include "morton.h"
+
 namespace bisturi::sim {
 
 namespace {
 
 constexpr std::uint32_t kUnassigned = 0xffffffffu;
-
-/// Spreads the low 10 bits of v to every third bit.
-std::uint32_t spread_bits(std::uint32_t v) {
-  v &= 0x3ffu;
-  v = (v | (v << 16)) & 0x030000ffu;
-  v = (v | (v << 8)) & 0x0300f00fu;
-  v = (v | (v << 4)) & 0x030c30c3u;
-  v = (v | (v << 2)) & 0x09249249u;
-  return v;
-}
-
-/// u's cell on a 1024-cell axis (0 for a NaN: a position the guard has not rolled back yet must
-/// not make the cast undefined).
-std::uint32_t cell(double u) {
-  return u > 0.0 ? static_cast<std::uint32_t>(std::min(u, 1023.0)) : 0u;
-}
 
 }  // namespace
 
@@ -36,7 +22,7 @@ std::uint32_t SurfacePatches::code_of(const SurfaceTriangles& triangles, std::si
   const std::uint32_t* t = &triangles.indices[3 * triangle];
   const glm::dvec3 c = (x[t[0]] + x[t[1]] + x[t[2]]) / 3.0;
   const glm::dvec3 u = (c - lo_) * scale_;
-  return spread_bits(cell(u.x)) | (spread_bits(cell(u.y)) << 1) | (spread_bits(cell(u.z)) << 2);
+  return morton_code(u);
 }
 
 void SurfacePatches::assign(const SurfaceTriangles& triangles, const std::vector<glm::dvec3>& x) {

@@ -16,6 +16,7 @@
 #include "bisturi/sim/integrator.h"
 #include "cg_solver.h"
 #include "integrator_shared.h"
+#include "morton.h"
 #include "spring_kernels.h"
 #include "volume_kernels.h"
 
@@ -23,23 +24,6 @@ namespace bisturi::sim {
 
 // The helpers the integrator's files share (integrator_shared.h).
 using namespace integrator_detail;  // NOLINT(google-build-using-namespace)
-
-namespace {
-
-/// The 30-bit Morton code of a point quantised to 10 bits per axis.
-std::uint32_t morton_code(std::uint32_t x, std::uint32_t y, std::uint32_t z) {
-  auto spread = [](std::uint32_t v) {
-    v &= 0x3ffu;
-    v = (v | (v << 16)) & 0x030000ffu;
-    v = (v | (v << 8)) & 0x0300f00fu;
-    v = (v | (v << 4)) & 0x030c30c3u;
-    v = (v | (v << 2)) & 0x09249249u;
-    return v;
-  };
-  return (spread(x) << 2) | (spread(y) << 1) | spread(z);
-}
-
-}  // namespace
 
 double ImplicitIntegrator::MultirateGroups::total() const {
   double sum = 0.0;
@@ -115,7 +99,7 @@ void ImplicitIntegrator::make_multirate(Structure& st, const SoftBody& body) {
     for (std::uint32_t a = 0; a < nc; ++a) {
       const double count = double(st.agg_start[a + 1] - st.agg_start[a]);
       const glm::dvec3 q = (centre[a] / std::max(count, 1.0) - lo) * scale;
-      coded[a] = {morton_code(std::uint32_t(q.x), std::uint32_t(q.y), std::uint32_t(q.z)), a};
+      coded[a] = {morton_code(q), a};
     }
     std::sort(coded.begin(), coded.end());
     mr.block_order.resize(nc);
