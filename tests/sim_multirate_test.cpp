@@ -206,12 +206,18 @@ TEST(SimMultirate, DeterministicState) {
   EXPECT_EQ(run_scripted(300), run_scripted(300));
 }
 
-/// The 6 mm sphere on its anchored lower half, under gravity with drag, after `steps` steps.
-std::vector<glm::dvec3> settled(int interval, double dt, int steps) {
+/// The 6 mm sphere with drag, on its anchored lower half.
+SoftBody dragged_sphere() {
   Material mat;
   mat.drag_per_s = 20.0;
   SoftBody body(testing::sphere(20, 6.0), mat);
   anchor_below(body, kCentre);
+  return body;
+}
+
+/// dragged_sphere() under gravity after `steps` steps.
+std::vector<glm::dvec3> settled(int interval, double dt, int steps) {
+  SoftBody body = dragged_sphere();
   IntegratorOptions opt;
   opt.far_field_interval = interval;
   opt.dt_s = dt;
@@ -257,10 +263,7 @@ TEST(SimMultirate, WithoutLoadsTheFarFieldIsTheSingleRateStepOfTheInterval) {
 TEST(SimMultirate, ChangedOptionsStartAPeriodWithThem) {
   // A session lengthens dt when it falls behind: the far field's next job takes the new step
   // (N times it) from the body's state, and its result is the single-rate step of that length.
-  Material mat;
-  mat.drag_per_s = 20.0;
-  SoftBody body(testing::sphere(20, 6.0), mat);
-  anchor_below(body, kCentre);
+  SoftBody body = dragged_sphere();
   IntegratorOptions opt;
   opt.far_field_interval = kInterval;
   // Solved to convergence, so that the result does not hang on the CG's warm start.
