@@ -292,6 +292,29 @@ TEST(SimMultirate, ChangedOptionsStartAPeriodWithThem) {
             1e-4);
 }
 
+TEST(SimMultirate, AnEditFromOutsideKeepsTheNearRegion) {
+  // The far field starts a new period from the edited state; the near region keeps its
+  // aggregates for their linger time all the same.
+  SoftBody body = dragged_sphere();
+  IntegratorOptions opt;
+  opt.far_field_interval = kInterval;
+  ImplicitIntegrator integrator;
+  std::vector<SimEvent> events;
+  VertexId top(0);
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+    if (body.position(VertexId(i)).z > body.position(top).z) top = VertexId(i);
+  }
+  for (int s = 0; s < 3 * kInterval + 2; ++s) {
+    body.add_force(top, {0.0, 0.0, -0.01});
+    integrator.step(body, opt, events);
+  }
+  body.set_position(top, body.position(top));               // an edit, as a caller's
+  const StepStats st = integrator.step(body, opt, events);  // no load now
+  EXPECT_GT(st.awake_vertices, 0u);
+  EXPECT_LT(st.awake_vertices, st.free_vertices);
+  EXPECT_TRUE(events.empty());
+}
+
 TEST(SimMultirate, TheFarFieldSettlesWhereTheSingleRateBodyDoes) {
   // The far field's longer step relaxes the body's global shape more slowly (backward Euler
   // with the springs' bound Hessian moves less per unit of time with a longer step:

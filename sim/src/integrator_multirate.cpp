@@ -59,6 +59,7 @@ void ImplicitIntegrator::make_multirate(Structure& st, const SoftBody& body) {
   const std::size_t nc = full.coarse_count;
   mr.system = full.id;
   mr.tick = 0;
+  mr.period_start = 0;
   mr.near.assign(nc, 0);
   mr.want.assign(nc, 0);
   mr.loaded_tick.assign(nc, 0);
@@ -442,13 +443,13 @@ std::optional<StepStats> ImplicitIntegrator::step_multirate(SoftBody& body, Stru
   if (mr.system != st.full.id) make_multirate(st, body);
   // The far field's copy: made again for another topology or set of constraints, its state
   // rewritten when the body was edited from outside; a new period starts either way.
-  if (far_follow(st, body, options, untouched)) mr.tick = 0;
+  if (far_follow(st, body, options, untouched)) mr.period_start = mr.tick;
   // The groups' sums hold while only this mode's solves move the body.
   if (!mr.groups.valid || !untouched) {
     mr.groups.update_all(body.triangles().indices, body.positions());
     mr.groups.valid = true;
   }
-  const std::uint64_t phase = mr.tick % interval;
+  const std::uint64_t phase = (mr.tick - mr.period_start) % interval;
   // At a period's start, the job that ends it (its result is applied over the period).
   bool alive = phase != 0 || far_finish(st, body, stats, events, body_index, step_index);
   update_near(st, body, options);

@@ -282,7 +282,9 @@ class ImplicitIntegrator {
     };
     struct Multirate {
       std::uint64_t system = 0;  ///< the full System::id it was made for (0: none)
-      std::uint64_t tick = 0;    ///< steps since the far field's period started (mod N)
+      /// Steps taken in this mode (for the near region's linger time), and the tick the far
+      /// field's current run of periods started at.
+      std::uint64_t tick = 0, period_start = 0;
       /// Per aggregate of the full system: whether it is in the near region, the last tick it
       /// had a load, and whether it is wanted there this tick.
       std::vector<std::uint8_t> near, want;
