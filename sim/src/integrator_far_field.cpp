@@ -43,8 +43,6 @@ using Clock = std::chrono::steady_clock;
 constexpr unsigned kFarParts = 16;
 /// The least a slice runs (a job with no estimate yet runs this much per step).
 constexpr double kMinSliceS = 30e-6;
-/// Vertices the job copies between two chances to suspend.
-constexpr std::size_t kCopyPiece = 2048;
 
 /// The far field's solver options: the caller's, single-rate, for a step of N dt.
 IntegratorOptions far_options(const IntegratorOptions& options) {
@@ -271,19 +269,9 @@ void ImplicitIntegrator::far_start(Structure& st, const SoftBody& body, std::uin
   ff.job_s = 0.0;
   ff.fiber.start([&ff, step_index] {
     // The last result aside first: the coming steps apply it while this job moves the copy.
-    // In pieces, each followed by a chance to suspend (the copy is about a megabyte at 20k).
-    const auto& rx = std::as_const(ff.body).positions();
-    const auto& rv = std::as_const(ff.body).velocities();
-    ff.pending_x.resize(rx.size());
-    ff.pending_v.resize(rv.size());
-    for (std::size_t first = 0; first < rx.size(); first += kCopyPiece) {
-      const std::size_t last = std::min(rx.size(), first + kCopyPiece);
-      std::copy(rx.begin() + std::ptrdiff_t(first), rx.begin() + std::ptrdiff_t(last),
-                ff.pending_x.begin() + std::ptrdiff_t(first));
-      std::copy(rv.begin() + std::ptrdiff_t(first), rv.begin() + std::ptrdiff_t(last),
-                ff.pending_v.begin() + std::ptrdiff_t(first));
-      ff.suspend_when_due();
-    }
+    // Whole, before any chance to suspend: the next step applies from it.
+    ff.pending_x = std::as_const(ff.body).positions();
+    ff.pending_v = std::as_const(ff.body).velocities();
     ff.stats = ff.solver.step(ff.body, ff.options, ff.events, 0, step_index);
     ff.result = true;
   });
