@@ -72,7 +72,6 @@ SoftBody::SoftBody(const SoftBody& other)
       contacts_(other.contacts_),
       springs_(other.springs_),
       triangles_(other.triangles_),
-      spring_change_(other.spring_change_),
       closed_(other.closed_),
       rest_volume_m3_(other.rest_volume_m3_),
       orientation_(other.orientation_),
@@ -87,8 +86,8 @@ SoftBody::SoftBody(const SoftBody& other)
   v_ = &props.get<glm::dvec3>("sim.velocity_m_s");
   rest_ = &props.get<glm::dvec3>("sim.rest_position_m");
   anchored_ = &props.get<std::uint8_t>("sim.anchored");
-  // A fresh lineage: nothing derived from the original's springs is reused for the copy.
-  spring_change_.from_generation = 0;
+  // spring_change_ stays empty: with a fresh lineage nothing derived from the original's
+  // springs is reused for the copy.
 }
 
 void SoftBody::set_loads_from(const SoftBody& other) {

@@ -234,11 +234,11 @@ class ImplicitIntegrator {
     /// Every triangle and group at positions x.
     void update_all(const std::vector<std::uint32_t>& indices, const std::vector<glm::dvec3>& x);
   };
+  /// The multirate far field: a copy of the body advanced by a solver of its own in a fiber.
+  struct FarField;
   /// The solver structure of one body generation: the system over its free vertices (neither
   /// anchored, kinematic nor massless; rebuilt when that set changes), and the sleep state of
   /// the free system's aggregates with the system over the awake ones.
-  /// The multirate far field: a copy of the body advanced by a solver of its own in a fiber.
-  struct FarField;
   struct Structure {
     std::uint64_t generation = 0;
     std::uint64_t lineage = 0;  ///< the body's (SoftBody::lineage)
@@ -305,7 +305,7 @@ class ImplicitIntegrator {
       /// SoftBody::constraint_edits() and derived_generation() of the last constraint pass.
       std::uint64_t constraint_edits = 0, constraint_generation = 0;
       std::vector<std::uint32_t> ring, next_ring;  ///< scratch of update_near
-      /// Scratch of far_apply_aggregates: the triangles and groups to sum again, the groups'
+      /// Scratch of far_apply_aggregate: the triangles and groups to sum again, the groups'
       /// marks.
       std::vector<std::uint32_t> moved_tris, moved_groups;
       std::vector<std::uint8_t> group_marked;
@@ -451,7 +451,7 @@ class ImplicitIntegrator {
   // ---- Multirate far field (integrator_far_field.cpp) ----
   /// Makes st's far field follow body: a new copy for another topology or set of constraints,
   /// the copy's state rewritten after edits from outside (untouched false), a freeze or other
-  /// options. True when it did either: a new period starts.
+  /// options. True when it did any of these: a new period starts.
   static bool far_follow(Structure& st, const SoftBody& body, const IntegratorOptions& options,
                          bool untouched);
   /// A new copy of body for st's far field, its solver prepared (a job part-way in the old
