@@ -120,7 +120,8 @@ void full_step(benchmark::State& state, std::int64_t vertices, bool all, int int
     const double sec = std::chrono::duration<double>(t1 - t0).count();
     state.SetIterationTime(sec);
     samples.push_back(sec * 1e6);
-    // Multirate: the steps that start a far-field period (they apply its last result) apart.
+    // Multirate: the steps that start a far-field period (they end its last job, apply the
+    // result to the near region's neighbours and start the next job) apart.
     (interval > 1 && s % std::uint64_t(interval) == 0 ? period_starts : others)
         .push_back(sec * 1e6);
     cg += world.last_stats(id).cg_iterations;
@@ -163,7 +164,7 @@ BENCHMARK(BM_FullStep)
 
 // The same scene with multirate stepping (IntegratorOptions::far_field_interval = the second
 // argument): the near region every step, and a slice of the far field's longer step, whose
-// result lands at the start of the next period. One thread (the far field's solve runs in a
+// result is applied over the next period. One thread (the far field's solve runs in a
 // fiber on the calling thread); Embree with one thread. start_*: the steps that start a period.
 void BM_Multirate(benchmark::State& state) {
   full_step(state, state.range(0), false, static_cast<int>(state.range(1)));
