@@ -51,6 +51,7 @@ std::vector<Dlfl> make_scene(std::size_t triangles) {
 
 struct Result {
   double fps = 0, p50 = 0, p99 = 0, draw_calls = 0, triangles = 0, culled_chunks = 0;
+  double cpu_ms = 0, wait_ms = 0, upload_mb = 0, index_buffers_made = 0;
 };
 
 Result run(const std::vector<Dlfl>& scene, std::uint32_t w, std::uint32_t h, bool optimised,
@@ -84,6 +85,10 @@ Result run(const std::vector<Dlfl>& scene, std::uint32_t w, std::uint32_t h, boo
     r.draw_calls += static_cast<double>(s.draw_calls);
     r.triangles += static_cast<double>(s.triangles_drawn);
     r.culled_chunks += static_cast<double>(s.chunks_culled);
+    r.cpu_ms += s.cpu_ms;
+    r.wait_ms += s.wait_ms;
+    r.upload_mb += static_cast<double>(s.vertex_bytes_uploaded) * 1e-6;
+    r.index_buffers_made += static_cast<double>(s.index_buffers_rebuilt);
     const auto now = Clock::now();
     ms.push_back(std::chrono::duration<double, std::milli>(now - previous).count());
     previous = now;
@@ -96,6 +101,9 @@ Result run(const std::vector<Dlfl>& scene, std::uint32_t w, std::uint32_t h, boo
   r.draw_calls /= frames;
   r.triangles /= frames;
   r.culled_chunks /= frames;
+  r.cpu_ms /= frames;
+  r.wait_ms /= frames;
+  r.upload_mb /= frames;
   return r;
 }
 
@@ -118,17 +126,23 @@ int main(int argc, char** argv) {
     const std::vector<std::size_t> sizes =
         quick ? std::vector<std::size_t>{100000} : std::vector<std::size_t>{100000, 1000000};
     const std::uint32_t resolutions[2][2] = {{1024, 1024}, {1440, 1600}};
-    std::printf("%-9s %-11s %-8s %8s %9s %9s %8s %11s %9s\n", "triangles", "per eye", "mode", "fps",
-                "p50 ms", "p99 ms", "draws", "tris drawn", "culled");
+    // cpu ms: the renderer's own work per frame (plan, stream, record, submit); wait ms: waiting
+    // for the frame slot's previous frame (GPU work, read back, sink); MB up: vertex bytes
+    // streamed per frame; new ib: index buffers made during the timed frames.
+    std::printf("%-9s %-11s %-8s %8s %9s %9s %8s %11s %9s %7s %7s %7s %6s\n", "triangles",
+                "per eye", "mode", "fps", "p50 ms", "p99 ms", "draws", "tris drawn", "culled",
+                "cpu ms", "wait ms", "MB up", "new ib");
     for (const std::size_t n : sizes) {
       const std::vector<Dlfl> scene = make_scene(n);
       for (const auto& res : resolutions) {
         const Result naive = run(scene, res[0], res[1], false, frames);
         const Result fast = run(scene, res[0], res[1], true, frames);
         for (const auto* r : {&naive, &fast}) {
-          std::printf("%-9zu %4ux%-6u %-8s %8.1f %9.1f %9.1f %8.1f %11.0f %9.1f\n", n, res[0],
-                      res[1], r == &naive ? "naive" : "cull+lod", r->fps, r->p50, r->p99,
-                      r->draw_calls, r->triangles, r->culled_chunks);
+          std::printf(
+              "%-9zu %4ux%-6u %-8s %8.1f %9.1f %9.1f %8.1f %11.0f %9.1f %7.2f %7.2f %7.1f %6.0f\n",
+              n, res[0], res[1], r == &naive ? "naive" : "cull+lod", r->fps, r->p50, r->p99,
+              r->draw_calls, r->triangles, r->culled_chunks, r->cpu_ms, r->wait_ms, r->upload_mb,
+              r->index_buffers_made);
         }
         std::printf("  ratio cull+lod / naive: fps x%.2f, p99 frame time x%.2f\n",
                     fast.fps / naive.fps, fast.p99 / naive.p99);

@@ -68,7 +68,8 @@ struct FrameStats {
   std::size_t chunks_culled = 0;
   std::size_t vertex_bytes_uploaded = 0;
   std::size_t index_buffers_rebuilt = 0;
-  double cpu_ms = 0.0;  ///< culling, LOD, streaming and recording on the CPU
+  double cpu_ms = 0.0;   ///< culling, LOD, streaming, recording and submitting on the CPU
+  double wait_ms = 0.0;  ///< waiting for this frame's slot: its last frame's GPU work and sink
 };
 
 class StereoRenderer {
