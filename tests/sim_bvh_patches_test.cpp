@@ -1,7 +1,8 @@
 // The two-level surface BVH (sim/src/collision.cpp with bvh_patches.*): a body of several
 // patches answers closest-point, nearby-triangle and ray queries exactly as a brute-force pass
 // over every triangle does, before and after a cut, and a cut rebuilds only some patches; a
-// refit commits only the patches whose vertices moved and answers as a BVH built anew does.
+// refit commits only the patches whose vertices moved and answers as a BVH built anew does, and
+// with a refit tolerance the patches that wait keep the answers exact.
 
 #include <gtest/gtest.h>
 
@@ -85,7 +86,8 @@ double brute_ray(const SoftBody& body, const glm::dvec3& from, const glm::dvec3&
 /// Query points in a shell around the sphere's surface, and rays from outside towards points
 /// inside, all from a fixed seed.
 void expect_queries_match(const SoftBody& body, const SurfaceBvh& bvh, std::uint32_t seed,
-                          const glm::dvec3& focus, double spread, int queries = 150) {
+                          const glm::dvec3& focus, double spread, int queries = 150,
+                          bool rays = true) {
   std::mt19937 rng(seed);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   for (int i = 0; i < queries; ++i) {
@@ -96,6 +98,7 @@ void expect_queries_match(const SoftBody& body, const SurfaceBvh& bvh, std::uint
     EXPECT_EQ(got.triangle, want.triangle) << "query " << i;
     EXPECT_EQ(got.distance_m, want.distance) << "query " << i;
     EXPECT_EQ(bvh.triangles_near(body, p, 0.002), brute_near(body, p, 0.002)) << "query " << i;
+    if (!rays) continue;
     const glm::dvec3 from = p + glm::dvec3(0.0, 0.0, 0.08);
     const double hit = brute_ray(body, from, p);
     const SurfacePoint ray = bvh.ray(body, from, p);
@@ -301,6 +304,32 @@ TEST(SimBvhPatches, MovingOneRegionRefitsOnlyItsPatches) {
   EXPECT_LT(bvh.last_refitted_patches(), filled);
   expect_same_as_fresh(body, bvh, 21, kTop + kSideways, 0.006);
   expect_queries_match(body, bvh, 23, kTop + kSideways, 0.006, 60);
+}
+
+// With a refit tolerance, moved patches wait until their drift passes it; the point queries stay
+// exact meanwhile (a 6 mm move leaves the old bounds where a query at the new place would not
+// look without the drift added to its radius), and a ray refits the waiting patches first.
+TEST(SimBvhPatches, WaitingRefitsKeepTheQueriesExact) {
+  CollisionDevice device(1);
+  SoftBody body(testing::sphere(56, 25.0), Material{});
+  SurfaceBvh bvh(device, body);
+  bvh.set_refit_tolerance(0.02);
+  ASSERT_GT(move_region(body, kTop, 0.004, kSideways), 10u);
+  bvh.update(body);
+  EXPECT_EQ(bvh.last_refitted_patches(), 0u);  // 6 mm: under 20 mm
+  expect_queries_match(body, bvh, 51, kTop + kSideways, 0.006, 60, false);
+  move_region(body, kTop + kSideways, 0.004, -0.5 * kSideways);
+  bvh.update(body);
+  EXPECT_EQ(bvh.last_refitted_patches(), 0u);  // 6 + 3 mm drift, at most 15.6 mm
+  expect_queries_match(body, bvh, 53, kTop + 0.5 * kSideways, 0.006, 60, false);
+  move_region(body, kTop + 0.5 * kSideways, 0.004, kSideways);
+  bvh.update(body);
+  EXPECT_GT(bvh.last_refitted_patches(), 0u);  // past 20 mm
+  move_region(body, kTop + 1.5 * kSideways, 0.004, -kSideways);
+  bvh.update(body);
+  EXPECT_EQ(bvh.last_refitted_patches(), 0u);
+  expect_queries_match(body, bvh, 55, kTop + 0.5 * kSideways, 0.006, 60, true);
+  expect_same_as_fresh(body, bvh, 57, kTop + 0.5 * kSideways, 0.006);
 }
 
 TEST(SimBvhPatches, AVertexOnAPatchBorderRefitsEveryPatchThatUsesIt) {

@@ -103,7 +103,15 @@ struct SurfaceBvh::Impl {
   std::vector<std::uint32_t> vertex_patch;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> more_patches;
   std::vector<std::uint32_t> block_more, block_first, block_patches;
-  std::vector<std::uint8_t> patch_moved;     // by patch, and the slot for none
+  std::vector<std::uint8_t> patch_moved;  // by patch, and the slot for none
+  /// Lazy refits: a patch is refitted once the most its vertices may have moved since its last
+  /// refit (drift, a bound summed from each update's largest move among them) exceeds the
+  /// tolerance. The queries widen their radius by the largest drift left (query_pad), which keeps
+  /// them exact: a triangle now at distance d lies in stale bounds within d + drift.
+  double refit_tolerance = 0.0;
+  std::vector<double> drift;       // by patch, and the slot for none
+  std::vector<float> update_move;  // by patch: this update's largest move of one of its vertices
+  double query_pad = 0.0;
   std::vector<std::uint32_t> index_scratch;  // of index_vertex_patches
   std::vector<std::pair<std::uint32_t, std::uint32_t>> pair_scratch;
 
@@ -173,6 +181,7 @@ struct SurfaceBvh::Impl {
 
   static constexpr std::size_t kBlock = 64;  // vertices compared at a time
   using BlockDiff = std::array<std::uint32_t, 3 * kBlock>;
+  using BlockMove = std::array<float, kBlock>;  // per vertex, its largest coordinate change
 
   /// Indexes the patches of each vertex and block (after the patches' corners changed).
   /// Patches are visited in order, so a vertex's first patch is its smallest, and a repeat of a
@@ -240,15 +249,20 @@ struct SurfaceBvh::Impl {
   /// Copies n positions into the float buffer at v, with the bits that changed in `diff`;
   /// returns whether any did. Without a branch, so that it vectorises (compared per vertex
   /// with a branch, the pass cost 3.5 times the bare copy; this way, twice).
-  static bool copy_block(const glm::dvec3* x, std::size_t n, float* v, BlockDiff& diff) {
+  static bool copy_block(const glm::dvec3* x, std::size_t n, float* v, BlockDiff& diff,
+                         BlockMove& move) {
     for (std::size_t k = 0; k < n; ++k) {
       const float f[3] = {static_cast<float>(x[k].x), static_cast<float>(x[k].y),
                           static_cast<float>(x[k].z)};
+      float m = 0.0f;
       for (std::size_t c = 0; c < 3; ++c) {
         diff[3 * k + c] =
             std::bit_cast<std::uint32_t>(f[c]) ^ std::bit_cast<std::uint32_t>(v[3 * k + c]);
+        const float d = std::abs(f[c] - v[3 * k + c]);
+        m = d > m ? d : (d == d ? m : std::numeric_limits<float>::infinity());  // NaN: refit
         v[3 * k + c] = f[c];
       }
+      move[k] = m;
     }
     std::uint32_t any = 0;
     for (std::size_t j = 0; j < 3 * n; ++j)
@@ -256,34 +270,44 @@ struct SurfaceBvh::Impl {
     return any != 0;
   }
 
-  /// Marks the patches of block b's vertices (n of them) whose float triple changed.
-  void mark_block(std::size_t b, std::size_t n, const BlockDiff& diff) {
-    std::uint8_t* flag = patch_moved.data();  // local: a byte store may alias the vectors'
+  /// Notes this update's largest move per patch from block b's vertices (n of them).
+  void mark_block(std::size_t b, std::size_t n, const BlockMove& move) {
+    float* most = update_move.data();
     const std::uint32_t* used = block_patches.data() + block_first[b];
     const std::uint32_t used_count = block_first[b + 1] - block_first[b];
-    if (used_count == 1) {
-      flag[used[0]] = 1;
+    if (used_count == 1) {  // every vertex of the block in one patch
+      most[used[0]] = std::max(most[used[0]], *std::max_element(move.begin(), move.begin() + n));
       return;
     }
-    if (std::all_of(used, used + used_count, [&](std::uint32_t p) { return flag[p] != 0; })) return;
-    auto moved = [&](std::size_t k) {
-      return (diff[3 * k] | diff[3 * k + 1] | diff[3 * k + 2]) != 0;
-    };
     const std::uint32_t* patch = &vertex_patch[b * kBlock];
     for (std::size_t k = 0; k < n; ++k)
-      if (moved(k)) flag[patch[k]] = 1;
-    for (std::uint32_t e = block_more[b]; e < block_more[b + 1]; ++e)
-      if (moved(more_patches[e].first - b * kBlock)) flag[more_patches[e].second] = 1;
+      most[patch[k]] = std::max(most[patch[k]], move[k]);
+    for (std::uint32_t e = block_more[b]; e < block_more[b + 1]; ++e) {
+      const std::uint32_t p = more_patches[e].second;
+      most[p] = std::max(most[p], move[more_patches[e].first - b * kBlock]);
+    }
   }
 
-  /// Copies the body's positions into the float buffer like fill_vertices, and marks the
-  /// patches of each vertex whose float triple changed (only those need a refit).
+  /// Copies the body's positions into the float buffer like fill_vertices, and adds each
+  /// patch's largest move (of a vertex whose float triple changed) to its drift; patch_moved
+  /// marks the patches with a move.
   void fill_moved_vertices(const SoftBody& b) {
     BlockDiff diff{};
+    BlockMove move{};
     const auto& x = b.positions();
+    update_move.assign(patches.size() + 1, 0.0f);
     for (std::size_t first = 0; first < x.size(); first += kBlock) {
       const std::size_t n = std::min(kBlock, x.size() - first);
-      if (copy_block(&x[first], n, &vertices[3 * first], diff)) mark_block(first / kBlock, n, diff);
+      if (copy_block(&x[first], n, &vertices[3 * first], diff, move))
+        mark_block(first / kBlock, n, move);
+    }
+    drift.resize(patches.size() + 1, 0.0);
+    for (std::size_t p = 0; p < patches.size(); ++p) {
+      // A change below the float's resolution still changed bits: it counts as a move.
+      if (update_move[p] > 0.0f || patch_moved[p] != 0) {
+        patch_moved[p] = 1;
+        drift[p] += double(update_move[p]) * 1.7320508075688772;  // the largest coordinate's
+      }                                                           // change, to a length
     }
   }
 
@@ -310,16 +334,30 @@ struct SurfaceBvh::Impl {
       ++last_refitted_patches;
     }
     commit_top();
+    drift.assign(patches.size() + 1, 0.0);
+    query_pad = 0.0;
   }
 
   /// The refit: commits the patches a vertex of which moved, and the top level when one did
   /// (when nothing moved, every BVH still fits).
   void refit(const SoftBody& b) {
     fill_moved_vertices(b);
+    commit_drifted(refit_tolerance);
+  }
+
+  /// Refits the moved patches whose drift exceeds `tolerance`; the others wait, and the queries
+  /// widen by the largest drift left.
+  void commit_drifted(double tolerance) {
     last_refitted_patches = 0;
+    query_pad = 0.0;
     for (std::size_t p = 0; p < patches.size(); ++p) {
       if (patch_moved[p] == 0) continue;
+      if (drift[p] <= tolerance && tolerance > 0.0) {
+        query_pad = std::max(query_pad, drift[p]);
+        continue;
+      }
       patch_moved[p] = 0;
+      drift[p] = 0.0;
       commit_patch(patches[p]);
       ++last_refitted_patches;
     }
@@ -532,6 +570,9 @@ std::size_t SurfaceBvh::loose_triangles() const {
 void SurfaceBvh::set_rebuild_limits(const PatchRebuildLimits& limits) {
   impl_->limits = limits;
 }
+void SurfaceBvh::set_refit_tolerance(double drift_m) {
+  impl_->refit_tolerance = std::max(drift_m, 0.0);
+}
 
 namespace {
 
@@ -556,6 +597,8 @@ struct PointQueryData {
   const SoftBody* body;
   const SurfaceBvh::Impl* bvh;
   glm::dvec3 p;
+  double limit;  ///< the caller's max distance
+  float pad;     ///< the BVH's query_pad: how far stale bounds may lag
   SurfacePoint best;
 };
 
@@ -566,13 +609,13 @@ bool point_query(RTCPointQueryFunctionArguments* args) {
   const double dist = glm::length(h.point - d->p);
   const bool better = !d->best.found || dist < d->best.distance_m ||
                       (dist == d->best.distance_m && h.triangle < d->best.triangle);
-  if (!better || dist > args->query->radius) return false;
+  if (!better || dist > d->limit) return false;
   d->best.found = true;
   d->best.point_m = h.point;
   d->best.distance_m = dist;
   d->best.triangle = h.triangle;
   d->best.barycentric = h.barycentric;
-  args->query->radius = static_cast<float>(dist) * 1.0001f + 1e-9f;
+  args->query->radius = static_cast<float>(dist) * 1.0001f + 1e-9f + d->pad;
   return true;
 }
 
@@ -589,13 +632,14 @@ glm::dvec3 triangle_normal(const SoftBody& body, const std::vector<std::uint32_t
 
 SurfacePoint SurfaceBvh::closest_point(const SoftBody& body, const glm::dvec3& p,
                                        double max_distance_m) const {
-  PointQueryData data{&body, impl_.get(), p, {}};
+  const auto pad = static_cast<float>(impl_->query_pad);
+  PointQueryData data{&body, impl_.get(), p, max_distance_m, pad, {}};
   RTCPointQuery q;
   q.x = static_cast<float>(p.x);
   q.y = static_cast<float>(p.y);
   q.z = static_cast<float>(p.z);
   q.time = 0.0f;
-  q.radius = static_cast<float>(std::min(max_distance_m, 1e30));
+  q.radius = static_cast<float>(std::min(max_distance_m, 1e30)) * 1.0001f + pad;
   RTCPointQueryContext ctx;
   rtcInitPointQueryContext(&ctx);
   rtcPointQuery(impl_->scene, &q, &ctx, &point_query, &data);
@@ -634,7 +678,7 @@ std::vector<std::uint32_t> SurfaceBvh::triangles_near(const SoftBody& body, cons
   q.y = static_cast<float>(p.y);
   q.z = static_cast<float>(p.z);
   q.time = 0.0f;
-  q.radius = static_cast<float>(radius_m) * 1.0001f + 1e-9f;
+  q.radius = static_cast<float>(radius_m) * 1.0001f + 1e-9f + static_cast<float>(impl_->query_pad);
   RTCPointQueryContext ctx;
   rtcInitPointQueryContext(&ctx);
   rtcPointQuery(impl_->scene, &q, &ctx, &near_query, &data);
@@ -649,6 +693,9 @@ SurfacePoint SurfaceBvh::ray(const SoftBody& body, const glm::dvec3& from,
   const glm::dvec3 d = to - from;
   const double len = glm::length(d);
   if (!(len > 0.0)) return out;
+  // Embree tests rays against the float vertices, which stale bounds may no longer hold: the
+  // waiting refits first (rays are rare: the scalpel's).
+  impl_->commit_drifted(0.0);
   RTCRayHit rh{};
   rh.ray.org_x = static_cast<float>(from.x);
   rh.ray.org_y = static_cast<float>(from.y);

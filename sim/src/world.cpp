@@ -50,6 +50,7 @@ HapticOutput SimWorld::step(const glm::dvec3& device_m) {
     stats_[i] = integrator_.step(bodies_[i], options_.integrator, events_, i, steps_);
     // A body asleep entirely did not move: its BVH still fits.
     const StepStats& s = stats_[i];
+    bvhs_[i].set_refit_tolerance(options_.bvh_refit_tolerance_m);
     if (!(s.free_vertices > 0 && s.awake_vertices == 0)) bvhs_[i].update(bodies_[i]);
   }
   ++steps_;

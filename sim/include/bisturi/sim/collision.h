@@ -67,12 +67,18 @@ class SurfaceBvh {
   [[nodiscard]] std::size_t patch_count() const;
   [[nodiscard]] std::size_t last_rebuilt_patches() const;
   /// Patches the last update committed: on a refit, those with a vertex whose position (in
-  /// float) moved, 0 when none did; after a build or topology update, every non-empty one.
+  /// float) moved (with a refit tolerance, those that drifted past it), 0 when none did; after
+  /// a build or topology update, every non-empty one.
   [[nodiscard]] std::size_t last_refitted_patches() const;
   /// Triangles in the loose patch: those a cut added to patches it left unrebuilt (their BVHs
   /// keep the cut's dead triangles, which queries skip). Back to 0 when those are rebuilt.
   [[nodiscard]] std::size_t loose_triangles() const;
   void set_rebuild_limits(const PatchRebuildLimits& limits);
+  /// Lazy refits: a patch whose vertices may have moved at most drift_m since its last refit
+  /// waits (0, the default: every patch with a moved vertex is refitted at each update). The
+  /// point queries stay exact (they widen their radius by the drift left); a ray refits the
+  /// waiting patches first.
+  void set_refit_tolerance(double drift_m);
 
   /// Closest surface point to p within max_distance_m (found = false when none).
   [[nodiscard]] SurfacePoint closest_point(const SoftBody& body, const glm::dvec3& p_m,

@@ -33,6 +33,11 @@ struct WorldOptions {
   ContactOptions contact;
   unsigned embree_threads = 1;
   PatchRebuildLimits bvh_rebuild;  ///< when a cut rebuilds a BVH patch instead of keeping it
+  /// A BVH patch is refitted once its vertices may have moved this far since its last refit
+  /// (SurfaceBvh::set_refit_tolerance; queries stay exact). 0.1 mm: a tenth of the 20k organ's
+  /// edge, so a query visits few more triangles, while patches away from the instrument, which
+  /// move microns per step, are refitted every few hundred steps instead of every step.
+  double bvh_refit_tolerance_m = 1e-4;
 };
 
 class SimWorld {
