@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include <glm/geometric.hpp>
 
@@ -55,6 +57,38 @@ TEST(SimHaptic, ProbeForceGrowsWithDepthAndVanishesOnRelease) {
   EXPECT_FALSE(out.contact);
   EXPECT_LT(glm::length(out.force_N), 1e-12);
   EXPECT_TRUE(world.take_events().empty());
+}
+
+// The force sent is the coupling's at the end of the step: the touched patch gave way under the
+// reaction during the solve, the proxy rode down with it, and the device gets what the tissue
+// ended the step with, not the larger force the step started from.
+TEST(SimHaptic, ForceIsTheReactionTheTissueEndedTheStepWith) {
+  HapticOptions haptic;
+  haptic.max_force_N = 100.0;
+  haptic.max_force_rate_N_per_s = 1e6;
+  SimWorld world = sphere_world(haptic);
+  const SoftBody& body = world.body(0);
+  double top_z = 0.0;
+  for (const glm::dvec3& p : body.positions())
+    top_z = std::max(top_z, p.z);
+  world.step(glm::dvec3(kCentre, kCentre, top_z + 0.005));  // the proxy starts outside
+  const glm::dvec3 device(kCentre, kCentre, top_z - 0.001);
+  // At the start of the step the probe (radius r) is r + 1 mm into the flat top.
+  const double start_force = haptic.coupling_N_per_m * (haptic.probe_radius_m + 0.001);
+  const HapticOutput out = world.step(device);
+  ASSERT_TRUE(out.contact);
+  double top_after = 0.0;
+  for (const glm::dvec3& p : body.positions())
+    top_after = std::max(top_after, p.z);
+  std::printf("start %.4f N, end %.4f N, top moved %.4f mm\n", start_force, out.force_N.z,
+              1e3 * (top_after - top_z));
+  EXPECT_LT(top_after, top_z);  // the patch gave way
+  EXPECT_GT(out.force_N.z, 0.0);
+  EXPECT_LT(out.force_N.z, start_force - 0.5 * haptic.coupling_N_per_m * (top_z - top_after));
+  // Force, proxy and depth agree: the coupling spring between the device and the moved proxy.
+  const glm::dvec3 spring = haptic.coupling_N_per_m * (out.proxy_m - device);
+  EXPECT_NEAR(glm::length(out.force_N - spring), 0.0, 1e-9 * glm::length(spring));
+  EXPECT_NEAR(out.depth_m * haptic.coupling_N_per_m, glm::length(out.force_N), 1e-9);
 }
 
 TEST(SimHaptic, ForceIsClampedAndRamped) {

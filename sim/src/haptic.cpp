@@ -102,18 +102,12 @@ HapticOutput HapticProxy::update(const glm::dvec3& device, std::span<const Touch
   proxy_ = target_proxy;
   contact_ = contact;
 
-  glm::dvec3 force = options_.coupling_N_per_m * (proxy_ - device);
-  const double mag = glm::length(force);
-  if (mag > options_.max_force_N) force *= options_.max_force_N / mag;
-  // Ramp: the output never changes by more than the rate limit in one step.
-  const glm::dvec3 change = force - last_force_;
-  const double max_change = options_.max_force_rate_N_per_s * dt_s;
-  const double change_len = glm::length(change);
-  if (change_len > max_change) force = last_force_ + change * (max_change / change_len);
-  last_force_ = force;
+  const glm::dvec3 force = limited(options_.coupling_N_per_m * (proxy_ - device), dt_s);
 
+  reacted_body_ = -1;
   if (contact && options_.apply_reaction) {
     SoftBody& body = *targets[static_cast<std::size_t>(best_body)].body;
+    double height = 0.0;
     for (std::size_t i = 0; i < patch_.size(); ++i) {
       if (weights_[i] <= 0.0) continue;
       const VertexId v(patch_[i]);
@@ -121,12 +115,54 @@ HapticOutput HapticProxy::update(const glm::dvec3& device, std::span<const Touch
       // Stiffness only (no force): the proxy rides on the surface, so the reaction on the patch
       // weakens as the patch gives way; the solve sees that.
       body.add_contact(v, n, 0.0, options_.coupling_N_per_m * weights_[i]);
+      height += weights_[i] * glm::dot(body.position(v), n);
     }
+    reacted_body_ = best_body;
+    reaction_normal_ = n;
+    patch_height_ = height;
   }
+  if (reacted_body_ < 0) last_force_ = force;
   out.force_N = force;
   out.proxy_m = proxy_;
   out.contact = contact;
   out.body = contact ? best_body : -1;
+  return out;
+}
+
+glm::dvec3 HapticProxy::limited(glm::dvec3 force, double dt_s) const {
+  const double mag = glm::length(force);
+  if (mag > options_.max_force_N) force *= options_.max_force_N / mag;
+  // Ramp: the output never changes by more than the rate limit in one step.
+  const glm::dvec3 change = force - last_force_;
+  const double max_change = options_.max_force_rate_N_per_s * dt_s;
+  const double change_len = glm::length(change);
+  if (change_len > max_change) force = last_force_ + change * (max_change / change_len);
+  return force;
+}
+
+HapticOutput HapticProxy::settle(std::span<const TouchTarget> targets, HapticOutput out,
+                                 double dt_s) {
+  if (reacted_body_ < 0) return out;
+  const SoftBody& body = *targets[static_cast<std::size_t>(reacted_body_)].body;
+  reacted_body_ = -1;
+  // How far the patch gave way along the normal during the step: the proxy rides on it, and
+  // the solve ended with the reaction weakened by the coupling times that (the contact
+  // stiffness it was handed). The device gets that end-of-step force, the one the tissue got.
+  double height = 0.0;
+  for (std::size_t i = 0; i < patch_.size(); ++i) {
+    if (weights_[i] > 0.0)
+      height += weights_[i] * glm::dot(body.position(VertexId(patch_[i])), reaction_normal_);
+  }
+  const double give = std::isfinite(height) ? height - patch_height_ : 0.0;
+  glm::dvec3 force = out.force_N + options_.coupling_N_per_m * give * reaction_normal_;
+  // A probe pushes; it never pulls the device into the tissue.
+  if (glm::dot(force, reaction_normal_) < 0.0) force = glm::dvec3(0.0);
+  force = limited(force, dt_s);
+  last_force_ = force;
+  proxy_ += give * reaction_normal_;
+  out.force_N = force;
+  out.proxy_m = proxy_;
+  out.depth_m = std::max(0.0, out.depth_m + give);
   return out;
 }
 

@@ -44,7 +44,7 @@ HapticOutput SimWorld::step(const glm::dvec3& device_m) {
   for (std::size_t i = 0; i < bodies_.size(); ++i)
     targets.push_back({&bodies_[i], &bvhs_[i]});
   proxy_.set_options(options_.haptic);
-  const HapticOutput out = proxy_.update(device_m, targets, options_.integrator.dt_s);
+  HapticOutput out = proxy_.update(device_m, targets, options_.integrator.dt_s);
   if (options_.contact.enabled && bodies_.size() > 1) tissue_contacts();
   for (std::uint32_t i = 0; i < bodies_.size(); ++i) {
     stats_[i] = integrator_.step(bodies_[i], options_.integrator, events_, i, steps_);
@@ -53,6 +53,7 @@ HapticOutput SimWorld::step(const glm::dvec3& device_m) {
     bvhs_[i].set_refit_tolerance(options_.bvh_refit_tolerance_m);
     if (!(s.free_vertices > 0 && s.awake_vertices == 0)) bvhs_[i].update(bodies_[i]);
   }
+  out = proxy_.settle(targets, out, options_.integrator.dt_s);
   ++steps_;
   return out;
 }

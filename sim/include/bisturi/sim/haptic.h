@@ -12,7 +12,8 @@
 // reaction (minus the force) is shared by the patch's vertices with weights (1 - d/R)^2, so the
 // tissue yields under the probe as a smooth dent. The reaction's stiffness (coupling x weight
 // along the normal) goes to the implicit solve with the force (SoftBody::add_contact), which
-// keeps the loop between the proxy and the light surface vertices stable.
+// keeps the loop between the proxy and the light surface vertices stable. The force sent is the
+// coupling's at the end of the step (settle()): the reaction the solve ended with.
 // Output in newtons, world frame; sim never talks to devices (the runtime passes it on).
 
 #include <cstdint>
@@ -52,15 +53,28 @@ struct TouchTarget {
 class HapticProxy {
  public:
   explicit HapticProxy(const HapticOptions& options = {}) : options_(options) {}
-  /// One haptic step of length dt_s with the device at device_m. Frozen bodies are not touched.
+  /// One haptic step of length dt_s with the device at device_m, before the bodies' step: finds
+  /// the contact and gives the touched body the reaction. Frozen bodies are not touched.
   HapticOutput update(const glm::dvec3& device_m, std::span<const TouchTarget> targets,
                       double dt_s);
+  /// After the bodies' step: the output of update() with the force the coupling has at the end
+  /// of the step (the touched patch gave way under it), which is the reaction the tissue got.
+  /// Clamped and ramped like update()'s.
+  HapticOutput settle(std::span<const TouchTarget> targets, HapticOutput out, double dt_s);
   [[nodiscard]] const HapticOptions& options() const { return options_; }
   void set_options(const HapticOptions& options) { options_ = options; }
 
  private:
+  /// The force clamped to the limit and ramped from the last output.
+  [[nodiscard]] glm::dvec3 limited(glm::dvec3 force, double dt_s) const;
+
   HapticOptions options_;
   glm::dvec3 proxy_{0.0};
+  /// The reaction of update() waiting for settle(): its body (-1: none), the patch normal and
+  /// the patch's weighted height along it before the step.
+  std::int32_t reacted_body_ = -1;
+  glm::dvec3 reaction_normal_{0.0};
+  double patch_height_ = 0.0;
   glm::dvec3 last_force_{0.0};
   bool initialised_ = false;
   bool contact_ = false;
