@@ -251,23 +251,32 @@ struct SurfaceBvh::Impl {
   /// with a branch, the pass cost 3.5 times the bare copy; this way, twice).
   static bool copy_block(const glm::dvec3* x, std::size_t n, float* v, BlockDiff& diff,
                          BlockMove& move) {
+    std::array<float, 3 * kBlock> fresh;
     for (std::size_t k = 0; k < n; ++k) {
       const float f[3] = {static_cast<float>(x[k].x), static_cast<float>(x[k].y),
                           static_cast<float>(x[k].z)};
-      float m = 0.0f;
       for (std::size_t c = 0; c < 3; ++c) {
         diff[3 * k + c] =
             std::bit_cast<std::uint32_t>(f[c]) ^ std::bit_cast<std::uint32_t>(v[3 * k + c]);
-        const float d = std::abs(f[c] - v[3 * k + c]);
-        m = d > m ? d : (d == d ? m : std::numeric_limits<float>::infinity());  // NaN: refit
-        v[3 * k + c] = f[c];
+        fresh[3 * k + c] = f[c];
       }
-      move[k] = m;
     }
     std::uint32_t any = 0;
     for (std::size_t j = 0; j < 3 * n; ++j)
       any |= diff[j];
-    return any != 0;
+    if (any == 0) return false;  // most blocks, most steps: the bare copy's cost
+    // A NaN coordinate, old or new, counts as an infinite move: its patches refit at once.
+    constexpr float kInfinity = std::numeric_limits<float>::infinity();
+    for (std::size_t k = 0; k < n; ++k) {
+      float m = 0.0f;
+      for (std::size_t c = 0; c < 3; ++c) {
+        const float d = std::abs(fresh[3 * k + c] - v[3 * k + c]);
+        m = std::isnan(d) ? kInfinity : std::max(m, d);
+        v[3 * k + c] = fresh[3 * k + c];
+      }
+      move[k] = m;
+    }
+    return true;
   }
 
   /// Notes this update's largest move per patch from block b's vertices (n of them).
