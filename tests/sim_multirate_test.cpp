@@ -188,9 +188,10 @@ TEST(SimMultirate, AnIntegratorLeftPartWayThroughAPeriodEndsItsJob) {
 }
 
 /// The scripted probe of SimSoftBody.DeterministicState, in multirate.
-std::uint64_t run_scripted(int steps) {
+std::uint64_t run_scripted(int steps, double far_step_budget_s = 0.4e-3) {
   WorldOptions options;
   options.integrator.far_field_interval = kInterval;
+  options.integrator.far_step_budget_s = far_step_budget_s;
   SimWorld world(options);
   const std::uint32_t id = world.add_body(SoftBody(testing::sphere(20, 6.0), Material{}));
   anchor_below(world.body(id), kCentre);
@@ -204,6 +205,14 @@ std::uint64_t run_scripted(int steps) {
 
 TEST(SimMultirate, DeterministicState) {
   EXPECT_EQ(run_scripted(300), run_scripted(300));
+}
+
+// The far job's time budget moves where its slices end (with 1 s each job ends in its period's
+// first step; with none, each step runs its even share), never the state.
+TEST(SimMultirate, TheStepBudgetChangesOnlyTheTiming) {
+  const std::uint64_t even = run_scripted(300, 0.0);
+  EXPECT_EQ(run_scripted(300, 1.0), even);
+  EXPECT_EQ(run_scripted(300, 0.4e-3), even);
 }
 
 /// The 6 mm sphere with drag, on its anchored lower half.

@@ -277,7 +277,8 @@ void ImplicitIntegrator::far_start(Structure& st, const SoftBody& body, std::uin
   });
 }
 
-void ImplicitIntegrator::far_slice(FarField& ff, std::size_t phase, std::size_t interval) {
+void ImplicitIntegrator::far_slice(FarField& ff, std::size_t phase, std::size_t interval,
+                                   Clock::time_point step_start, double budget_s) {
   if (!ff.fiber.part_way()) return;
   if (phase + 1 >= interval) {
     finish_far_job(ff);
@@ -290,8 +291,10 @@ void ImplicitIntegrator::far_slice(FarField& ff, std::size_t phase, std::size_t 
     const std::size_t steps = interval - phase > spare + 1 ? interval - phase - spare : 1;
     const double slice = std::max(kMinSliceS, left / double(steps));
     const Clock::time_point t0 = Clock::now();
-    ff.deadline =
-        t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(slice));
+    ff.deadline = std::max(
+        t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(slice)),
+        step_start +
+            std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(budget_s)));
     ff.fiber.resume();
     ff.job_s += std::chrono::duration<double>(Clock::now() - t0).count();
   }

@@ -6,6 +6,7 @@
 // groups of triangles, of which a solve recomputes those it moved.
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <utility>
@@ -412,6 +413,7 @@ std::optional<StepStats> ImplicitIntegrator::step_multirate(SoftBody& body, Stru
                                                             std::uint32_t body_index,
                                                             std::uint64_t step_index) {
   Structure::Multirate& mr = st.multirate;
+  const auto step_start = std::chrono::steady_clock::now();
   // Kinematic vertices (a grasp) move their neighbours every step: single-rate steps then, and
   // the far field starts again from the state they leave.
   if (body.kinematic_count() > 0) {
@@ -475,7 +477,7 @@ std::optional<StepStats> ImplicitIntegrator::step_multirate(SoftBody& body, Stru
     }
   }
   // A slice of the far field's job.
-  if (alive) far_slice(*mr.far, phase, interval);
+  if (alive) far_slice(*mr.far, phase, interval, step_start, options.far_step_budget_s);
   ++mr.tick;
   body.clear_forces();
   stats.free_vertices = static_cast<std::uint32_t>(st.full.vertex.size());

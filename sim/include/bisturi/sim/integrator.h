@@ -48,6 +48,7 @@
 // substeps; when the last retry fails too, the body is restored and frozen (zero velocities, no
 // forces). Every rollback and freeze is reported as a SimEvent; nothing is thrown.
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -108,6 +109,12 @@ struct IntegratorOptions {
   int far_field_interval = 1;
   int near_rings = 1;
   int near_linger_steps = 1000;
+  /// Multirate: the far field's job runs in a step until the step has taken this long (from
+  /// the start of its multirate part, which is nearly all of it), or for its even share of the
+  /// job's time left if that is longer. Steps whose near solve was quick then take more of the job,
+  /// which ends early in its period, and the slow ones take only their share: the step times even
+  /// out below the budget. 0: the even share alone. Timing only: results do not depend on it.
+  double far_step_budget_s = 0.4e-3;
 
   bool operator==(const IntegratorOptions&) const = default;
 };
@@ -479,9 +486,10 @@ class ImplicitIntegrator {
   /// state the job kept aside) and lists the triangles and groups that moved with them.
   static std::uint32_t far_apply_aggregate(Structure& st, SoftBody& body, std::uint32_t a,
                                            bool from_copy);
-  /// Runs the job for this step's share of its estimated time (at the period's last step, to
-  /// its end).
-  static void far_slice(FarField& ff, std::size_t phase, std::size_t interval);
+  /// Runs the job for this step's share of its estimated time, or until step_start + budget_s
+  /// if that is later (at the period's last step, to its end).
+  static void far_slice(FarField& ff, std::size_t phase, std::size_t interval,
+                        std::chrono::steady_clock::time_point step_start, double budget_s);
 
   std::vector<Structure> structures_;
   std::uint64_t systems_updated_ = 0;
