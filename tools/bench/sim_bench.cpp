@@ -7,7 +7,8 @@
 // headset session's shape of work (first step with and without SimWorld::prepare(), steady
 // step, a cut tick and the step after it). BM_Refit: the Embree refit of a sphere on its own;
 // BM_RefitPart: the same when only a region of it moves. BM_MakeBody: a SoftBody made from its
-// solid.
+// solid. BM_Multirate*: multirate stepping's time and fidelity; BM_ForceConvergence: how the
+// haptic force depends on the step length.
 // Run by hand: build/bin/sim_bench [--benchmark_filter=...]. Goal: p99 <= 1 ms at 20k.
 
 #include <benchmark/benchmark.h>
@@ -18,6 +19,7 @@
 #include <cstdio>
 #include <map>
 #include <memory>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -273,6 +275,66 @@ BENCHMARK(BM_MultirateAccuracy)
     ->Args({20000, 16, 0})
     ->Args({20000, 16, 3000})
     ->Args({20000, 32, 0})
+    ->Iterations(1)
+    ->Unit(benchmark::kMillisecond);
+
+// How the haptic force depends on the step length: the bench scene's 2 Hz probing for 3.2 s,
+// its sine lowered by the second argument (um; 0 is BM_FullStep's, where the probe reaches
+// 2 mm below the rest top of a sphere that sags away from it under gravity), run single-rate
+// with dt = 1 ms / k for k = 1, 2, 4, 8, 16 (the device held over a millisecond's steps).
+// Counters per k: the RMS force (force_k_mN), the RMS difference from the k = 16 run against
+// that run's RMS force (diff_k), and the contact changes per second (flips_k).
+void BM_ForceConvergence(benchmark::State& state) {
+  const Shape& shape = sphere(radius_for(state.range(0)));
+  const double c = shape.centre_mm * 1e-3;
+  const double r = shape.radius_mm * 1e-3;
+  const double lower = double(state.range(1)) * 1e-6;
+  constexpr int kRuns = 5;
+  for (auto _ : state) {
+    std::vector<std::unique_ptr<SimWorld>> worlds;
+    for (int k = 0; k < kRuns; ++k) {
+      WorldOptions options;
+      options.embree_threads = 1;
+      options.integrator.dt_s = 1e-3 / double(1 << k);
+      worlds.push_back(std::make_unique<SimWorld>(options));
+      SoftBody& body = worlds.back()->body(
+          worlds.back()->add_body(SoftBody(build_oriented_manifold(shape.polygons), Material{})));
+      for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+        const VertexId v(i);
+        if (body.mesh().alive(v) && body.position(v).z < c - r / 3.0) body.set_anchored(v, true);
+      }
+    }
+    double force2[kRuns] = {}, diff2[kRuns] = {};
+    int flips[kRuns] = {};
+    bool contact[kRuns] = {};
+    for (int s = 0; s < 3200; ++s) {
+      const double depth = 0.0015 * (1.0 - std::cos(2.0 * 3.141592653589793 * 2.0 * s * 1e-3));
+      const glm::dvec3 tip(c, c, c + r + 0.001 - depth - lower);
+      glm::dvec3 f[kRuns];
+      for (int k = 0; k < kRuns; ++k) {
+        HapticOutput out;
+        for (int j = 0; j < (1 << k); ++j) {
+          out = worlds[std::size_t(k)]->step(tip);
+          flips[k] += out.contact != contact[k] ? 1 : 0;
+          contact[k] = out.contact;
+        }
+        f[k] = out.force_N;
+        force2[k] += glm::dot(f[k], f[k]);
+      }
+      for (int k = 0; k < kRuns; ++k)
+        diff2[k] += glm::dot(f[k] - f[kRuns - 1], f[k] - f[kRuns - 1]);
+    }
+    for (int k = 0; k < kRuns; ++k) {
+      const std::string n = std::to_string(1 << k);
+      state.counters["force_" + n + "_mN"] = 1e3 * std::sqrt(force2[k] / 3200.0);
+      state.counters["diff_" + n] = std::sqrt(diff2[k] / std::max(force2[kRuns - 1], 1e-300));
+      state.counters["flips_" + n] = flips[k] / 3.2;
+    }
+  }
+}
+BENCHMARK(BM_ForceConvergence)
+    ->Args({2000, 0})
+    ->Args({2000, 2000})
     ->Iterations(1)
     ->Unit(benchmark::kMillisecond);
 
