@@ -13,6 +13,7 @@
 #include <vector>
 
 #include <glm/geometric.hpp>
+#include <glm/vector_relational.hpp>
 
 #include "bisturi/sim/collision.h"
 #include "bisturi/sim/world.h"
@@ -318,6 +319,10 @@ TEST(SimBvhPatches, WaitingRefitsKeepTheQueriesExact) {
   bvh.update(body);
   EXPECT_EQ(bvh.last_refitted_patches(), 0u);  // 6 mm: under 20 mm
   expect_queries_match(body, bvh, 51, kTop + kSideways, 0.006, 60, false);
+  const auto [lo, hi] = bvh.bounds();  // grown by the drift: it holds the moved region
+  for (const glm::dvec3& x : body.positions()) {
+    ASSERT_TRUE(glm::all(glm::lessThanEqual(lo, x)) && glm::all(glm::lessThanEqual(x, hi)));
+  }
   move_region(body, kTop + kSideways, 0.004, -0.5 * kSideways);
   bvh.update(body);
   EXPECT_EQ(bvh.last_refitted_patches(), 0u);  // 6 + 3 mm drift, at most 15.6 mm

@@ -733,6 +733,14 @@ SurfacePoint SurfaceBvh::ray(const SoftBody& body, const glm::dvec3& from,
   return out;
 }
 
+std::pair<glm::dvec3, glm::dvec3> SurfaceBvh::bounds() const {
+  RTCBounds b;
+  rtcGetSceneBounds(impl_->scene, &b);
+  const double pad = impl_->query_pad;
+  return {glm::dvec3(b.lower_x, b.lower_y, b.lower_z) - pad,
+          glm::dvec3(b.upper_x, b.upper_y, b.upper_z) + pad};
+}
+
 namespace {
 struct CollideData {
   std::mutex mutex;

@@ -4,6 +4,7 @@
 #include <limits>
 
 #include <glm/geometric.hpp>
+#include <glm/vector_relational.hpp>
 
 namespace bisturi::sim {
 
@@ -122,6 +123,13 @@ void SimWorld::tissue_contacts() {
       SoftBody& A = bodies_[a];
       SoftBody& B = bodies_[b];
       if (A.frozen() || B.frozen()) continue;
+      // Broad phase: bodies whose boxes, grown by the margin, are apart cannot touch (the
+      // user-geometry copies rtcCollide needs cost a pass over every triangle of both).
+      const auto [lo_a, hi_a] = bvhs_[a].bounds();
+      const auto [lo_b, hi_b] = bvhs_[b].bounds();
+      if (glm::any(glm::greaterThan(lo_a - margin, hi_b)) ||
+          glm::any(glm::greaterThan(lo_b - margin, hi_a)))
+        continue;
       auto pairs = bvhs_[a].overlapping_triangles(A, bvhs_[b], B, margin);
       if (pairs.empty()) continue;
       // Both ways: A's vertices out of B, B's out of A (each side's push is the other's

@@ -90,6 +90,9 @@ class SurfaceBvh {
   /// First hit of the segment from -> to (found = false when none).
   [[nodiscard]] SurfacePoint ray(const SoftBody& body, const glm::dvec3& from_m,
                                  const glm::dvec3& to_m) const;
+  /// A box holding the body's surface (the BVH's bounds, grown by the drift of the patches
+  /// whose refits wait): lower and upper corners.
+  [[nodiscard]] std::pair<glm::dvec3, glm::dvec3> bounds() const;
   /// Triangle pairs (this body's, other's) whose bounds overlap, sorted; bounds are grown by
   /// margin_m. Builds the user-geometry copies on first use.
   std::vector<std::pair<std::uint32_t, std::uint32_t>> overlapping_triangles(
