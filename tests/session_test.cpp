@@ -64,6 +64,17 @@ TEST(SceneFile, ErrorsNameTheFileLineAndKey) {
             std::string::npos);
   EXPECT_NE(error_of("[[solids]]\nphantom = 'sphere'\nmesh = 'a.obj'").find("exactly one of"),
             std::string::npos);
+  EXPECT_NE(error_of("[simulation]\nfar_field_interval = 0")
+                .find("line 2: key 'simulation.far_field_interval'"),
+            std::string::npos);
+  EXPECT_NE(error_of("[simulation]\nfar_field = 8").find("unknown key"), std::string::npos);
+}
+
+TEST(SceneFile, SimulationTableSetsMultirateStepping) {
+  EXPECT_EQ(default_scene().simulation.far_field_interval, 1);
+  EXPECT_EQ(parse_scene("[simulation]\nfar_field_interval = 32", "scene.toml")
+                .simulation.far_field_interval,
+            32);
 }
 
 TEST(SceneFile, RelativeMeshPathsResolveAgainstTheSceneFolder) {

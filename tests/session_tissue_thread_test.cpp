@@ -8,6 +8,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <thread>
 #include <vector>
 
@@ -206,6 +207,25 @@ TEST(SessionSim, RateCalibrationTimesACopyAndLeavesTheSolidsAlone) {
     for (std::uint32_t v = 0; v < solids[b].mesh.vertex_capacity(); ++v)
       ASSERT_EQ(solids[b].mesh.position(VertexId(v)), before[b][v]);
   }
+}
+
+// A scene's [simulation] far_field_interval reaches the world: the procedure (palpate, grasp,
+// cut) runs multirate, touches the organ, and nothing diverges.
+TEST(SessionSim, TheScenesMultirateSteppingRunsTheProcedure) {
+  const std::vector<devices::HapticState> states = procedure_states(3000);
+  SceneDescription scene = default_scene();
+  scene.simulation.far_field_interval = 8;
+  SessionSim sim(scene, build_solids(scene), glove_channels());
+  EXPECT_EQ(sim.world().options().integrator.far_field_interval, 8);
+  std::size_t in_contact = 0;
+  for (const devices::HapticState& s : states) {
+    const TickOutput& out = sim.tick(s);
+    in_contact += out.contact ? 1 : 0;
+    for (const double f : out.command_N)
+      ASSERT_TRUE(std::isfinite(f) && f <= 2.0);
+  }
+  EXPECT_GT(in_contact, 0u);
+  EXPECT_EQ(sim.divergence_events(), 0u);
 }
 
 TEST(SessionSim, CommandForTheStepsOwnTipIsTheStepsCommand) {

@@ -24,13 +24,19 @@ class SceneReader {
   SceneDescription read(const toml::table& root) {
     SceneDescription scene;
     only_keys(root, "",
-              {"name", "duration_s", "rates", "headset", "solids", "devices", "instruments"});
+              {"name", "duration_s", "rates", "simulation", "headset", "solids", "devices",
+               "instruments"});
     scene.name = string_or(root, "", "name", scene.name);
     scene.duration_s = positive(root, "", "duration_s", scene.duration_s);
     if (const toml::table* t = table_at(root, "", "rates")) {
       only_keys(*t, "rates", {"haptic_hz", "display_hz"});
       scene.rates.haptic_hz = positive(*t, "rates", "haptic_hz", scene.rates.haptic_hz);
       scene.rates.display_hz = positive(*t, "rates", "display_hz", scene.rates.display_hz);
+    }
+    if (const toml::table* t = table_at(root, "", "simulation")) {
+      only_keys(*t, "simulation", {"far_field_interval"});
+      scene.simulation.far_field_interval = static_cast<int>(integer(
+          *t, "simulation", "far_field_interval", scene.simulation.far_field_interval, 1, 256));
     }
     if (const toml::table* t = table_at(root, "", "headset")) read_headset(*t, scene.headset);
     for_each_table(root, "solids", [&](const toml::table& t, const std::string& path) {

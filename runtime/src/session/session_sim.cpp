@@ -72,6 +72,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   coupling_N_per_m_ = world_.options().haptic.coupling_N_per_m;
   haptic_hz_ = scene.rates.haptic_hz;
   world_.options().integrator.dt_s = 1.0 / haptic_hz_;
+  world_.options().integrator.far_field_interval = scene.simulation.far_field_interval;
   world_.options().integrator.threads = std::max(1u, options_.tissue_threads);
   for (BuiltSolid& s : solids) {
     const SolidDescription& d = *s.description;
