@@ -72,6 +72,10 @@ TEST(SceneFile, ErrorsNameTheFileLineAndKey) {
 
 TEST(SceneFile, SimulationTableSetsMultirateStepping) {
   EXPECT_EQ(default_scene().simulation.far_field_interval, 1);
+  const SceneDescription large =
+      read_scene_file(std::string(BISTURI_SOURCE_DIR) + "/config/large_organ.toml");
+  EXPECT_EQ(large.name, "large-organ");
+  EXPECT_EQ(large.simulation.far_field_interval, 32);
   EXPECT_EQ(parse_scene("[simulation]\nfar_field_interval = 32", "scene.toml")
                 .simulation.far_field_interval,
             32);
