@@ -15,7 +15,7 @@ glm::dvec3 contact_patch(const SoftBody& body, const SurfaceBvh& bvh, const Surf
                          std::vector<double>& weights) {
   const auto& x = body.positions();
   const auto& idx = body.triangles().indices;
-  const std::uint32_t* hit = &idx[3 * at.triangle];
+  const std::uint32_t* hit = &idx[3 * std::size_t{at.triangle}];
   double longest = 0.0;
   for (int k = 0; k < 3; ++k)
     longest = std::max(longest, glm::length(x[hit[(k + 1) % 3]] - x[hit[k]]));
@@ -24,7 +24,7 @@ glm::dvec3 contact_patch(const SoftBody& body, const SurfaceBvh& bvh, const Surf
   glm::dvec3 normal(0.0);
   vertices.clear();
   for (std::uint32_t t : tris) {
-    const std::uint32_t* c = &idx[3 * t];
+    const std::uint32_t* c = &idx[3 * std::size_t{t}];
     normal += glm::cross(x[c[1]] - x[c[0]], x[c[2]] - x[c[0]]);
     vertices.insert(vertices.end(), {c[0], c[1], c[2]});
   }

@@ -654,7 +654,7 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
     for (std::size_t ci = first; ci < last; ++ci) {
       const std::uint32_t i = vertex[ci];
       const glm::dvec3 f =
-          net_force(m[i], g, fext[i], drag, v[i], f_[i], volume_term, p6, grad_[i]);
+          net_force(m[i], g, fext[i], drag, v[i], f_[i], p6, volume_term ? &grad_[i] : nullptr);
       // A loaded vertex does not sleep (the load is applied again step after step).
       row_residual_[ci] = fext[i] != glm::dvec3(0.0) ? kNeverQuiet : glm::dot(f, f);
       row_gradient_[ci] = volume_term ? glm::dot(grad_[i], grad_[i]) : 0.0;

@@ -330,8 +330,9 @@ void ImplicitIntegrator::region_substep(SoftBody& body, Structure& st, Structure
   const double drag = mat.drag_per_s;
   for (std::size_t ci = 0; ci < nf; ++ci) {
     const std::uint32_t i = vertex[ci];
-    store_rhs_row(rhs_.data() + 4 * ci, h,
-                  net_force(m[i], g, fext[i], drag, v[i], f_[i], volume_term, p6, grad_[i]));
+    store_rhs_row(
+        rhs_.data() + 4 * ci, h,
+        net_force(m[i], g, fext[i], drag, v[i], f_[i], p6, volume_term ? &grad_[i] : nullptr));
   }
   gather_contacts(sys, body, h * h, nullptr, st);
   if (options.cg_coarse_level) {

@@ -41,11 +41,13 @@ inline double pressure_factor(const SoftBody& body, double volume) {
 
 /// A solved vertex's net force at the start of a substep: weight, external load, drag, its
 /// springs' forces (with the h H v term) and, for closed bodies, the pressure.
+/// `gradient`: the vertex's volume gradient, null without a volume term (the gradient array is
+/// then empty: no element of it may be named).
 inline glm::dvec3 net_force(double mass, const glm::dvec3& g, const glm::dvec3& external,
                             double drag, const glm::dvec3& velocity, const glm::dvec3& springs,
-                            bool volume_term, double p6, const glm::dvec3& gradient) {
+                            double p6, const glm::dvec3* gradient) {
   glm::dvec3 f = mass * g + external - drag * mass * velocity + springs;
-  if (volume_term) f += p6 * gradient;
+  if (gradient != nullptr) f += p6 * *gradient;
   return f;
 }
 

@@ -91,7 +91,8 @@ std::size_t push_out(SoftBody& from, const SoftBody& onto,
       const std::uint32_t t = vt[i].second;
       glm::dvec3 bc;
       const glm::dvec3 q =
-          closest_point_on_triangle(p, xo[oi[3 * t]], xo[oi[3 * t + 1]], xo[oi[3 * t + 2]], bc);
+          closest_point_on_triangle(p, xo[oi[3 * std::size_t{t}]], xo[oi[3 * std::size_t{t} + 1]],
+                                    xo[oi[3 * std::size_t{t} + 2]], bc);
       const double dist = glm::length(p - q);
       if (dist < best) {
         best = dist;
@@ -99,8 +100,8 @@ std::size_t push_out(SoftBody& from, const SoftBody& onto,
         best_t = t;
       }
     }
-    const glm::dvec3 p0 = xo[oi[3 * best_t]], p1 = xo[oi[3 * best_t + 1]],
-                     p2 = xo[oi[3 * best_t + 2]];
+    const std::size_t bt = 3 * std::size_t{best_t};
+    const glm::dvec3 p0 = xo[oi[bt]], p1 = xo[oi[bt + 1]], p2 = xo[oi[bt + 2]];
     glm::dvec3 n = glm::cross(p1 - p0, p2 - p0);
     const double nl = glm::length(n);
     if (!(nl > 0.0) || from.mass(VertexId(v)) <= 0.0) continue;
