@@ -26,7 +26,10 @@ RateCalibration calibrate_tissue_rate(const SceneDescription& scene,
   // one, which costs what contact costs). The first steps settle under gravity: every vertex
   // is awake, as under the probe.
   const devices::HapticState rest;
-  constexpr int kSteps = 9;
+  // Multirate: two whole periods, since a step's cost depends on where it is in its period (the
+  // far job runs early in it) and the first period has no estimate of the job yet.
+  const int interval = std::max(scene.simulation.far_field_interval, 1);
+  const int kSteps = interval > 1 ? 2 * std::min(interval, 64) + 1 : 9;
   std::vector<double> ms;
   for (int k = 0; k < kSteps; ++k) {
     const auto start = std::chrono::steady_clock::now();
