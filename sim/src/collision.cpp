@@ -246,9 +246,11 @@ struct SurfaceBvh::Impl {
     }
   }
 
-  /// Copies n positions into the float buffer at v, with the bits that changed in `diff`;
-  /// returns whether any did. Without a branch, so that it vectorises (compared per vertex
-  /// with a branch, the pass cost 3.5 times the bare copy; this way, twice).
+  /// Copies n positions into the float buffer at v, with the bits that changed in `diff`, and
+  /// each vertex's largest coordinate change in `move`; returns whether any bit changed. The
+  /// first pass has no branch, so that it vectorises (compared per vertex with a branch, the
+  /// pass cost 3.5 times the bare copy; this way, twice); the moves are measured only in a
+  /// block that changed.
   static bool copy_block(const glm::dvec3* x, std::size_t n, float* v, BlockDiff& diff,
                          BlockMove& move) {
     std::array<float, 3 * kBlock> fresh;
@@ -311,12 +313,13 @@ struct SurfaceBvh::Impl {
         mark_block(first / kBlock, n, move);
     }
     drift.resize(patches.size() + 1, 0.0);
+    // patch_moved: moved since the patch's last refit. The largest coordinate change times
+    // sqrt(3) bounds the distance moved.
     for (std::size_t p = 0; p < patches.size(); ++p) {
-      // A change below the float's resolution still changed bits: it counts as a move.
       if (update_move[p] > 0.0f || patch_moved[p] != 0) {
         patch_moved[p] = 1;
-        drift[p] += double(update_move[p]) * 1.7320508075688772;  // the largest coordinate's
-      }                                                           // change, to a length
+        drift[p] += double(update_move[p]) * 1.7320508075688772;
+      }
     }
   }
 

@@ -98,14 +98,16 @@ struct IntegratorOptions {
   /// force or a contact), widened by near_rings rings of aggregates - with a step of dt, the
   /// rest of the body held. The far field is one single-rate step of N dt over the whole body,
   /// made on a copy of it in slices over the N steps of a period (a fiber on the calling thread:
-  /// one core) and applied to the vertices outside the near region at the next period's start.
+  /// one core) and applied to the vertices outside the near region over the next period, a
+  /// block of aggregates per step (the near region's neighbours at the period's start).
   /// A step then costs the region and an N-th of a full step, and runs stay bit-identical (the
   /// result does not depend on where the slices end). An aggregate stays near until it has been
   /// without a load for near_linger_steps steps, and leaves at a period's start. Sleeping is
   /// off in this mode, its solves run on the calling thread, and a body with kinematic vertices
   /// (a grasp) takes single-rate steps. 1 (the default): every free vertex every step.
-  /// Experimental: the far field lags a period behind and relaxes as a body stepped with N dt
-  /// does, which is more slowly than one stepped with dt (docs/sim/integrator.md has figures).
+  /// Opt-in (a scene's [simulation] far_field_interval): N = 32 fits a 20k-vertex organ's step
+  /// in 1 ms on one core (docs/sim/integrator.md, "Twelfth pass"), at a cost: the far field lags
+  /// a period behind and relaxes as a body stepped with N dt does, more slowly than with dt.
   int far_field_interval = 1;
   int near_rings = 1;
   int near_linger_steps = 1000;
