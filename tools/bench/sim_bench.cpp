@@ -80,6 +80,31 @@ double percentile(std::vector<double> v, double q) {
   return v[std::min(i, v.size() - 1)];
 }
 
+/// The body's vertices below z_m anchored (the benches hold a sphere's lower third).
+void anchor_below(SoftBody& body, double z_m) {
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+    const VertexId v(i);
+    if (body.mesh().alive(v) && body.position(v).z < z_m) body.set_anchored(v, true);
+  }
+}
+
+/// The bench sphere in `world`, default material, its lower third anchored; returns its index.
+std::uint32_t add_bench_sphere(SimWorld& world, const Shape& shape) {
+  const std::uint32_t id =
+      world.add_body(SoftBody(build_oriented_manifold(shape.polygons), Material{}));
+  anchor_below(world.body(id), shape.centre_mm * 1e-3 - shape.radius_mm * 1e-3 / 3.0);
+  return id;
+}
+
+/// The bench probe's tip at t_ms milliseconds: a 2 Hz sine from 1 mm above the sphere's rest top to
+/// 2 mm below it, lowered by lower_m.
+glm::dvec3 probe_tip(const Shape& shape, double t_ms, double lower_m = 0.0) {
+  const double c = shape.centre_mm * 1e-3;
+  const double r = shape.radius_mm * 1e-3;
+  const double depth = 0.0015 * (1.0 - std::cos(2.0 * 3.141592653589793 * 2.0 * t_ms * 1e-3));
+  return {c, c, c + r + 0.001 - depth - lower_m};
+}
+
 // Full step: the probe presses 0..3 mm into the top of the sphere and back (a 2 Hz sine), the
 // lower third is anchored, gravity on, default material and integrator options. The second
 // argument is the thread count (1: single thread; 0: every core for the integrator and Embree).
@@ -91,21 +116,10 @@ void full_step(benchmark::State& state, std::int64_t vertices, bool all, int int
   options.integrator.threads = all ? cores : 1;
   options.integrator.far_field_interval = interval;
   SimWorld world(options);
-  const std::uint32_t id =
-      world.add_body(SoftBody(build_oriented_manifold(shape.polygons), Material{}));
-  SoftBody& body = world.body(id);
-  const double c = shape.centre_mm * 1e-3;
-  const double r = shape.radius_mm * 1e-3;
-  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
-    const VertexId v(i);
-    if (body.mesh().alive(v) && body.position(v).z < c - r / 3.0) body.set_anchored(v, true);
-  }
+  const std::uint32_t id = add_bench_sphere(world, shape);
+  const SoftBody& body = world.body(id);
   std::uint64_t s = 0;
-  auto device = [&] {
-    const double depth =
-        0.0015 * (1.0 - std::cos(2.0 * 3.141592653589793 * 2.0 * double(s) * 1e-3));
-    return glm::dvec3(c, c, c + r + 0.001 - depth);
-  };
+  auto device = [&] { return probe_tip(shape, double(s)); };
   for (int w = 0; w < 200; ++w, ++s)
     world.step(device());  // settle the warm start
   std::vector<double> samples;
@@ -200,12 +214,7 @@ void BM_MultirateAccuracy(benchmark::State& state) {
     options.integrator.far_field_interval = interval;
     options.integrator.dt_s = 1e-3 / per_ms;
     auto world = std::make_unique<SimWorld>(options);
-    SoftBody& body =
-        world->body(world->add_body(SoftBody(build_oriented_manifold(shape.polygons), Material{})));
-    for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
-      const VertexId v(i);
-      if (body.mesh().alive(v) && body.position(v).z < c - r / 3.0) body.set_anchored(v, true);
-    }
+    add_bench_sphere(*world, shape);
     return world;
   };
   constexpr int kFine = 4;
@@ -226,8 +235,7 @@ void BM_MultirateAccuracy(benchmark::State& state) {
     double single_diff2 = 0.0, multi_diff2 = 0.0, force2 = 0.0, single_force2 = 0.0,
            multi_force2 = 0.0;
     for (int s = 0; s < 3200; ++s) {
-      const double depth = 0.0015 * (1.0 - std::cos(2.0 * 3.141592653589793 * 2.0 * s * 1e-3));
-      const glm::dvec3 tip(c, c, c + r + 0.001 - depth);
+      const glm::dvec3 tip = probe_tip(shape, s);
       glm::dvec3 f;
       for (int k = 0; k < kFine; ++k)
         f = reference->step(tip).force_N;
@@ -286,8 +294,6 @@ BENCHMARK(BM_MultirateAccuracy)
 // that run's RMS force (diff_k), and the contact changes per second (flips_k).
 void BM_ForceConvergence(benchmark::State& state) {
   const Shape& shape = sphere(radius_for(state.range(0)));
-  const double c = shape.centre_mm * 1e-3;
-  const double r = shape.radius_mm * 1e-3;
   const double lower = double(state.range(1)) * 1e-6;
   constexpr int kRuns = 5;
   for (auto _ : state) {
@@ -297,19 +303,13 @@ void BM_ForceConvergence(benchmark::State& state) {
       options.embree_threads = 1;
       options.integrator.dt_s = 1e-3 / double(1 << k);
       worlds.push_back(std::make_unique<SimWorld>(options));
-      SoftBody& body = worlds.back()->body(
-          worlds.back()->add_body(SoftBody(build_oriented_manifold(shape.polygons), Material{})));
-      for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
-        const VertexId v(i);
-        if (body.mesh().alive(v) && body.position(v).z < c - r / 3.0) body.set_anchored(v, true);
-      }
+      add_bench_sphere(*worlds.back(), shape);
     }
     double force2[kRuns] = {}, diff2[kRuns] = {};
     int flips[kRuns] = {};
     bool contact[kRuns] = {};
     for (int s = 0; s < 3200; ++s) {
-      const double depth = 0.0015 * (1.0 - std::cos(2.0 * 3.141592653589793 * 2.0 * s * 1e-3));
-      const glm::dvec3 tip(c, c, c + r + 0.001 - depth - lower);
+      const glm::dvec3 tip = probe_tip(shape, s, lower);
       glm::dvec3 f[kRuns];
       for (int k = 0; k < kRuns; ++k) {
         HapticOutput out;
@@ -432,20 +432,11 @@ void BM_TwoBodies(benchmark::State& state) {
     // The second body 7 mm beside the first along x (as in the default scene).
     for (auto& p : world.body(1).positions())
       p.x += (organ.radius_mm + vessel.radius_mm + 7.0) * 1e-3;
-    for (std::uint32_t b = 0; b < 2; ++b) {
-      SoftBody& body = world.body(b);
-      for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
-        const VertexId v(i);
-        if (body.mesh().alive(v) && body.position(v).z < c - r / 3.0) body.set_anchored(v, true);
-      }
-    }
+    for (std::uint32_t b = 0; b < 2; ++b)
+      anchor_below(world.body(b), c - r / 3.0);
     if (prepare) world.prepare();
     std::uint64_t s = 0;
-    auto device = [&] {
-      const double depth =
-          0.0015 * (1.0 - std::cos(2.0 * 3.141592653589793 * 2.0 * double(s) * 1e-3));
-      return glm::dvec3(c, c, c + r + 0.001 - depth);
-    };
+    auto device = [&] { return probe_tip(organ, double(s)); };
     auto timed_step = [&] {
       const glm::dvec3 d = device();
       const auto t0 = std::chrono::steady_clock::now();
