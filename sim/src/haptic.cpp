@@ -107,7 +107,6 @@ HapticOutput HapticProxy::update(const glm::dvec3& device, std::span<const Touch
   reacted_body_ = -1;
   if (contact && options_.apply_reaction) {
     SoftBody& body = *targets[static_cast<std::size_t>(best_body)].body;
-    double height = 0.0;
     for (std::size_t i = 0; i < patch_.size(); ++i) {
       if (weights_[i] <= 0.0) continue;
       const VertexId v(patch_[i]);
@@ -115,11 +114,10 @@ HapticOutput HapticProxy::update(const glm::dvec3& device, std::span<const Touch
       // Stiffness only (no force): the proxy rides on the surface, so the reaction on the patch
       // weakens as the patch gives way; the solve sees that.
       body.add_contact(v, n, 0.0, options_.coupling_N_per_m * weights_[i]);
-      height += weights_[i] * glm::dot(body.position(v), n);
     }
     reacted_body_ = best_body;
     reaction_normal_ = n;
-    patch_height_ = height;
+    patch_height_ = patch_height(body);
   }
   if (reacted_body_ < 0) last_force_ = force;
   out.force_N = force;
@@ -127,6 +125,15 @@ HapticOutput HapticProxy::update(const glm::dvec3& device, std::span<const Touch
   out.contact = contact;
   out.body = contact ? best_body : -1;
   return out;
+}
+
+double HapticProxy::patch_height(const SoftBody& body) const {
+  double height = 0.0;
+  for (std::size_t i = 0; i < patch_.size(); ++i) {
+    if (weights_[i] > 0.0)
+      height += weights_[i] * glm::dot(body.position(VertexId(patch_[i])), reaction_normal_);
+  }
+  return height;
 }
 
 glm::dvec3 HapticProxy::limited(glm::dvec3 force, double dt_s) const {
@@ -148,11 +155,7 @@ HapticOutput HapticProxy::settle(std::span<const TouchTarget> targets, HapticOut
   // How far the patch gave way along the normal during the step: the proxy rides on it, and
   // the solve ended with the reaction weakened by the coupling times that (the contact
   // stiffness it was handed). The device gets that end-of-step force, the one the tissue got.
-  double height = 0.0;
-  for (std::size_t i = 0; i < patch_.size(); ++i) {
-    if (weights_[i] > 0.0)
-      height += weights_[i] * glm::dot(body.position(VertexId(patch_[i])), reaction_normal_);
-  }
+  const double height = patch_height(body);
   const double give = std::isfinite(height) ? height - patch_height_ : 0.0;
   glm::dvec3 force = out.force_N + options_.coupling_N_per_m * give * reaction_normal_;
   // A probe pushes; it never pulls the device into the tissue.

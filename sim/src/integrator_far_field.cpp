@@ -44,6 +44,11 @@ constexpr unsigned kFarParts = 16;
 /// The least a slice runs (a job with no estimate yet runs this much per step).
 constexpr double kMinSliceS = 30e-6;
 
+/// A length of time in seconds as the clock's duration.
+Clock::duration seconds(double s) {
+  return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(s));
+}
+
 /// The far field's solver options: the caller's, single-rate, for a step of N dt.
 IntegratorOptions far_options(const IntegratorOptions& options) {
   IntegratorOptions far = options;
@@ -291,10 +296,7 @@ void ImplicitIntegrator::far_slice(FarField& ff, std::size_t phase, std::size_t 
     const std::size_t steps = interval - phase > spare + 1 ? interval - phase - spare : 1;
     const double slice = std::max(kMinSliceS, left / double(steps));
     const Clock::time_point t0 = Clock::now();
-    ff.deadline = std::max(
-        t0 + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(slice)),
-        step_start +
-            std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(budget_s)));
+    ff.deadline = std::max(t0 + seconds(slice), step_start + seconds(budget_s));
     ff.fiber.resume();
     ff.job_s += std::chrono::duration<double>(Clock::now() - t0).count();
   }

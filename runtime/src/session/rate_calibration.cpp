@@ -29,17 +29,17 @@ RateCalibration calibrate_tissue_rate(const SceneDescription& scene,
   // Multirate: two whole periods, since a step's cost depends on where it is in its period (the
   // far job runs early in it) and the first period has no estimate of the job yet.
   const int interval = std::max(scene.simulation.far_field_interval, 1);
-  const int kSteps = interval > 1 ? 2 * std::min(interval, 64) + 1 : 9;
+  const int steps = interval > 1 ? 2 * std::min(interval, 64) + 1 : 9;
   std::vector<double> ms;
-  for (int k = 0; k < kSteps; ++k) {
+  for (int k = 0; k < steps; ++k) {
     const auto start = std::chrono::steady_clock::now();
     sim.tick(rest, 1);
     ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
                      .count());
   }
-  std::nth_element(ms.begin(), ms.begin() + kSteps / 2, ms.end());
+  std::nth_element(ms.begin(), ms.begin() + steps / 2, ms.end());
   RateCalibration out;
-  out.median_step_ms = ms[kSteps / 2];
+  out.median_step_ms = ms[steps / 2];
   out.ticks_per_step =
       ticks_per_step_for(out.median_step_ms, sim.haptic_period_ms(), max_load, max_ticks);
   return out;

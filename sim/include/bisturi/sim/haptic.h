@@ -67,6 +67,8 @@ class HapticProxy {
  private:
   /// The force clamped to the limit and ramped from the last output.
   [[nodiscard]] glm::dvec3 limited(glm::dvec3 force, double dt_s) const;
+  /// The contact patch's weighted height along reaction_normal_ (how far settle() sees it give).
+  [[nodiscard]] double patch_height(const SoftBody& body) const;
 
   HapticOptions options_;
   glm::dvec3 proxy_{0.0};
