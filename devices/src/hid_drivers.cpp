@@ -2,6 +2,7 @@
 
 #include <stdexcept>
 
+#include "bisturi/devices/simulated.h"
 #include "hid_mapping.h"
 
 namespace bisturi::devices {
@@ -152,6 +153,15 @@ DriverInfo hid_glove_driver_info() {
   info.create = [](std::unique_ptr<Transport> transport, Clock& clock) -> std::unique_ptr<Device> {
     return open_hid_glove(std::move(transport), clock);
   };
+  info.bus = TransportKind::Hid;
+  info.device_class = DeviceClass::HapticGlove;
+  info.make_twin = [](const DeviceScript& script, const std::string& serial,
+                      double haptic_hz) -> std::unique_ptr<SimulatedDevice> {
+    return std::make_unique<SimulatedGlove>(script, serial.empty() ? "GLOVE-0001" : serial,
+                                            haptic_hz);
+  };
+  // No list: the channels come from the descriptor; PID magnitudes (newtons) take the fingers in
+  // order, a unitless Haptics Intensity stays unused (ChannelLayout's defaults).
   return info;
 }
 
@@ -162,6 +172,12 @@ DriverInfo hid_tracker_driver_info() {
   info.matches = describes_hid_tracker;
   info.create = [](std::unique_ptr<Transport> transport, Clock& clock) -> std::unique_ptr<Device> {
     return open_hid_tracker(std::move(transport), clock);
+  };
+  info.bus = TransportKind::Hid;
+  info.device_class = DeviceClass::HeadTracker;
+  info.make_twin = [](const DeviceScript& script, const std::string& serial,
+                      double) -> std::unique_ptr<SimulatedDevice> {
+    return std::make_unique<SimulatedHeadTracker>(script, serial.empty() ? "HEAD-0001" : serial);
   };
   return info;
 }

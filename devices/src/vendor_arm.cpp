@@ -4,6 +4,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "bisturi/devices/simulated.h"
+
 namespace bisturi::devices {
 
 namespace arm_protocol {
@@ -181,6 +183,13 @@ DriverInfo vendor_arm_driver_info() {
   info.create = [](std::unique_ptr<Transport> transport, Clock& clock) -> std::unique_ptr<Device> {
     return open_vendor_arm(std::move(transport), clock);
   };
+  info.bus = TransportKind::Usb;
+  info.device_class = DeviceClass::HapticArm;
+  info.make_twin = [](const DeviceScript& script, const std::string& serial,
+                      double haptic_hz) -> std::unique_ptr<SimulatedDevice> {
+    return std::make_unique<SimulatedArm>(script, serial.empty() ? "ARM-0001" : serial, haptic_hz);
+  };
+  info.layout.channels = {ChannelRole{ChannelUse::Vector, 0}};  // the end effector's force
   return info;
 }
 
