@@ -42,7 +42,7 @@ namespace {
 using devices::Nanoseconds;
 using std::chrono::milliseconds;
 
-// The default scene's organ: a sphere of radius 28 mm about (32.25, 32.25, 32.25) mm.
+// The test scene's organ: a sphere of radius 28 mm about (32.25, 32.25, 32.25) mm.
 const glm::dvec3 kOrganTop_mm{32.25, 32.25, 60.25};
 
 /// The organ alone, with the arm (device frame turned `rotation_deg` in the scene) and a head
@@ -199,7 +199,7 @@ TEST(HapticLoop, AnArmPressedOnASurfaceFeelsItsNormalInItsOwnFrame) {
 }
 
 TEST(HapticLoop, EachGloveFingerFeelsItsOwnContact) {
-  const SceneDescription scene = default_scene();
+  const SceneDescription scene = arm_scene("[0.0, 0.0, 0.0]");  // the organ; the glove's channels
   std::vector<devices::ForceChannel> channels(5);
   for (devices::ForceChannel& c : channels)
     c.max_force_N = 5.0;
