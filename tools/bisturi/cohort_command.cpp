@@ -441,6 +441,10 @@ int run_phantoms(const CohortOptions& o) {
     }
     p.spacing = glm::dvec3(o.spacing_mm);
     p.noise_hu = o.noise_hu;
+    if (o.field_of_view_mm.size() == 3) {
+      p.field_of_view_mm =
+          glm::dvec3(o.field_of_view_mm[0], o.field_of_view_mm[1], o.field_of_view_mm[2]);
+    }
     p.seed = static_cast<unsigned>(i + 1);
     p.tilt_degrees = 7.0 + 3.0 * i;
     const VesselPhantom ph = make_vessel_phantom(p);
@@ -529,6 +533,11 @@ void add_cohort_command(CLI::App& app, CohortOptions& options, int (*&run)(const
       ->check(CLI::Range(0.1, 5.0));
   phantoms->add_option("--noise", options.noise_hu, "Gaussian noise (HU; lumen 300, background 0)")
       ->check(CLI::Range(0.0, 200.0));
+  phantoms->add_option("--fov", options.field_of_view_mm,
+                       "each scan's extent X Y Z (mm) at least, the vessel in its middle (a CT's "
+                       "field of view; default: the vessel's box)")
+      ->expected(3)
+      ->check(CLI::Range(0.0, 2000.0));
   phantoms->add_flag("--json", options.json, "write a JSON summary on stdout");
   phantoms->callback([&run, &options] {
     options.action = Action::Phantoms;

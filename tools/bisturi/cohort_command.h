@@ -11,6 +11,7 @@
 //       truth.csv with the true axis and radii, plan.toml): the worked example and the tests.
 
 #include <string>
+#include <vector>
 
 namespace CLI {
 class App;
@@ -27,6 +28,7 @@ struct CohortOptions {
   int count = 6;
   double spacing_mm = 0.8;
   double noise_hu = 0.0;
+  std::vector<double> field_of_view_mm;  ///< empty: the vessel's box and a margin
   bool json = false;
 };
 

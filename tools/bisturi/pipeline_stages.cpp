@@ -107,28 +107,61 @@ VesselMask segment_vessel(const Volume& volume, const PipelinePlan& plan) {
 
 SurfaceField surface_field(const Volume& volume, const VesselMask& vessel,
                            const PipelinePlan& plan) {
+  // Only the vessel's box (and 4 voxels around it) is extracted: a CT's field of view is mostly
+  // something else, and marching cubes would visit every cell of it.
+  const VolumeGeometry& g = volume.geometry;
+  std::array<std::int64_t, 3> lo{g.dims[0], g.dims[1], g.dims[2]}, hi{-1, -1, -1};
+  std::size_t n = 0;
+  for (std::int64_t k = 0; k < g.dims[2]; ++k)
+    for (std::int64_t j = 0; j < g.dims[1]; ++j)
+      for (std::int64_t i = 0; i < g.dims[0]; ++i, ++n) {
+        if (vessel.mask.values[n] == 0) continue;
+        lo = {std::min(lo[0], i), std::min(lo[1], j), std::min(lo[2], k)};
+        hi = {std::max(hi[0], i), std::max(hi[1], j), std::max(hi[2], k)};
+      }
+  if (hi[0] < 0) throw std::runtime_error("segmentation: the vessel has no voxel");
+  Grid<std::uint8_t> mask;
+  Grid<float> values;
+  mask.geometry = g;
+  for (std::size_t a = 0; a < 3; ++a) {
+    lo[a] = std::max<std::int64_t>(0, lo[a] - 4);
+    hi[a] = std::min<std::int64_t>(g.dims[a] - 1, hi[a] + 4);
+    mask.geometry.dims[a] = hi[a] - lo[a] + 1;
+  }
+  mask.geometry.origin = g.index_to_world(glm::dvec3(lo[0], lo[1], lo[2]));
+  values.geometry = mask.geometry;
+  mask.values.resize(mask.geometry.voxel_count());
+  values.values.resize(mask.geometry.voxel_count());
+  n = 0;
+  for (std::int64_t k = lo[2]; k <= hi[2]; ++k)
+    for (std::int64_t j = lo[1]; j <= hi[1]; ++j)
+      for (std::int64_t i = lo[0]; i <= hi[0]; ++i, ++n) {
+        mask.values[n] = vessel.mask.at(i, j, k);
+        values.values[n] = volume.at(i, j, k);
+      }
+
   SurfaceField s;
-  s.field.geometry = volume.geometry;
-  s.field.values.resize(volume.values.size());
+  s.field.geometry = mask.geometry;
+  s.field.values.resize(mask.values.size());
   if (plan.method == "label") {
-    for (std::size_t i = 0; i < volume.values.size(); ++i)
-      s.field.values[i] = vessel.mask.values[i] != 0 ? 1.0f : 0.0f;
+    for (std::size_t i = 0; i < mask.values.size(); ++i)
+      s.field.values[i] = mask.values[i] != 0 ? 1.0f : 0.0f;
     s.iso.iso = 0.5f;
     s.iso.placement = VertexPlacement::Linear;  // an indicator is a step: nothing to fit
     return s;
   }
-  const auto lo = static_cast<float>(plan.threshold_range()[0]);
+  const auto low = static_cast<float>(plan.threshold_range()[0]);
   // Near the vessel the scan itself (its blurred wall places the surface within a voxel);
   // three voxels out (past the four samples cubic placement reads) nothing else.
-  const Grid<std::uint8_t> near = dilate(vessel.mask, 3);
-  float floor_value = lo - 1.0f;
-  for (const float v : volume.values)
+  const Grid<std::uint8_t> near = dilate(mask, 3);
+  float floor_value = low - 1.0f;
+  for (const float v : values.values)
     if (std::isfinite(v)) floor_value = std::min(floor_value, v);
-  for (std::size_t i = 0; i < volume.values.size(); ++i)
-    s.field.values[i] = near.values[i] != 0 && std::isfinite(volume.values[i]) ? volume.values[i]
+  for (std::size_t i = 0; i < values.values.size(); ++i)
+    s.field.values[i] = near.values[i] != 0 && std::isfinite(values.values[i]) ? values.values[i]
                                                                                 : floor_value;
-  // Inside is value > iso; the range includes lo itself, so the surface sits just below it.
-  s.iso.iso = std::nextafter(lo, -std::numeric_limits<float>::infinity());
+  // Inside is value > iso; the range includes its low end, so the surface sits just below it.
+  s.iso.iso = std::nextafter(low, -std::numeric_limits<float>::infinity());
   s.iso.placement = VertexPlacement::Cubic;
   return s;
 }

@@ -121,6 +121,11 @@ VesselPhantom make_vessel_phantom(const VesselPhantomOptions& o) {
   }
   lo -= glm::dvec3(margin);
   hi += glm::dvec3(margin);
+  for (int a = 0; a < 3; ++a) {
+    const double grow = 0.5 * std::max(0.0, o.field_of_view_mm[a] - (hi[a] - lo[a]));
+    lo[a] -= grow;
+    hi[a] += grow;
+  }
   Volume& v = ph.volume;
   v.modality = "CT";
   v.geometry.spacing = o.spacing;

@@ -43,6 +43,10 @@ struct VesselPhantomOptions {
   double edge_mm = 0.0;
   double noise_hu = 0.0;
   unsigned seed = 1;
+  /// The volume's extent (mm) at least this along each axis, the vessel in its middle (a scan's
+  /// field of view around it, e.g. 360 x 360 x 180 for a CT of 512 x 512 x 256 at 0.7 mm);
+  /// 0: the vessel's bounding box and a margin.
+  glm::dvec3 field_of_view_mm{0.0};
 };
 
 /// A straight piece of the true axis, world mm, with the lumen's radius at each end.
