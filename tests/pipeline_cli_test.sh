@@ -55,6 +55,34 @@ fi
 grep -q "typo.toml: line 3: key 'segmentation.rnage': unknown key" "$work/typo.err" ||
   fail "bad plan message: $(cat "$work/typo.err")"
 
+# A seed on the vessel's axis (the truth's first piece, halfway) picks it; one in the background
+# fails and says why.
+seed=$(awk -F, '$1 == "case-00" && $2 == 0 { printf "%f, %f, %f", ($3 + $6) / 2, ($4 + $7) / 2, ($5 + $8) / 2 }' "$work/ph/truth.csv")
+sed "s/^range = .*/&\nseed_mm = [$seed]/" "$plan" > "$work/seed.toml"
+"$bisturi" pipeline "$scan" --plan "$work/seed.toml" --out "$work/seed" > /dev/null || fail "seeded case"
+grep -q '"segmented_by": "seed"' "$work/seed/result.json" || fail "not segmented by the seed"
+sed "s/^range = .*/&\nseed_mm = [-20.0, 0.0, 0.0]/" "$plan" > "$work/seed_out.toml"
+"$bisturi" pipeline "$scan" --plan "$work/seed_out.toml" --out "$work/seed_out" 2> /dev/null &&
+  fail "a seed outside the vessel succeeded"
+grep -q 'seed_mm (-20.000000, 0.000000, 0.000000) is outside the volume' "$work/seed_out/result.json" ||
+  fail "seed message: $(grep message "$work/seed_out/result.json")"
+
+# Label maps (`bisturi segment`'s output): method = "label"; a binary surface is a staircase,
+# so diameters are good to about a quarter voxel (0.25 mm here) instead of hundredths.
+printf 'case,scan,shape\n' > "$work/labels.csv"
+for c in 00 01 02 03; do
+  "$bisturi" segment "$work/ph/scans/case-$c.nrrd" --threshold 150 2000 --out "$work/labels-$c.nrrd" > /dev/null
+  printf 'case-%s,labels-%s.nrrd,%s\n' $c $c "$(awk -F, -v c="case-$c" '$1 == c { print $3 }' "$work/ph/manifest.csv")" >> "$work/labels.csv"
+done
+printf '[segmentation]\nmethod = "label"\nlabel = 1\n[cluster]\nmax_running = 2\n' > "$work/label_plan.toml"
+"$bisturi" cohort plan "$work/labels.csv" --plan "$work/label_plan.toml" --out "$work/label_cohort" > /dev/null
+for task in 0 1 2 3; do
+  SLURM_ARRAY_TASK_ID=$task bash "$work/label_cohort/cohort.sbatch" > /dev/null 2>&1 || fail "label task $task"
+done
+"$bisturi" cohort gather "$work/label_cohort" > /dev/null || fail "label gather"
+sh "$src/slurm/check_against_truth.sh" "$work/labels.csv" "$work/ph/truth.csv" \
+  "$work/label_cohort/cohort.csv" "$work/label_cohort/cohort_cases.csv" 0.25 0.4
+
 # The cohort: plan, run each array task's body, gather, check against the truth.
 cohort=$work/cohort
 "$bisturi" cohort plan "$work/ph/manifest.csv" --plan "$plan" --out "$cohort" > /dev/null
