@@ -304,7 +304,8 @@ int run_gather(const CohortOptions& o) {
       "perimeter_mm\n";
   std::string cases_csv =
       "index,task,case,status,error,branches,bifurcations,centreline_length_mm,sections,"
-      "diameter_min_mm,diameter_median_mm,diameter_max_mm,total_ms,scan\n";
+      "diameter_min_mm,diameter_median_mm,diameter_max_mm,total_ms,checksums_ms,read_ms,segment_ms,"
+      "surface_ms,centreline_ms,sections_ms,solid_ms,write_ms,scan\n";
   nlohmann::json out_cases = nlohmann::json::array();
   nlohmann::json out_sections = nlohmann::json::array();
   nlohmann::json failed = nlohmann::json::array();
@@ -346,7 +347,15 @@ int run_gather(const CohortOptions& o) {
                  csv_number(f("bifurcations")) + "," + csv_number(f("centreline_length_mm")) +
                  "," + csv_number(f("sections")) + "," + csv_number(f("diameter_min_mm")) + "," +
                  csv_number(f("diameter_median_mm")) + "," + csv_number(f("diameter_max_mm")) +
-                 "," + csv_number(total) + "," + csv_text(c.scan) + "\n";
+                 "," + csv_number(total) + ",";
+    for (const char* stage : {"checksums", "read", "segment", "surface", "centreline", "sections",
+                              "solid", "write"}) {
+      const nlohmann::json t = r.contains("timings_ms") && r["timings_ms"].is_object()
+                                   ? r["timings_ms"].value(stage, nlohmann::json(nullptr))
+                                   : nlohmann::json(nullptr);
+      cases_csv += csv_number(t) + ",";
+    }
+    cases_csv += csv_text(c.scan) + "\n";
     nlohmann::json entry = {{"index", c.index}, {"task", c.task},   {"case", c.name},
                             {"scan", c.scan},   {"status", status}, {"figures", fig},
                             {"timings_ms", r.value("timings_ms", nlohmann::json(nullptr))}};
