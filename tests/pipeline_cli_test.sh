@@ -83,6 +83,16 @@ done
 sh "$src/slurm/check_against_truth.sh" "$work/labels.csv" "$work/ph/truth.csv" \
   "$work/label_cohort/cohort.csv" "$work/label_cohort/cohort_cases.csv" 0.25 0.4
 
+# A sloppy manifest (a BOM, CRLF, a comment, a blank line, quotes, columns in another order)
+# is read; a case listed twice is refused with its line.
+printf '\357\273\277"scan" , case,notes\r\n# a comment\r\n\r\n"scans/case-00.nrrd",a,"x, y"\r\nscans/case-01.nrrd, b ,\r\n' > "$work/ph/sloppy.csv"
+"$bisturi" cohort plan "$work/ph/sloppy.csv" --plan "$plan" --out "$work/sloppy" > /dev/null || fail "sloppy manifest"
+[ "$(tail -n +2 "$work/sloppy/cases.tsv" | cut -f3 | tr '\n' ' ')" = "a b " ] || fail "sloppy cases: $(cat "$work/sloppy/cases.tsv")"
+printf 'case,scan\na,scans/case-00.nrrd\na,scans/case-01.nrrd\n' > "$work/ph/twice.csv"
+"$bisturi" cohort plan "$work/ph/twice.csv" --plan "$plan" --out "$work/twice" 2> "$work/twice.err" &&
+  fail "a case listed twice was accepted"
+grep -q "twice.csv: line 3: case 'a' is listed twice" "$work/twice.err" || fail "$(cat "$work/twice.err")"
+
 # The cohort: plan, run each array task's body, gather, check against the truth.
 cohort=$work/cohort
 "$bisturi" cohort plan "$work/ph/manifest.csv" --plan "$plan" --out "$cohort" > /dev/null
