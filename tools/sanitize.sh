@@ -25,7 +25,8 @@ configure() {  # folder, sanitizer flags
   cmake -S "$here" -B "$here/$1" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_CXX_FLAGS="$2 -fno-omit-frame-pointer" \
     -DCMAKE_EXE_LINKER_FLAGS="$2" -DCMAKE_SHARED_LINKER_FLAGS="$2" \
-    -DBISTURI_BUILD_TESTS=ON -DBISTURI_BUILD_BENCHMARKS=OFF > "$here/$1.configure.log"
+    -DBISTURI_BUILD_TESTS=ON -DBISTURI_BUILD_BENCHMARKS=OFF \
+    -DCMAKE_GTEST_DISCOVER_TESTS_DISCOVERY_MODE=PRE_TEST > "$here/$1.configure.log"
 }
 
 run_suite() {  # folder, list of target[:filter]
