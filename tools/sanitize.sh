@@ -13,20 +13,23 @@ mode="${1:-all}"
 jobs=2
 if [ "${2:-}" = "-j" ] && [ -n "${3:-}" ]; then jobs="$3"; fi
 
-# name:gtest-filter (the filter keeps a big suite to its threaded tests)
+# name:gtest-filter (the filter keeps a big suite to its threaded tests). The haptic loop's
+# failed-trace-write test forks a session's process: ThreadSanitizer cannot follow a fork of a
+# threaded process ("starting new threads after multi-threaded fork is not supported").
 tsan_default="session_test:*TripleBuffer* session_tissue_thread_test sim_threads_test \
-sim_fiber_test session_haptic_loop_test"
+sim_fiber_test session_haptic_loop_test:-*AFailedTraceWrite*"
 asan_default="devices_test devices_spec_test devices_usb_async_test devices_descriptor_files_test \
 devices_sample_test devices_example_test trace_test session_devices_test dlfl_operators_test \
 dlfl_figures_test dlfl_random_test mesh_io_test polygon_import_test oriented_builder_test \
 volume_io_test bono_octree_test segmentation_test marching_cubes_test lod_test"
 
 configure() {  # folder, sanitizer flags
+  mkdir -p "$here/$1"
   cmake -S "$here" -B "$here/$1" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_CXX_FLAGS="$2 -fno-omit-frame-pointer" \
     -DCMAKE_EXE_LINKER_FLAGS="$2" -DCMAKE_SHARED_LINKER_FLAGS="$2" \
     -DBISTURI_BUILD_TESTS=ON -DBISTURI_BUILD_BENCHMARKS=OFF \
-    -DCMAKE_GTEST_DISCOVER_TESTS_DISCOVERY_MODE=PRE_TEST > "$here/$1.configure.log"
+    -DCMAKE_GTEST_DISCOVER_TESTS_DISCOVERY_MODE=PRE_TEST > "$here/$1/configure.log"
 }
 
 run_suite() {  # folder, list of target[:filter]
