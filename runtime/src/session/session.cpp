@@ -222,6 +222,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
 
   sim_options.device_frame = device_frame_of(*choice.haptic);
   sim_options.device_spec = glove->capabilities().spec;
+  sim_options.channel_roles = session_devices.haptic_channels();
   SessionSim sim(scene, std::move(solids), glove->capabilities().force_channels, sim_options);
 
   // ---- The hand-off ----

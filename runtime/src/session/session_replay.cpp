@@ -153,6 +153,8 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
     sim_options.tissue_threads = tissue_threads;
     sim_options.device_frame = device_frame_of(*choice.haptic);
     sim_options.device_spec = glove->capabilities().spec;
+    if (const devices::DriverInfo* driver = registry.find_by_name(glove->driver_name()))
+      sim_options.channel_roles = driver->layout.roles(glove->capabilities());
     sim = std::make_unique<SessionSim>(scene, std::move(solids),
                                        glove->capabilities().force_channels, sim_options);
     steps = std::make_unique<ReplayTickSteps>(*sim);
