@@ -101,6 +101,6 @@ TEST(DeviceSpec, HidDevicesStateTheBoxTheirPositionFieldsReport) {
   bd::SimulatedHeadTracker head{bd::DeviceScript{}};
   auto h = open_on(head, clock);
   EXPECT_EQ(h->capabilities().spec.max_stiffness_N_per_m, 0.0);  // renders no force
-  EXPECT_GT(h->capabilities().spec.workspace_max_m.y, 1.0);       // reaches head height
+  EXPECT_GT(h->capabilities().spec.workspace_max_m.y, 1.0);      // reaches head height
   EXPECT_LT(h->capabilities().spec.workspace_min_m.y, -1.0);
 }

@@ -1,5 +1,6 @@
 #include "bisturi/devices/hid_drivers.h"
 
+#include <cstdio>
 #include <stdexcept>
 
 #include "bisturi/devices/simulated.h"
@@ -142,6 +143,53 @@ bool describes_hid_glove(const DeviceDescriptor& device) {
 bool describes_hid_tracker(const DeviceDescriptor& device) {
   const auto usage = application_of(device);
   return usage == hid::kUsageHeadTracker || usage == hid::kUsageHeadMountedDisplay;
+}
+
+GenericHidFit assess_generic_hid(std::span<const std::uint8_t> report_descriptor) {
+  DeviceDescriptor device;
+  device.kind = TransportKind::Hid;
+  device.product = "HID descriptor";
+  device.report_descriptor.assign(report_descriptor.begin(), report_descriptor.end());
+  const detail::HidMapping mapping(device, HidGloveOptions{}.max_force_rate_N_per_s);
+  const Capabilities& caps = mapping.capabilities();
+  GenericHidFit fit;
+  if (!caps.finger_joints.empty())
+    fit.found.push_back(std::to_string(caps.finger_joints.size()) +
+                        " finger joints (VR Controls:Flexor, rotation unit)");
+  if (mapping.has_pose()) fit.found.push_back("a pose (X/Y/Z with a length unit, or orientation)");
+  if (caps.buttons > 0) fit.found.push_back(std::to_string(caps.buttons) + " buttons");
+  std::size_t newtons = 0, unitless = 0;
+  for (const ForceChannel& c : caps.force_channels)
+    (c.unitless ? unitless : newtons) += 1;
+  if (newtons > 0)
+    fit.found.push_back(std::to_string(newtons) + " force channels in newtons (PID Magnitude)");
+  if (unitless > 0)
+    fit.found.push_back(std::to_string(unitless) + " unitless force channels (fraction of 1)");
+
+  char usage_text[24];
+  std::snprintf(usage_text, sizeof usage_text, "0x%04X:0x%04X", mapping.application_usage() >> 16,
+                mapping.application_usage() & 0xFFFF);
+  const std::string application = mapping.application_usage() == 0
+                                      ? std::string("no application collection")
+                                      : std::string("its application collection is ") + usage_text;
+  if (mapping.application_usage() != hid::kUsageGlove) {
+    fit.glove_why = application + ", not VR Controls:Glove (0x0003:0x0004)";
+  } else if (caps.finger_joints.empty() && !mapping.has_pose() && caps.buttons == 0) {
+    fit.glove_why = "no finger joints, pose or buttons it can read";
+  } else {
+    fit.glove = true;
+  }
+  const auto app = mapping.application_usage();
+  if (app != hid::kUsageHeadTracker && app != hid::kUsageHeadMountedDisplay) {
+    fit.tracker_why = application +
+                      ", not VR Controls:Head Tracker (0x0003:0x0005) or Head Mounted Display "
+                      "(0x0003:0x0006)";
+  } else if (!mapping.has_pose()) {
+    fit.tracker_why = "no pose it can read (X/Y/Z with a length unit, or an orientation)";
+  } else {
+    fit.tracker = true;
+  }
+  return fit;
 }
 
 DriverInfo hid_glove_driver_info() {

@@ -28,10 +28,10 @@ std::vector<ChannelRole> ChannelLayout::roles(const Capabilities& capabilities) 
     ChannelRole role;
     if (i < channels.size()) {
       role = channels[i];
-      const bool fits = role.use == ChannelUse::Unused ||
-                        (role.use == ChannelUse::Vector && channel.components == 3) ||
-                        (role.use == ChannelUse::Finger && channel.components == 1 &&
-                         role.finger < 5);
+      const bool fits =
+          role.use == ChannelUse::Unused ||
+          (role.use == ChannelUse::Vector && channel.components == 3) ||
+          (role.use == ChannelUse::Finger && channel.components == 1 && role.finger < 5);
       if (!fits) role = ChannelRole{};
     } else if (channel.components == 3) {
       role.use = ChannelUse::Vector;

@@ -150,9 +150,9 @@ void AsyncUsbTransport::in_done(std::size_t slot, UsbTransferStatus status, std:
           ++stats_.in_dropped;
         }
         const Bytes& buffer = in_buffers_[slot];
-        received_.emplace_back(buffer.begin(),
-                               buffer.begin() + static_cast<std::ptrdiff_t>(
-                                                    std::min(length, buffer.size())));
+        received_.emplace_back(
+            buffer.begin(),
+            buffer.begin() + static_cast<std::ptrdiff_t>(std::min(length, buffer.size())));
         ++stats_.in_packets;
       }
       break;
@@ -176,8 +176,9 @@ void AsyncUsbTransport::out_done(std::size_t slot, UsbTransferStatus status) {
     fail(std::string("OUT transfer: ") + to_string(status));
     return;
   }
-  if (status != UsbTransferStatus::Completed) ++stats_.out_failed;  // timed out: the next
-                                                                   // packet supersedes it
+  if (status != UsbTransferStatus::Completed)
+    ++stats_.out_failed;  // timed out: the next
+                          // packet supersedes it
   if (have_waiting_ && failure_.empty()) {
     out_buffers_[slot] = std::move(waiting_);
     waiting_.clear();

@@ -2,8 +2,8 @@
 #include <libusb.h>
 
 #include <algorithm>
-#include <deque>
 #include <cstdio>
+#include <deque>
 
 #include "bisturi/devices/host_transports.h"
 #include "bisturi/devices/usb_async.h"
@@ -104,8 +104,10 @@ class LibusbIo final : public UsbIo {
     bool in_flight = false;
     for (auto* list : {&in_, &out_}) {
       for (Slot& slot : *list) {
-        if (slot.busy) in_flight = true;
-        else libusb_free_transfer(slot.transfer);
+        if (slot.busy)
+          in_flight = true;
+        else
+          libusb_free_transfer(slot.transfer);
       }
     }
     libusb_release_interface(handle_, endpoints_.interface);
@@ -163,9 +165,8 @@ class LibusbIo final : public UsbIo {
     }
     // A deque keeps earlier slots in place as it grows: their user_data pointers stay valid.
     Slot& slot = list[index];
-    libusb_fill_interrupt_transfer(slot.transfer, handle_, endpoint, data,
-                                   static_cast<int>(length), &LibusbIo::completed, &slot,
-                                   timeout_ms);
+    libusb_fill_interrupt_transfer(slot.transfer, handle_, endpoint, data, static_cast<int>(length),
+                                   &LibusbIo::completed, &slot, timeout_ms);
     const int rc = libusb_submit_transfer(slot.transfer);
     if (rc != 0) return libusb_error_name(rc);
     slot.busy = true;
@@ -272,8 +273,8 @@ std::unique_ptr<Transport> UsbSource::open(const DeviceDescriptor& wanted) {
   }
   AsyncUsbOptions options;
   options.in_packet_size = std::max<std::uint16_t>(endpoints.in_size, 1);
-  return std::make_unique<AsyncUsbTransport>(
-      std::make_unique<LibusbIo>(context, handle, endpoints), wanted, options);
+  return std::make_unique<AsyncUsbTransport>(std::make_unique<LibusbIo>(context, handle, endpoints),
+                                             wanted, options);
 }
 
 std::vector<UsbId> usb_ids(const Registry& registry) {

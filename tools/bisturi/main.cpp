@@ -6,6 +6,7 @@
 #include <iostream>
 
 #include "bisturi/runtime/version.h"
+#include "device_command.h"
 #include "extract_command.h"
 #include "measure_command.h"
 #include "mesh_command.h"
@@ -60,6 +61,10 @@ int run(int argc, char** argv) {
   int (*run_trace)(const bisturi::cli::TraceOptions&) = nullptr;
   bisturi::cli::add_trace_command(app, trace, run_trace);
 
+  bisturi::cli::DeviceOptions device;
+  int (*run_device)(const bisturi::cli::DeviceOptions&) = nullptr;
+  bisturi::cli::add_device_command(app, device, run_device);
+
   bisturi::cli::RenderOptions render;
   int (*run_render)(const bisturi::cli::RenderOptions&) = nullptr;
   bisturi::cli::add_render_command(app, render, run_render);
@@ -92,6 +97,7 @@ int run(int argc, char** argv) {
   if (run_extract != nullptr) return run_extract(extract);
   if (run_measure != nullptr) return run_measure(measure);
   if (run_trace != nullptr) return run_trace(trace);
+  if (run_device != nullptr) return run_device(device);
   if (run_render != nullptr) return run_render(render);
   if (run_run != nullptr) return run_run(run_options);
   if (run_replay != nullptr) return run_replay(replay);

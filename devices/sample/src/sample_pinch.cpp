@@ -69,8 +69,8 @@ class SamplePinch final : public HapticDevice {
     packet[1] = sequence_++;
     for (std::size_t i = 0; i < 2; ++i) {
       // An actuator only pulls: a negative or non-finite command is no force.
-      const double N = std::isfinite(forces_N[i]) ? std::clamp(forces_N[i], 0.0, pp::kMaxForceN)
-                                                  : 0.0;
+      const double N =
+          std::isfinite(forces_N[i]) ? std::clamp(forces_N[i], 0.0, pp::kMaxForceN) : 0.0;
       const auto mN = static_cast<std::uint16_t>(std::lround(N * 1000.0));
       packet[2 + 2 * i] = static_cast<std::uint8_t>(mN & 0xFF);
       packet[3 + 2 * i] = static_cast<std::uint8_t>(mN >> 8);

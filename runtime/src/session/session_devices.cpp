@@ -149,10 +149,10 @@ SessionDevices::SessionDevices(const SceneDescription& scene, const Procedure& p
   if (head_ == nullptr)
     throw SceneFileError(describe(*choice_.head) + ": its driver '" + head_device_->driver_name() +
                          "' is not a head tracker");
-  haptic_roles_ = registry.find_by_name(haptic_->driver_name()) != nullptr
-                      ? registry.find_by_name(haptic_->driver_name())->layout.roles(
-                            haptic_->capabilities())
-                      : devices::ChannelLayout{}.roles(haptic_->capabilities());
+  haptic_roles_ =
+      registry.find_by_name(haptic_->driver_name()) != nullptr
+          ? registry.find_by_name(haptic_->driver_name())->layout.roles(haptic_->capabilities())
+          : devices::ChannelLayout{}.roles(haptic_->capabilities());
 }
 
 SessionDevices::~SessionDevices() = default;
@@ -170,7 +170,8 @@ std::unique_ptr<devices::Device> SessionDevices::open_one(const DeviceDescriptio
     if (!driver->make_twin)
       throw SceneFileError(describe(d) + ": driver '" + driver->name +
                            "' registers no simulated twin (set simulated = false for hardware)");
-    std::unique_ptr<devices::SimulatedDevice> twin = driver->make_twin(script, d.serial, haptic_hz_);
+    std::unique_ptr<devices::SimulatedDevice> twin =
+        driver->make_twin(script, d.serial, haptic_hz_);
     devices::VirtualPair pair = devices::make_virtual_pair(twin->descriptor());
     twin->attach(std::move(pair.device));
     transport = std::move(pair.host);

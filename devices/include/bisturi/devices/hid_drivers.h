@@ -13,6 +13,9 @@
 #pragma once
 
 #include <memory>
+#include <span>
+#include <string>
+#include <vector>
 
 #include "bisturi/devices/device.h"
 #include "bisturi/devices/hid_descriptor.h"
@@ -43,6 +46,16 @@ std::unique_ptr<Tracker> open_hid_tracker(std::unique_ptr<Transport> transport,
 // collection (the registry's matches()).
 bool describes_hid_glove(const DeviceDescriptor& device);
 bool describes_hid_tracker(const DeviceDescriptor& device);
+
+// Whether the generic drivers can use a report descriptor, and why not: what `bisturi device
+// describe` prints. `why` is empty when the driver can use it; `found` lists what it would read.
+struct GenericHidFit {
+  bool glove = false, tracker = false;
+  std::string glove_why, tracker_why;
+  std::vector<std::string> found;  // "15 finger joints", "pose", "5 force channels (N)", ...
+};
+// Throws ProtocolError when the descriptor does not parse.
+GenericHidFit assess_generic_hid(std::span<const std::uint8_t> report_descriptor);
 
 DriverInfo hid_glove_driver_info();
 DriverInfo hid_tracker_driver_info();

@@ -72,7 +72,7 @@ struct DriverInfo {
   // nowhere (a driver for twins or traces only).
   TransportKind bus = TransportKind::Virtual;
   DeviceClass device_class = DeviceClass::HapticGlove;  // what it opens
-  TwinFactory make_twin;                                 // empty: no twin
+  TwinFactory make_twin;                                // empty: no twin
   ChannelLayout layout;
 };
 

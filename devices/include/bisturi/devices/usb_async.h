@@ -69,12 +69,12 @@ struct AsyncUsbOptions {
 
 // Counters a benchmark or a report reads.
 struct AsyncUsbStats {
-  std::uint64_t in_packets = 0;       // IN transfers completed with data
-  std::uint64_t in_dropped = 0;       // packets dropped because read() fell behind
-  std::uint64_t out_submitted = 0;    // OUT transfers started
-  std::uint64_t out_coalesced = 0;    // OUT reports replaced by a newer one while all slots were busy
-  std::uint64_t out_failed = 0;       // OUT transfers that timed out or were refused
-  std::uint64_t blocking_waits = 0;   // handle_events calls with a non-zero timeout
+  std::uint64_t in_packets = 0;     // IN transfers completed with data
+  std::uint64_t in_dropped = 0;     // packets dropped because read() fell behind
+  std::uint64_t out_submitted = 0;  // OUT transfers started
+  std::uint64_t out_coalesced = 0;  // OUT reports replaced by a newer one while all slots were busy
+  std::uint64_t out_failed = 0;     // OUT transfers that timed out or were refused
+  std::uint64_t blocking_waits = 0;  // handle_events calls with a non-zero timeout
 };
 
 class AsyncUsbTransport final : public Transport, private UsbIoListener {
