@@ -121,5 +121,12 @@ cp "$work/case-02.good" "$work/ph/scans/case-02.nrrd"
 SLURM_ARRAY_TASK_ID=2 bash "$cohort/cohort.sbatch" > /dev/null 2>&1 || fail "task 2 rerun"
 "$bisturi" cohort gather "$cohort" --json > "$work/gather3.json" || fail "gather after the rerun"
 grep -q '"rerun": null' "$work/gather3.json" || fail "still a rerun after the fix"
+# A case made with another plan is stale, and listed for a rerun.
+cp "$cohort/plan.toml" "$work/plan.saved"
+sed -i 's/section_step_mm = 2.0/section_step_mm = 2.5/' "$cohort/plan.toml"
+"$bisturi" cohort gather "$cohort" > "$work/gather4.txt" && fail "stale results taken as ok"
+grep -q "rerun them: sbatch --array=0-3%3 $cohort/cohort.sbatch" "$work/gather4.txt" ||
+  fail "stale: $(cat "$work/gather4.txt")"
+cp "$work/plan.saved" "$cohort/plan.toml"
 [ -z "$(ls -A "$work/cwd")" ] || fail "files written outside the cohort: $(ls -A "$work/cwd")"
 echo "pipeline and cohort: ok"

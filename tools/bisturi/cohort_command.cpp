@@ -18,6 +18,7 @@
 #include "bisturi/scene/vessel/vessel_phantoms.h"
 #include "bisturi/scene/volume/volume_io.h"
 #include "pipeline_plan.h"
+#include "sha256.h"
 
 namespace bisturi::cli {
 
@@ -296,7 +297,12 @@ int run_gather(const CohortOptions& o) {
   const fs::path dir = fs::absolute(o.out).lexically_normal();
   const std::vector<CohortCase> cases = read_cases_tsv(dir / "cases.tsv");
   int max_running = 8;
-  if (fs::exists(dir / "plan.toml")) max_running = read_plan(dir / "plan.toml").max_running;
+  std::string plan_sha;  // a result made with another plan is stale
+  if (fs::exists(dir / "plan.toml")) {
+    const PipelinePlan plan = read_plan(dir / "plan.toml");
+    max_running = plan.max_running;
+    plan_sha = sha256_of_text(plan_processing_json(plan).dump());
+  }
 
   std::string sections_csv =
       "case,index,branch,distance_mm,centre_x_mm,centre_y_mm,centre_z_mm,normal_x,normal_y,"
@@ -330,6 +336,10 @@ int run_gather(const CohortOptions& o) {
     }
     if (status == "failed" && r.contains("error")) {
       error = r["error"].value("stage", "") + ": " + r["error"].value("message", "");
+    } else if (status == "ok" && !plan_sha.empty() &&
+               r["inputs"]["plan"].value("processing_sha256", "") != plan_sha) {
+      status = "stale";
+      error = "made with another plan than " + (dir / "plan.toml").string();
     } else if (status == "running") {
       status = "incomplete";
       error = "result.json still says running (the task was killed, or is still running)";
