@@ -137,6 +137,12 @@ work_s=$(awk -F, 'NR > 1 && $4 == "ok" { s += $13 } END { printf "%.3f", s / 100
 awk -v t0="$t0" -v t1="$t1" -v w="$work_s" 'BEGIN {
   wall = t1 - t0
   printf "slurm: 6 array tasks on 3 one-CPU nodes in %.2f s (submit to last task done); pipeline work %.2f s in all; overhead about %.2f s per task ((3 x wall - work) / 6)\n", wall, w, (3 * wall - w) / 6 }'
+# Slurm's own cost: an array of six tasks that do nothing, submit to done.
+t2=$(date +%s.%N)
+empty=$(sbatch --parsable --array=0-5 --output=/dev/null --wrap=true) || fail "sbatch --wrap"
+wait_until 60 job_done "${empty%%;*}" || fail "the empty array did not finish"
+t3=$(date +%s.%N)
+awk -v t0="$t2" -v t1="$t3" 'BEGIN { printf "slurm: 6 empty array tasks on 3 nodes in %.2f s: %.2f s of node time per task\n", t1 - t0, 3 * (t1 - t0) / 6 }'
 echo "slurm: tasks ran on $nodes node(s)"
 [ "$nodes" -ge 2 ] || fail "the array ran on one node only"
 echo "slurm cohort: ok"
