@@ -38,7 +38,9 @@
   _(ReleaseSwapchainImage) \
   _(WaitFrame) \
   _(BeginFrame) \
-  _(EndFrame)
+  _(EndFrame) \
+  _(LocateViews) \
+  _(LocateSpace)
 
 // XR_KHR_vulkan_enable2, the one extension offered.
 #define BISTURI_XRSIM_VULKAN(_) \
@@ -46,6 +48,11 @@
   _(CreateVulkanInstanceKHR) \
   _(GetVulkanGraphicsDevice2KHR) \
   _(CreateVulkanDeviceKHR)
+
+// XR_KHR_convert_timespec_time (XrTime is CLOCK_MONOTONIC nanoseconds here).
+#define BISTURI_XRSIM_TIMESPEC(_) \
+  _(ConvertTimespecTimeToTimeKHR) \
+  _(ConvertTimeToTimespecTimeKHR)
 
 // Core functions not implemented: the loader fills its dispatch table with every core function,
 // so these answer XR_ERROR_FUNCTION_UNSUPPORTED when called instead of being null.
@@ -67,8 +74,6 @@
   _(GetInputSourceLocalizedName) \
   _(GetReferenceSpaceBoundsRect) \
   _(GetViewConfigurationProperties) \
-  _(LocateSpace) \
-  _(LocateViews) \
   _(PathToString) \
   _(StopHapticFeedback) \
   _(StringToPath) \
@@ -81,6 +86,7 @@ namespace bisturi::xrsim {
 #define BISTURI_XRSIM_DECLARE(name) extern std::remove_pointer_t<PFN_xr##name> name;
 BISTURI_XRSIM_CORE(BISTURI_XRSIM_DECLARE)
 BISTURI_XRSIM_VULKAN(BISTURI_XRSIM_DECLARE)
+BISTURI_XRSIM_TIMESPEC(BISTURI_XRSIM_DECLARE)
 #undef BISTURI_XRSIM_DECLARE
 
 }  // namespace bisturi::xrsim
