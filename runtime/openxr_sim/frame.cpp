@@ -138,18 +138,16 @@ XrResult WaitFrame(XrSession handle_, const XrFrameWaitInfo* /*info*/, XrFrameSt
   if (s->loss_pending) return XR_ERROR_SESSION_LOST;
   if (state == nullptr || state->type != XR_TYPE_FRAME_STATE) return XR_ERROR_VALIDATION_FAILURE;
   if (!s->running) return XR_ERROR_SESSION_NOT_RUNNING;
-  // Pacing: at most one frame per display period; a late application skips the missed slots.
+  // Pacing: at most one frame per display period. A late application gets the next display
+  // time still ahead (the refreshes it missed are gone), as a compositor predicts.
   std::int64_t now = now_ns();
   if (s->next_display_ns == 0) s->next_display_ns = now + s->period_ns;
-  const std::int64_t slot_start = s->next_display_ns - s->period_ns;
-  if (slot_start > now) {
-    std::this_thread::sleep_for(std::chrono::nanoseconds(slot_start - now));
-    now = now_ns();
-  }
-  s->predicted_display_ns = s->next_display_ns;
-  s->next_display_ns += s->period_ns;
   while (s->next_display_ns <= now)
     s->next_display_ns += s->period_ns;
+  const std::int64_t slot_start = s->next_display_ns - s->period_ns;
+  if (slot_start > now) std::this_thread::sleep_for(std::chrono::nanoseconds(slot_start - now));
+  s->predicted_display_ns = s->next_display_ns;
+  s->next_display_ns += s->period_ns;
   // The frame loop is synchronized once the application waits its first frame.
   if (s->state == XR_SESSION_STATE_READY) set_state(*s, XR_SESSION_STATE_SYNCHRONIZED);
   s->should_render = s->state == XR_SESSION_STATE_VISIBLE || s->state == XR_SESSION_STATE_FOCUSED;

@@ -404,6 +404,9 @@ OpenXrSink::OpenXrSink(const std::string& application_name)
 OpenXrSink::OpenXrSink(const OpenXrSinkOptions& options) : impl_(std::make_unique<Impl>()) {
   Impl& s = *impl_;
   s.options = options;
+  if (const char* log = std::getenv("BISTURI_XR_VIEWS_LOG"); log != nullptr && *log != '\0') {
+    s.views_log = std::fopen(log, "w");
+  }
   s.create_instance();
   s.describe_system();
   s.create_vulkan();
@@ -423,6 +426,9 @@ void OpenXrSink::end_frame(const HeadsetFrame& frame, bool rendered) {
   impl_->end_frame(frame, rendered);
 }
 void OpenXrSink::consume(const StereoFrame& /*frame*/) {}
+void OpenXrSink::finish() {
+  impl_->finish();
+}
 
 const HeadsetDescription& OpenXrSink::headset() const {
   return impl_->headset;

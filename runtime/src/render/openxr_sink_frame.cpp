@@ -129,6 +129,22 @@ HeadsetFrame OpenXrSink::Impl::begin_frame() {
     return frame;
   }
   frame.views_valid = count == 2 && located(view_state.viewStateFlags);
+  if (views_log != nullptr) {
+    std::fprintf(views_log, "{\"display_time\":%lld,\"flags\":%llu,\"views\":[",
+                 static_cast<long long>(locate.displayTime),
+                 static_cast<unsigned long long>(view_state.viewStateFlags));
+    for (std::size_t e = 0; e < 2; ++e) {
+      const XrView& v = views[e];
+      std::fprintf(views_log,
+                   "%s{\"orientation\":[%.9g,%.9g,%.9g,%.9g],\"position\":[%.9g,%.9g,%.9g],"
+                   "\"fov\":[%.9g,%.9g,%.9g,%.9g]}",
+                   e == 0 ? "" : ",", v.pose.orientation.x, v.pose.orientation.y,
+                   v.pose.orientation.z, v.pose.orientation.w, v.pose.position.x,
+                   v.pose.position.y, v.pose.position.z, v.fov.angleLeft, v.fov.angleRight,
+                   v.fov.angleUp, v.fov.angleDown);
+    }
+    std::fprintf(views_log, "]}\n");
+  }
   if (frame.views_valid) {
     last_views = views;
     have_views = true;

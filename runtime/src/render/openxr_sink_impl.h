@@ -15,6 +15,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -99,6 +100,9 @@ struct OpenXrSink::Impl {
   glm::dquat last_head_orientation{1.0, 0.0, 0.0, 0.0};
   PoseClock::time_point last_sample{};
   OpenXrSinkStats stats;
+  /// BISTURI_XR_VIEWS_LOG: every xrLocateViews answer as the runtime gave it, one JSON line per
+  /// frame, to compare with the layers an API-dump layer records (development aid).
+  std::FILE* views_log = nullptr;
 
   ~Impl() { release(); }
 
@@ -136,6 +140,7 @@ struct OpenXrSink::Impl {
   void create_vulkan();
   void make_swapchain(std::uint32_t w, std::uint32_t h);
   void destroy_swapchain();
+  void finish();
   void release();
 };
 

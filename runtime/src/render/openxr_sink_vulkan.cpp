@@ -124,8 +124,8 @@ void OpenXrSink::Impl::destroy_swapchain() {
   ++swapchain_generation;
 }
 
-void OpenXrSink::Impl::release() {
-  if (session != XR_NULL_HANDLE) {
+void OpenXrSink::Impl::finish() {
+  if (session != XR_NULL_HANDLE && !stopped) {
     // End the session the way the specification asks: request the exit, end it at STOPPING.
     const auto quiet_poll = [this] {
       try {
@@ -134,20 +134,27 @@ void OpenXrSink::Impl::release() {
         running = false;  // xrEndSession failed: the session is destroyed below all the same
       }
     };
-    if (running && !stopped && XR_SUCCEEDED(xrRequestExitSession(session))) {
+    if (running && XR_SUCCEEDED(xrRequestExitSession(session))) {
       for (int i = 0; i < 500 && running; ++i) {
         quiet_poll();
         if (running) std::this_thread::sleep_for(std::chrono::milliseconds(2));
       }
       quiet_poll();  // IDLE and EXITING follow xrEndSession
     }
-    destroy_session();
+    stop("the session ended");
   }
+}
+
+void OpenXrSink::Impl::release() {
+  finish();
+  if (session != XR_NULL_HANDLE) destroy_session();
   // The device and instance the runtime made are the application's to destroy, after the
   // session; the renderer may still hold the context (it goes with the last holder).
   context.reset();
   if (instance != XR_NULL_HANDLE) xrDestroyInstance(instance);
   instance = XR_NULL_HANDLE;
+  if (views_log != nullptr) std::fclose(views_log);
+  views_log = nullptr;
 }
 
 }  // namespace bisturi::render

@@ -258,10 +258,11 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                       publish_step);
 
   // ---- Render thread ----
+  std::atomic<bool> display_live{true};  // false while a headset shows nothing: no forces
   std::thread render_thread([&] {
     try {
       run_render_loop({scene, options, report, initial, handoff, head_handoff, stop, render_ready,
-                       frames, event_response, event_times});
+                       frames, event_response, event_times, display_live});
     } catch (...) {
       render_error = std::current_exception();
       render_ready.store(true);
@@ -354,6 +355,12 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
           sim.command_for(*out, SessionSim::tip_of(last_state), command);
         } else {
           std::fill(command.begin(), command.end(), 0.0);
+        }
+        if (!display_live.load(std::memory_order_relaxed)) {
+          // The headset shows nothing (not visible yet, or its session lost): no force the
+          // trainee cannot see the cause of.
+          std::fill(command.begin(), command.end(), 0.0);
+          ++report.headset.ticks_without_display;
         }
         devices::GuardStep g;
         if (!lost) {

@@ -107,6 +107,11 @@ class OpenXrSink : public FrameSink {
   /// when `rendered` (the frame's views), or no layer.
   void end_frame(const HeadsetFrame& frame, bool rendered);
 
+  /// Ends the session the way the specification asks (xrRequestExitSession, xrEndSession at
+  /// STOPPING, until EXITING), so that its last states are in state_changes(); the destructor
+  /// does it too. Nothing is presented after.
+  void finish();
+
   /// The renderer hands finished frames here (for their timing; there are no pixels to take).
   void consume(const StereoFrame& frame) override;
   [[nodiscard]] bool wants_pixels(std::uint64_t /*index*/) const override { return false; }

@@ -32,6 +32,7 @@
 
 #include "bisturi/devices/clock.h"
 #include "bisturi/runtime/render/stereo_renderer.h"
+#include "bisturi/runtime/session/headset_report.h"
 #include "bisturi/runtime/session/scene_description.h"
 #include "bisturi/runtime/session/session_sim.h"
 #include "bisturi/runtime/session/timing.h"
@@ -174,6 +175,7 @@ struct SessionReport {
   double max_force_N = 0.0;
   std::uint64_t final_state_hash = 0;
   std::filesystem::path trace;
+  HeadsetReport headset;
 };
 
 /// The soft-tissue step's thread count for solids of `simulated_vertices` vertices in all on a
