@@ -302,7 +302,7 @@ class SceneReader {
   DeviceDescription read_device(const toml::table& t, const std::string& path) const {
     only_keys(t, path,
               {"name", "driver", "role", "simulated", "script", "vendor_id", "product_id", "serial",
-               "max_force_N"});
+               "max_force_N", "device_to_scene_rotation_deg", "device_to_scene_translation_mm"});
     DeviceDescription d;
     d.name = string_or(t, path, "name", path);
     d.driver = string_or(t, path, "driver", d.driver);
@@ -315,6 +315,17 @@ class SceneReader {
     d.product_id = static_cast<std::uint16_t>(integer(t, path, "product_id", 0, 0, 0xffff));
     d.serial = string_or(t, path, "serial", d.serial);
     d.max_force_N = positive(t, path, "max_force_N", d.max_force_N);
+    d.device_to_scene_rotation_deg =
+        numbers<3>(t, path, "device_to_scene_rotation_deg", d.device_to_scene_rotation_deg);
+    for (std::size_t i = 0; i < 3; ++i) {
+      if (!(std::abs(d.device_to_scene_rotation_deg[i]) <= 360.0)) {
+        fail(t.get("device_to_scene_rotation_deg"), t,
+             path + ".device_to_scene_rotation_deg[" + std::to_string(i) + "]",
+             "must be an angle between -360 and 360 degrees");
+      }
+    }
+    d.device_to_scene_translation_mm =
+        numbers<3>(t, path, "device_to_scene_translation_mm", d.device_to_scene_translation_mm);
     if (d.driver.empty() && d.vendor_id == 0) {
       fail(nullptr, t, path, "give a 'driver' name or a 'vendor_id' and 'product_id'");
     }

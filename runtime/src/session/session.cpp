@@ -35,6 +35,7 @@
 #include "bisturi/scene/polygon_export.h"
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/sim/units.h"
+#include "haptic_loop.h"
 #include "lockstep_notes.h"
 #include "render_loop.h"
 #include "session_snapshot.h"
@@ -189,6 +190,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   devices::GuardedHaptic guarded(*glove, guard, clock, writer.get(), glove_index);
   report.max_force_N = choice.haptic->max_force_N;
 
+  sim_options.device_frame = device_frame_of(*choice.haptic);
+  sim_options.device_spec = glove->capabilities().spec;
   SessionSim sim(scene, std::move(solids), glove->capabilities().force_channels, sim_options);
 
   // ---- The hand-off ----
@@ -209,7 +212,9 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   std::atomic<std::uint64_t> ticks{0}, frames{0}, overruns{0};
   std::atomic<std::size_t> event_count{0};
   std::atomic<double> force_now{0.0};
-  std::exception_ptr render_error, haptic_error;
+  std::string render_error;
+  std::atomic<bool> interrupted{false};
+  const auto wall_start = std::chrono::steady_clock::now();
   std::vector<Nanoseconds> event_times;  // written by the tissue thread, read after the join...
   event_times.reserve(4096);             // ...and by the render thread below its published count
   std::vector<double> event_response(4096, -1.0);
@@ -263,163 +268,127 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     try {
       run_render_loop({scene, options, report, initial, handoff, head_handoff, stop, render_ready,
                        frames, event_response, event_times, display_live});
+    } catch (const std::exception& e) {
+      render_error = e.what();
+      render_ready.store(true);
+      stop.store(true);
     } catch (...) {
-      render_error = std::current_exception();
+      render_error = "unknown error";
       render_ready.store(true);
       stop.store(true);
     }
   });
 
-  // ---- Haptic thread ----
+  // ---- Haptic thread: paces the ticks of the one haptic loop (haptic_loop.h) ----
   const Nanoseconds period{static_cast<std::int64_t>(std::llround(1e9 / scene.rates.haptic_hz))};
   const Nanoseconds spin{static_cast<std::int64_t>(options.spin_us * 1e3)};
   const std::size_t force_every =
       std::max<std::size_t>(1, static_cast<std::size_t>(scene.rates.haptic_hz / 200.0));
   report.force.reserve(static_cast<std::size_t>(report.duration_s * 200.0) + 16);
+  LiveTickSteps steps(tissue, options.adaptive_tissue_rate,
+                      TissueRateController(first_ticks_per_step, options.max_tissue_ticks_per_step,
+                                           ms(period), options.tissue_max_load));
+  HapticLoopParts parts;
+  parts.haptic = &guarded;
+  parts.steps = &steps;
+  parts.sim = &sim;
+  parts.frame = sim_options.device_frame;
+  parts.clock = &clock;
+  parts.writer = writer.get();
+  parts.head = head;
+  parts.step_twins = [&](Nanoseconds t) { session_devices.step_twins(t); };
+  parts.display_live = &display_live;
+  parts.head_state = [&](const devices::TrackerState& hs) {
+    // The head pose straight to the renderer (motion-to-photon starts at its sample).
+    render::HeadPose& hp = head_handoff.back();
+    hp.position_mm = sim::sim_to_scene(glm::dvec3(
+        hs.head_pose.position_m.x, hs.head_pose.position_m.y, hs.head_pose.position_m.z));
+    hp.orientation = glm::dquat(hs.head_pose.orientation.w, hs.head_pose.orientation.x,
+                                hs.head_pose.orientation.y, hs.head_pose.orientation.z);
+    hp.sample_time = to_pose_clock(hs.sample_time);
+    head_handoff.publish();
+  };
+  HapticLoop loop(std::move(parts), lag, first_ticks_per_step);
   std::thread haptic_thread([&] {
-    try {
-      if (options.realtime_priority) realtime.store(request_realtime_priority(0));
-      while (!render_ready.load())
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      t0 = clock.now();
-      Nanoseconds next = t0;
-      Nanoseconds previous_start{0};
-      bool first = true, lost = false;
-      devices::HapticState last_state;
-      std::vector<double> command(sim.command_size(), 0.0);
-      StepSchedule schedule(lag, first_ticks_per_step);
-      TissueRateController rate(first_ticks_per_step, options.max_tissue_ticks_per_step, ms(period),
-                                options.tissue_max_load);
-      std::uint64_t k = 0;
-      while (!stop.load(std::memory_order_relaxed)) {
-        if (spin.count() > 0) {
-          clock.sleep_until(next - spin);
-          while (clock.now() < next) {
-          }
-        } else {
-          clock.sleep_until(next);
-        }
-        const Nanoseconds start = clock.now();
-        const Nanoseconds t = start - t0;
-        if (t >= duration) break;
-        if (!first) {
-          const double p_ms = ms(start - previous_start);
-          report.haptic_period_ms.record(p_ms);
-          report.haptic_period_error_ms.record(std::abs(p_ms - ms(period)));
-        }
-        first = false;
-        previous_start = start;
-
-        // Device input: the twins send (as hardware would), the drivers read.
-        session_devices.step_twins(t);
-        try {
-          if (!lost) guarded.poll(std::chrono::microseconds(0));
-        } catch (const devices::DeviceDisconnected&) {
-          lost = true;
-        } catch (const devices::ProtocolError&) {
-          ++report.malformed_reports;
-        }
-        try {
-          head->poll(std::chrono::microseconds(0));
-        } catch (const devices::ProtocolError&) {
-          ++report.malformed_reports;
-        }
-        if (!lost) last_state = glove->state();
-
-        // A hand-over tick gives its state to the tissue thread as the next step (and may change
-        // the steps' length, noted in the trace); every tick sends the command of the step due
-        // (or, when that step is late, the newest one, noted in the trace for the replay).
-        ++k;
-        if (schedule.hands_over(k)) {
-          tissue.push(last_state, schedule.handed_over_ticks());
-          // A fixed rate stays fixed (the controller would also lower a rate given too low).
-          const std::uint32_t n = options.adaptive_tissue_rate
-                                      ? rate.decide(tissue.median_step_ms())
-                                      : schedule.ticks_per_step();
-          if (n != schedule.ticks_per_step()) {
-            schedule.set_ticks_per_step(k, n);
-            ++report.tissue_rate_changes;
-            report.max_tissue_ticks_per_step = std::max(report.max_tissue_ticks_per_step, n);
-            if (writer) writer->note(clock.now().count(), tissue_rate_note(k, n));
-          }
-        }
-        const TissueThread::TickStep use = tissue.step_for(schedule.due(k));
-        report.max_tissue_backlog =
-            std::max(report.max_tissue_backlog, tissue.pushed() - tissue.done());
-        if (use.late) {
-          ++report.late_ticks;
-          if (writer) writer->note(clock.now().count(), late_tick_note(k, use.step));
-        }
-        const TickOutput* out = use.output;
-        if (out != nullptr) {
-          sim.command_for(*out, SessionSim::tip_of(last_state), command);
-        } else {
-          std::fill(command.begin(), command.end(), 0.0);
-        }
-        if (!display_live.load(std::memory_order_relaxed)) {
-          // The headset shows nothing (not visible yet, or its session lost): no force the
-          // trainee cannot see the cause of.
-          std::fill(command.begin(), command.end(), 0.0);
-          ++report.headset.ticks_without_display;
-        }
-        devices::GuardStep g;
-        if (!lost) {
-          try {
-            g = guarded.send(command);
-          } catch (const devices::DeviceDisconnected&) {
-            lost = true;
-          }
-        }
-        if (lost && writer) writer->note(clock.now().count(), "tick");
-        if (g.latched != devices::Fault::None) ++report.guard_latches;
-        if (k % force_every == 0 && report.force.size() < report.force.capacity()) {
-          report.force.push_back(
-              {ms(t) * 1e-3, out != nullptr ? glm::length(out->force_N) : 0.0,
-               command.empty() ? 0.0 : command[0],
-               guarded.last_output_N().empty() ? 0.0 : guarded.last_output_N()[0]});
-        }
-        force_now.store(out != nullptr ? glm::length(out->force_N) : 0.0,
-                        std::memory_order_relaxed);
-
-        // The head pose straight to the renderer (motion-to-photon starts at its sample).
-        render::HeadPose& hp = head_handoff.back();
-        const devices::TrackerState& hs = head->state();
-        hp.position_mm = sim::sim_to_scene(glm::dvec3(
-            hs.head_pose.position_m.x, hs.head_pose.position_m.y, hs.head_pose.position_m.z));
-        hp.orientation = glm::dquat(hs.head_pose.orientation.w, hs.head_pose.orientation.x,
-                                    hs.head_pose.orientation.y, hs.head_pose.orientation.z);
-        hp.sample_time = to_pose_clock(hs.sample_time);
-        head_handoff.publish();
-
-        const Nanoseconds end = clock.now();
-        report.tick_ms.record(ms(end - start));
-        if (end - start > period) overruns.fetch_add(1, std::memory_order_relaxed);
-        next += period;
-        if (end > next) {
-          ++report.missed_deadlines;
-          // The tick's own work took under half a period: the thread was started late (the OS,
-          // or on a virtual machine the hypervisor, had the core), not slowed by its work.
-          if (end - start < period / 2) ++report.missed_by_late_wakeup;
-        }
-        if (end > next + period) {  // fell behind by more than a period: drop those ticks
-          const std::int64_t behind = (end - next).count() / period.count();
-          report.skipped_ticks += static_cast<std::uint64_t>(behind);
-          next += period * behind;
-        }
-        ticks.store(k, std::memory_order_relaxed);
+    if (options.realtime_priority) realtime.store(request_realtime_priority(0));
+    while (!render_ready.load())
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    t0 = clock.now();
+    Nanoseconds next = t0;
+    Nanoseconds previous_start{0};
+    bool first = true;
+    while (!stop.load(std::memory_order_relaxed)) {
+      if (options.stop_requested != nullptr && options.stop_requested->load()) {
+        interrupted.store(true);
+        break;
       }
-      report.tissue_ticks_per_step = schedule.ticks_per_step();
-    } catch (...) {
-      haptic_error = std::current_exception();
+      if (spin.count() > 0) {
+        clock.sleep_until(next - spin);
+        while (clock.now() < next) {
+        }
+      } else {
+        clock.sleep_until(next);
+      }
+      const Nanoseconds start = clock.now();
+      const Nanoseconds t = start - t0;
+      if (t >= duration) break;
+      if (!first) {
+        const double p_ms = ms(start - previous_start);
+        report.haptic_period_ms.record(p_ms);
+        report.haptic_period_error_ms.record(std::abs(p_ms - ms(period)));
+      }
+      first = false;
+      previous_start = start;
+
+      (void)loop.tick(t);
+      const std::uint64_t k = loop.counters().ticks;
+      const TickOutput* out = loop.step_output();
+      const double proxy_N = out != nullptr ? glm::length(out->force_N) : 0.0;
+      if (k % force_every == 0 && report.force.size() < report.force.capacity()) {
+        const std::vector<double>& command = loop.command();
+        report.force.push_back({ms(t) * 1e-3, proxy_N, command.empty() ? 0.0 : command[0],
+                                guarded.last_output_N().empty() ? 0.0
+                                                                : guarded.last_output_N()[0]});
+      }
+      force_now.store(proxy_N, std::memory_order_relaxed);
+
+      const Nanoseconds end = clock.now();
+      report.tick_ms.record(ms(end - start));
+      if (end - start > period) overruns.fetch_add(1, std::memory_order_relaxed);
+      next += period;
+      if (end > next) {
+        ++report.missed_deadlines;
+        // The tick's own work took under half a period: the thread was started late (the OS,
+        // or on a virtual machine the hypervisor, had the core), not slowed by its work.
+        if (end - start < period / 2) ++report.missed_by_late_wakeup;
+      }
+      if (end > next + period) {  // fell behind by more than a period: drop those ticks
+        const std::int64_t behind = (end - next).count() / period.count();
+        report.skipped_ticks += static_cast<std::uint64_t>(behind);
+        next += period * behind;
+      }
+      ticks.store(k, std::memory_order_relaxed);
     }
+    // Zero first: before the tissue drains and the renderer joins.
+    loop.stop();
     stop.store(true);
+  });
+
+  // ---- Supervisor: zero within the watchdog's limit when a tick stalls ----
+  const Nanoseconds stall_limit = period + guard_config.deadline_margin;
+  std::atomic<bool> supervising{true};
+  std::thread supervisor([&] {
+    while (supervising.load(std::memory_order_relaxed)) {
+      std::this_thread::sleep_for(std::chrono::microseconds(250));
+      (void)loop.zero_if_stalled(clock.now(), stall_limit);
+    }
   });
 
   // ---- The calling thread watches ----
   progress.stage = "run";
-  const auto wall_start = std::chrono::steady_clock::now();
   while (!stop.load()) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    if (options.stop_requested != nullptr && options.stop_requested->load()) interrupted.store(true);
     progress.elapsed_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
     progress.ticks = ticks.load();
@@ -430,20 +399,37 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     if (options.progress) options.progress(progress);
   }
   haptic_thread.join();
+  supervising.store(false);
+  supervisor.join();
+  loop.stop();  // already done by the haptic thread; kept in case it never started its loop
   // The steps still queued run to the last tick, so the final state is that of every tick.
-  std::exception_ptr tissue_error;
+  std::string tissue_error;
   try {
     tissue.finish();
-  } catch (...) {
-    tissue_error = std::current_exception();
+  } catch (const std::exception& e) {
+    tissue_error = e.what();
   }
   stop.store(true);
   render_thread.join();
-  const double run_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
 
   // ---- The session ends: final state, devices closed (zero forces), trace closed ----
+  const HapticLoopCounters& c = loop.counters();
   report.ticks = ticks.load();  // haptic ticks (the tissue may have stepped fewer times)
+  report.late_ticks = c.late_ticks;
+  report.max_tissue_backlog = c.max_tissue_backlog;
+  report.tissue_rate_changes = c.tissue_rate_changes;
+  report.max_tissue_ticks_per_step = std::max(report.max_tissue_ticks_per_step, c.max_ticks_per_step);
+  report.tissue_ticks_per_step = loop.schedule().ticks_per_step();
+  report.malformed_reports = c.malformed_reports;
+  report.guard_latches = c.guard_latches;
+  report.dropped_tissue_steps = c.dropped_steps;
+  report.supervisor_zeros = c.supervisor_zeros;
+  report.headset.ticks_without_display = c.display_held_ticks;
+  report.haptic_device_lost_s = c.haptic_lost_s;
+  report.haptic_device_lost_reason = c.haptic_lost_reason;
+  report.head_tracker_lost_s = c.head_lost_s;
+  report.head_tracker_lost_reason = c.head_lost_reason;
+  report.recording_error = c.recording_error;
   report.overruns = overruns.load();
   report.realtime_priority = realtime.load();
   report.final_state_hash = sim.state_hash();
@@ -453,7 +439,6 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   report.render_fps = report.frames > 1 && report.frame_ms.count() > 0
                           ? 1000.0 / report.frame_ms.summary().mean
                           : 0.0;
-  (void)run_s;
   for (std::size_t i = 0; i < sim.events().size(); ++i) {
     EventReport e;
     e.event = sim.events()[i];
@@ -461,18 +446,39 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     if (i < event_response.size()) e.response_ms = event_response[i];
     report.events.push_back(std::move(e));
   }
-  if (writer) {
-    const nlohmann::json end = {{"session_end",
-                                 {{"ticks", report.ticks},
-                                  {"state_hash", report.final_state_hash},
-                                  {"events", report.events.size()}}}};
-    writer->note(clock.now().count(), end.dump());
+  // Every ending writes the closing note and closes the devices and the trace; a failure there
+  // is reported, not thrown, so the report is written either way.
+  try {
+    if (writer && writer->failure().empty()) {
+      const nlohmann::json end = {{"session_end",
+                                   {{"ticks", report.ticks},
+                                    {"state_hash", report.final_state_hash},
+                                    {"events", report.events.size()}}}};
+      writer->note(clock.now().count(), end.dump());
+    }
+  } catch (const std::exception& e) {
+    if (report.recording_error.empty()) report.recording_error = e.what();
   }
   session_devices.close();
-  if (writer) writer->close();
-  if (render_error) std::rethrow_exception(render_error);
-  if (tissue_error) std::rethrow_exception(tissue_error);
-  if (haptic_error) std::rethrow_exception(haptic_error);
+  if (writer) {
+    try {
+      writer->close();
+    } catch (const std::exception& e) {
+      if (report.recording_error.empty()) report.recording_error = e.what();
+    }
+    if (report.recording_error.empty()) report.recording_error = writer->failure();
+  }
+  if (!render_error.empty()) {
+    report.ending = "error";
+    report.error = "renderer: " + render_error;
+  } else if (!tissue_error.empty()) {
+    report.ending = "error";
+    report.error = "soft tissue: " + tissue_error;
+  } else if (interrupted.load()) {
+    report.ending = "interrupted";
+  } else {
+    report.ending = "completed";
+  }
   return report;
 }
 

@@ -83,6 +83,11 @@ struct DeviceDescription {
   std::string serial;
   /// Upper bound on the force sent (the device's own limit applies too, the lower wins).
   double max_force_N = 3.0;
+  /// Where a haptic device sits in the scene: its frame's rotation (degrees about the scene's
+  /// x, then y, then z axis) and origin (mm) in scene coordinates. Poses come in through it; a
+  /// 3-axis force channel gets the force vector through its inverse.
+  std::array<double, 3> device_to_scene_rotation_deg{0.0, 0.0, 0.0};
+  std::array<double, 3> device_to_scene_translation_mm{0.0, 0.0, 0.0};
 };
 
 struct HeadsetDescription {
