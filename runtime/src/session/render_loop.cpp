@@ -10,6 +10,9 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtx/quaternion.hpp>
 
+#include <nlohmann/json.hpp>
+
+#include "bisturi/devices/trace/trace_format.h"
 #include "bisturi/runtime/render/errors.h"
 #include "bisturi/runtime/render/instrument_mesh.h"
 #include "bisturi/runtime/render/openxr_sink.h"
@@ -152,6 +155,19 @@ render::OpenXrSinkOptions headset_options(const SceneDescription& scene, const S
   return o;
 }
 
+/// The runtime's head pose of a drawn frame, for the trace.
+std::string head_note(const render::HeadsetFrame& f) {
+  const nlohmann::json j = {
+      {"xr_head",
+       {{"display_time_ns", f.display_time_ns},
+        {"views_valid", f.views_valid},
+        {"position_mm", {f.head.position_mm.x, f.head.position_mm.y, f.head.position_mm.z}},
+        {"orientation_wxyz",
+         {f.head.orientation.w, f.head.orientation.x, f.head.orientation.y,
+          f.head.orientation.z}}}}};
+  return j.dump();
+}
+
 /// The headset's figures into the report; the display rate and dropped frames are the runtime's.
 void report_headset(const render::OpenXrSink& xr, const render::StereoRenderer& renderer,
                     render::PoseClock::time_point origin, SessionReport& report) {
@@ -203,6 +219,7 @@ void run_render_loop(const RenderLoopContext& c) {
   TripleBuffer<Snapshot>& handoff = c.snapshots;
   TripleBuffer<render::HeadPose>& head_handoff = c.head_poses;
   std::atomic<bool>& stop = c.stop;
+  devices::Clock& clock = options.clock != nullptr ? *options.clock : devices::steady_clock();
   std::atomic<bool>& render_ready = c.ready;
   std::atomic<std::uint64_t>& frames = c.frames;
   std::vector<double>& event_response = c.event_response_ms;
@@ -332,6 +349,13 @@ void run_render_loop(const RenderLoopContext& c) {
     render::FrameStats stats;
     if (xr) {
       if (xr_frame.should_render) stats = renderer.render(xr_frame.head, xr_frame.eyes);
+      if (xr_frame.should_render && c.writer != nullptr) {
+        try {
+          c.writer->note(clock.now().count(), head_note(xr_frame));
+        } catch (const devices::TraceError&) {
+          // The recording failed; the haptic loop reports why. Frames go on.
+        }
+      }
       xr->end_frame(xr_frame, xr_frame.should_render);
       if (!xr_frame.should_render) continue;  // nothing drawn: no frame to time
     } else {

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "bisturi/devices/clock.h"
+#include "bisturi/devices/trace/trace_writer.h"
 #include "bisturi/runtime/render/headset.h"
 #include "bisturi/runtime/session/scene_description.h"
 #include "bisturi/runtime/session/session.h"
@@ -42,6 +43,9 @@ struct RenderLoopContext {
   /// False while an OpenXR headset shows nothing (not yet visible, session lost): the haptic
   /// loop holds its forces at zero then. Always true with the PNG sink.
   std::atomic<bool>& display_live;
+  /// The session's recording (null: none): with OpenXR each drawn frame's head pose, as the
+  /// runtime located it, goes in as an "xr_head" note.
+  devices::TraceWriter* writer = nullptr;
 };
 
 /// Runs until `stop`. Throws render::RenderError (no Vulkan device) and what the sinks throw.

@@ -267,7 +267,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   std::thread render_thread([&] {
     try {
       run_render_loop({scene, options, report, initial, handoff, head_handoff, stop, render_ready,
-                       frames, event_response, event_times, display_live});
+                       frames, event_response, event_times, display_live, writer.get()});
     } catch (const std::exception& e) {
       render_error = e.what();
       render_ready.store(true);
