@@ -72,7 +72,7 @@ struct Entry {
   Entry{"xr" #name, reinterpret_cast<PFN_xrVoidFunction>(&name), Needs::Vulkan2},
 #define BISTURI_XRSIM_ENTRY_TS(name) \
   Entry{"xr" #name, reinterpret_cast<PFN_xrVoidFunction>(&name), Needs::Timespec},
-#define BISTURI_XRSIM_ENTRY_UNSUPPORTED(name)                                                  \
+#define BISTURI_XRSIM_ENTRY_UNSUPPORTED(name)                                               \
   Entry{"xr" #name, reinterpret_cast<PFN_xrVoidFunction>(&Unsupported<PFN_xr##name>::call), \
         Needs::Core},
 
@@ -160,8 +160,8 @@ XrResult XRAPI_CALL bisturi::xrsim::GetInstanceProcAddr(XrInstance instance, con
   for (const Entry& e : kEntries) {
     if (e.name == wanted) {
       const bool enabled = e.needs == Needs::Core ||
-                           (owner != nullptr && (e.needs == Needs::Vulkan2 ? owner->vulkan2
-                                                                           : owner->convert_timespec));
+                           (owner != nullptr &&
+                            (e.needs == Needs::Vulkan2 ? owner->vulkan2 : owner->convert_timespec));
       if (!enabled) return XR_ERROR_FUNCTION_UNSUPPORTED;
       *function = e.function;
       return XR_SUCCESS;

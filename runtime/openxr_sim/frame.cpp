@@ -5,8 +5,8 @@
 #include <chrono>
 #include <cinttypes>
 #include <cmath>
-#include <cstring>
 #include <cstdio>
+#include <cstring>
 #include <thread>
 
 #include "api.h"
@@ -99,10 +99,10 @@ bool valid_pose(const XrPosef& p) {
 /// A field of view a compositor can project: finite, left of right, below up, under 90 degrees.
 bool valid_fov(const XrFovf& f) {
   const float limit = 1.5707f;
-  return finite(f.angleLeft) && finite(f.angleRight) && finite(f.angleUp) &&
-         finite(f.angleDown) && f.angleLeft < f.angleRight && f.angleDown < f.angleUp &&
-         std::abs(f.angleLeft) < limit && std::abs(f.angleRight) < limit &&
-         std::abs(f.angleUp) < limit && std::abs(f.angleDown) < limit;
+  return finite(f.angleLeft) && finite(f.angleRight) && finite(f.angleUp) && finite(f.angleDown) &&
+         f.angleLeft < f.angleRight && f.angleDown < f.angleUp && std::abs(f.angleLeft) < limit &&
+         std::abs(f.angleRight) < limit && std::abs(f.angleUp) < limit &&
+         std::abs(f.angleDown) < limit;
 }
 
 /// Checks one projection layer; XR_SUCCESS when the compositor could show it.
@@ -228,8 +228,8 @@ XrResult EndFrame(XrSession handle_, const XrFrameEndInfo* info) {
                    ",\"display_time_ns\":" + std::to_string(info->displayTime) +
                    ",\"predicted_display_time_ns\":" + std::to_string(s->predicted_display_ns) +
                    ",\"should_render\":" + (s->should_render ? "true" : "false") +
-                   ",\"layers\":" + std::to_string(info->layerCount) +
-                   ",\"space\":" + std::to_string(layer != nullptr ? object<Space>(layer->space)->type : 0) +
+                   ",\"layers\":" + std::to_string(info->layerCount) + ",\"space\":" +
+                   std::to_string(layer != nullptr ? object<Space>(layer->space)->type : 0) +
                    ",\"views\":" + views + "]");
   s->frame_begun = false;
   ++s->frames_ended;

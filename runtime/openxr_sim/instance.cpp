@@ -157,10 +157,10 @@ XrResult CreateInstance(const XrInstanceCreateInfo* info, XrInstance* instance) 
     if (formats.size() > 1) formats += ",";
     formats += json_string(format_name(f));
   }
-  created->log.write(
-      "instance", "\"application\":" + json_string(created->application) + ",\"display_hz\":" +
-                      std::to_string(created->config.display_hz) + ",\"formats\":" + formats +
-                      "],\"convert_timespec\":" + (timespec ? "true" : "false"));
+  created->log.write("instance",
+                     "\"application\":" + json_string(created->application) + ",\"display_hz\":" +
+                         std::to_string(created->config.display_hz) + ",\"formats\":" + formats +
+                         "],\"convert_timespec\":" + (timespec ? "true" : "false"));
   track(created);
   *instance = handle<XrInstance>(created);
   return XR_SUCCESS;

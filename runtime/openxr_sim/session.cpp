@@ -230,7 +230,8 @@ XrResult PollEvent(XrInstance instance_handle, XrEventDataBuffer* event) {
   if (event == nullptr || event->type != XR_TYPE_EVENT_DATA_BUFFER) {
     return XR_ERROR_VALIDATION_FAILURE;
   }
-  if (instance->events.empty()) return instance->lost ? XR_ERROR_INSTANCE_LOST : XR_EVENT_UNAVAILABLE;
+  if (instance->events.empty())
+    return instance->lost ? XR_ERROR_INSTANCE_LOST : XR_EVENT_UNAVAILABLE;
   *event = instance->events.front();
   instance->events.pop_front();
   return XR_SUCCESS;

@@ -7,10 +7,10 @@
 #include <vulkan/vulkan.h>
 #define XR_USE_GRAPHICS_API_VULKAN 1
 #define XR_USE_TIMESPEC 1
-#include <time.h>
 #include <openxr/openxr.h>
 #include <openxr/openxr_platform.h>
 #include <openxr/openxr_reflection.h>
+#include <time.h>
 
 #include <array>
 #include <cstdint>
@@ -50,7 +50,8 @@ struct Config {
   double lost_ms = 150.0;
   /// BISTURI_XR_SIM_LOSE_INSTANCE_AFTER=N: after N ended frames the runtime goes away for good
   /// (instance loss pending; every call then answers XR_ERROR_INSTANCE_LOST).
-  std::int64_t lose_instance_after_frames = -1;  static Config from_environment();
+  std::int64_t lose_instance_after_frames = -1;
+  static Config from_environment();
 };
 
 struct Session;
@@ -67,10 +68,10 @@ struct Instance {
   bool convert_timespec = false;  ///< XR_KHR_convert_timespec_time enabled
   std::vector<VkDevice> devices;  ///< made through xrCreateVulkanDeviceKHR
   Session* session = nullptr;
-  std::int64_t start_ns = 0;          ///< the head's motion is a function of time since this
-  std::int64_t headset_back_ns = 0;   ///< after a session loss: xrGetSystem fails until then
+  std::int64_t start_ns = 0;         ///< the head's motion is a function of time since this
+  std::int64_t headset_back_ns = 0;  ///< after a session loss: xrGetSystem fails until then
   std::uint64_t sessions_created = 0;
-  bool lost = false;                  ///< the instance is lost: every call fails
+  bool lost = false;  ///< the instance is lost: every call fails
 };
 
 struct Swapchain {

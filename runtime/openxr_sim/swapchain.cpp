@@ -36,11 +36,10 @@ VkImageUsageFlags vulkan_usage(XrSwapchainUsageFlags usage) {
 void record_initial_layouts(VkCommandBuffer commands, void* user) {
   const auto& chain = *static_cast<const Swapchain*>(user);
   for (const VkImage image : chain.images) {
-    colour_image_barrier(commands, image, VK_IMAGE_LAYOUT_UNDEFINED,
-                         VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, 0,
-                         VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
-                         VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-                         chain.array_size);
+    colour_image_barrier(
+        commands, image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, 0,
+        VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
+        VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, chain.array_size);
   }
 }
 

@@ -60,7 +60,8 @@ XrPosef head_pose(const Instance& instance, std::int64_t time_ns, int view) {
                 0.02 * std::sin(kTwoPi * t / 3.1)};
     const double yaw = 0.25 * std::sin(kTwoPi * t / 2.9);
     const double pitch = -0.15 + 0.1 * std::sin(kTwoPi * t / 2.1);
-    orientation = glm::angleAxis(yaw, glm::dvec3(0, 1, 0)) * glm::angleAxis(pitch, glm::dvec3(1, 0, 0));
+    orientation =
+        glm::angleAxis(yaw, glm::dvec3(0, 1, 0)) * glm::angleAxis(pitch, glm::dvec3(1, 0, 0));
   }
   if (view >= 0) {
     const double side = view == 0 ? -0.5 : 0.5;
@@ -123,20 +124,19 @@ XrResult LocateViews(XrSession handle_, const XrViewLocateInfo* info, XrViewStat
                    : garbage_pose();
     v.fov = s->instance->config.fov[static_cast<std::size_t>(eye)];
     const float position[3] = {v.pose.position.x, v.pose.position.y, v.pose.position.z};
-    const float orientation[4] = {v.pose.orientation.x, v.pose.orientation.y,
-                                  v.pose.orientation.z, v.pose.orientation.w};
+    const float orientation[4] = {v.pose.orientation.x, v.pose.orientation.y, v.pose.orientation.z,
+                                  v.pose.orientation.w};
     const float fov[4] = {v.fov.angleLeft, v.fov.angleRight, v.fov.angleUp, v.fov.angleDown};
     if (eye > 0) logged += ",";
     logged += "{\"position\":" + json_floats(position, 3) +
-              ",\"orientation\":" + json_floats(orientation, 4) + ",\"fov\":" + json_floats(fov, 4) +
-              "}";
+              ",\"orientation\":" + json_floats(orientation, 4) +
+              ",\"fov\":" + json_floats(fov, 4) + "}";
   }
-  s->instance->log.write("located", "\"frame\":" + std::to_string(s->frames_waited - 1) +
-                                        ",\"display_time_ns\":" +
-                                        std::to_string(info->displayTime) +
-                                        ",\"space\":" + std::to_string(space->type) +
-                                        ",\"valid\":" + (valid ? "true" : "false") +
-                                        ",\"views\":" + logged + "]");
+  s->instance->log.write(
+      "located", "\"frame\":" + std::to_string(s->frames_waited - 1) +
+                     ",\"display_time_ns\":" + std::to_string(info->displayTime) +
+                     ",\"space\":" + std::to_string(space->type) +
+                     ",\"valid\":" + (valid ? "true" : "false") + ",\"views\":" + logged + "]");
   return XR_SUCCESS;
 }
 
@@ -157,14 +157,13 @@ XrResult LocateSpace(XrSpace space_handle, XrSpace base_handle, XrTime time,
     return sp.type == XR_REFERENCE_SPACE_TYPE_VIEW ? head_pose(*s.instance, time, -1)
                                                    : space_origin(sp.type);
   };
-  const bool tracked = space->type == XR_REFERENCE_SPACE_TYPE_VIEW ||
-                       base->type == XR_REFERENCE_SPACE_TYPE_VIEW;
+  const bool tracked =
+      space->type == XR_REFERENCE_SPACE_TYPE_VIEW || base->type == XR_REFERENCE_SPACE_TYPE_VIEW;
   const bool valid = !(tracked && invalid_now(s));
-  location->locationFlags = valid ? XR_SPACE_LOCATION_ORIENTATION_VALID_BIT |
-                                        XR_SPACE_LOCATION_POSITION_VALID_BIT |
-                                        XR_SPACE_LOCATION_ORIENTATION_TRACKED_BIT |
-                                        XR_SPACE_LOCATION_POSITION_TRACKED_BIT
-                                  : 0;
+  location->locationFlags =
+      valid ? XR_SPACE_LOCATION_ORIENTATION_VALID_BIT | XR_SPACE_LOCATION_POSITION_VALID_BIT |
+                  XR_SPACE_LOCATION_ORIENTATION_TRACKED_BIT | XR_SPACE_LOCATION_POSITION_TRACKED_BIT
+            : 0;
   location->pose = valid ? relative_to(in_local(*base), in_local(*space)) : garbage_pose();
   return XR_SUCCESS;
 }

@@ -245,8 +245,7 @@ void OpenXrSink::Impl::choose_format() {
 XrTime OpenXrSink::Impl::now_xr() const {
   // Without XR_KHR_convert_timespec_time, XrTime is taken as CLOCK_MONOTONIC nanoseconds, which
   // it is in Monado (and the simulated runtime); PoseClock is that clock on Linux.
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             PoseClock::now().time_since_epoch())
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(PoseClock::now().time_since_epoch())
       .count();
 }
 
@@ -268,7 +267,7 @@ void OpenXrSink::Impl::stop(std::string reason) {
 bool OpenXrSink::Impl::xr_frame(XrResult r, const char* what) {
   if (XR_SUCCEEDED(r)) return true;
   if (r == XR_ERROR_SESSION_LOST) {
-    lose_session(what);
+    lose_session();
     return false;
   }
   if (r == XR_ERROR_INSTANCE_LOST) {
@@ -303,7 +302,7 @@ void OpenXrSink::Impl::on_state(XrSessionState next, XrTime time) {
           "user quit");
       break;
     case XR_SESSION_STATE_LOSS_PENDING:
-      lose_session("LOSS_PENDING");
+      lose_session();
       break;
     default:
       break;
@@ -342,12 +341,11 @@ void OpenXrSink::Impl::destroy_session() {
   running = false;
 }
 
-void OpenXrSink::Impl::lose_session(const char* why) {
+void OpenXrSink::Impl::lose_session() {
   if (lost || session == XR_NULL_HANDLE) return;
   // The session is going away: nothing more is shown. Its objects go now; a new session is
   // made once the runtime has the headset again (try_recreate).
   ++stats.sessions_lost;
-  (void)why;
   lost = true;
   running = false;
   have_views = false;  // the new session's views are located afresh
@@ -382,7 +380,8 @@ void OpenXrSink::Impl::try_recreate() {
     return;
   }
   if (physical != context->physical_device()) {
-    stop("the OpenXR runtime came back on another Vulkan device than the one the renderer draws on");
+    stop(
+        "the OpenXR runtime came back on another Vulkan device than the one the renderer draws on");
     return;
   }
   system = again;

@@ -84,7 +84,8 @@ HeadsetFrame OpenXrSink::Impl::begin_frame() {
     stats.max_display_period_ns = std::max(stats.max_display_period_ns, period);
     if (last_display_ns != 0) {
       const double gap = static_cast<double>(frame_state.predictedDisplayTime - last_display_ns);
-      const auto periods = static_cast<std::int64_t>(std::llround(gap / static_cast<double>(period)));
+      const auto periods =
+          static_cast<std::int64_t>(std::llround(gap / static_cast<double>(period)));
       if (periods > 1) stats.dropped_frames += static_cast<std::uint64_t>(periods - 1);
     }
   }
@@ -139,9 +140,9 @@ HeadsetFrame OpenXrSink::Impl::begin_frame() {
                    "%s{\"orientation\":[%.9g,%.9g,%.9g,%.9g],\"position\":[%.9g,%.9g,%.9g],"
                    "\"fov\":[%.9g,%.9g,%.9g,%.9g]}",
                    e == 0 ? "" : ",", v.pose.orientation.x, v.pose.orientation.y,
-                   v.pose.orientation.z, v.pose.orientation.w, v.pose.position.x,
-                   v.pose.position.y, v.pose.position.z, v.fov.angleLeft, v.fov.angleRight,
-                   v.fov.angleUp, v.fov.angleDown);
+                   v.pose.orientation.z, v.pose.orientation.w, v.pose.position.x, v.pose.position.y,
+                   v.pose.position.z, v.fov.angleLeft, v.fov.angleRight, v.fov.angleUp,
+                   v.fov.angleDown);
     }
     std::fprintf(views_log, "]}\n");
   }

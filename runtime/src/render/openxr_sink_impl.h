@@ -7,9 +7,9 @@
 #include <vulkan/vulkan.h>
 #define XR_USE_GRAPHICS_API_VULKAN 1
 #define XR_USE_TIMESPEC 1
-#include <time.h>
 #include <openxr/openxr.h>
 #include <openxr/openxr_platform.h>
+#include <time.h>
 
 #include <algorithm>
 #include <array>
@@ -125,7 +125,7 @@ struct OpenXrSink::Impl {
   void poll_events();
   void on_state(XrSessionState next, XrTime time);
   void stop(std::string reason);
-  void lose_session(const char* why);
+  void lose_session();
   void try_recreate();
   void destroy_session();
   PoseClock::time_point to_pose_clock(XrTime time) const;

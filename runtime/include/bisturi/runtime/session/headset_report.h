@@ -12,8 +12,8 @@
 namespace bisturi::runtime {
 
 struct HeadsetStateChange {
-  std::string state;   ///< OpenXR's name without its prefix, e.g. "FOCUSED"
-  double time_s = 0.0; ///< the event's time, since the session started
+  std::string state;    ///< OpenXR's name without its prefix, e.g. "FOCUSED"
+  double time_s = 0.0;  ///< the event's time, since the session started
 };
 
 struct HeadsetReport {
@@ -27,9 +27,9 @@ struct HeadsetReport {
   double min_display_period_ms = 0.0, max_display_period_ms = 0.0;
   double display_hz = 0.0;  ///< 1 / display_period_ms
   std::uint64_t frames_begun = 0;
-  std::uint64_t frames_submitted = 0;     ///< with the projection layer
-  std::uint64_t frames_not_rendered = 0;  ///< the runtime said shouldRender = false
-  std::uint64_t frames_without_views = 0; ///< before any valid view location: no layer
+  std::uint64_t frames_submitted = 0;      ///< with the projection layer
+  std::uint64_t frames_not_rendered = 0;   ///< the runtime said shouldRender = false
+  std::uint64_t frames_without_views = 0;  ///< before any valid view location: no layer
   /// Display refreshes without a new frame: gaps between predicted display times, in periods.
   std::uint64_t dropped_frames = 0;
   /// Frames whose views were not validly located (the last valid views were used instead).
