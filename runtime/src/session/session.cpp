@@ -476,6 +476,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     report.error = "soft tissue: " + tissue_error;
   } else if (interrupted.load()) {
     report.ending = "interrupted";
+  } else if (!report.headset.stop_reason.empty()) {
+    report.ending = "headset";
   } else {
     report.ending = "completed";
   }

@@ -186,9 +186,10 @@ struct SessionReport {
   std::string head_tracker_lost_reason;
   /// Why the recording stopped before the end (empty: it did not, or nothing was recorded).
   std::string recording_error;
-  /// How the session ended: "completed" (its duration), "interrupted" (stop_requested) or
-  /// "error" (the renderer or the soft tissue failed; `error` says what). The report is whole in
-  /// every case.
+  /// How the session ended: "completed" (its duration), "interrupted" (stop_requested),
+  /// "headset" (the OpenXR runtime ended it early: the user exited or the runtime went away;
+  /// headset.stop_reason says which) or "error" (the renderer or the soft tissue failed; `error`
+  /// says what). The report is whole in every case.
   std::string ending;
   std::string error;
   std::vector<EventReport> events;
