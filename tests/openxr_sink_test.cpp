@@ -106,7 +106,8 @@ class OpenXrSimTest : public ::testing::Test {
     for (const char* name :
          {"BISTURI_XR_SIM_FORMATS", "BISTURI_XR_SIM_EXIT_AFTER", "BISTURI_XR_SIM_HZ",
           "BISTURI_XR_SIM_STILL", "BISTURI_XR_SIM_INVALID_VIEWS", "BISTURI_XR_SIM_LOSE_AFTER",
-          "BISTURI_XR_SIM_LOST_MS", "BISTURI_XR_SIM_LOSE_INSTANCE_AFTER"}) {
+          "BISTURI_XR_SIM_LOST_MS", "BISTURI_XR_SIM_LOSE_INSTANCE_AFTER",
+          "BISTURI_XR_SIM_TRIGGER_FRAMES"}) {
       unsetenv(name);
     }
   }
@@ -353,6 +354,44 @@ TEST_F(OpenXrSimTest, ARuntimeThatGoesAwayStopsPresentingCleanly) {
   EXPECT_FALSE(after.began);
   r.reset();
   s.reset();  // tears down without throwing
+}
+
+TEST_F(OpenXrSimTest, TheRightControllersGripTriggerAndVibrationComeThroughTheRuntime) {
+  setenv("BISTURI_XR_SIM_TRIGGER_FRAMES", "3-5", 1);
+  OpenXrSinkOptions o;
+  o.controller = true;
+  auto s = sink(o);
+  if (!s) GTEST_SKIP() << skipped_;
+  auto r = renderer(*s);
+  // Until the session is focused (after frame 0) no input reaches it, nor vibration.
+  EXPECT_FALSE(s->vibrate(0.5f, 0.02));
+  const HeadsetFrame first = run_frame(*s, r.get());
+  EXPECT_FALSE(first.controller.active);
+  std::vector<HeadsetFrame> frames{first};
+  for (int i = 1; i < 8; ++i)
+    frames.push_back(run_frame(*s, r.get()));
+  for (std::size_t i = 1; i < frames.size(); ++i) {
+    const ControllerState& c = frames[i].controller;
+    ASSERT_TRUE(c.active) << "frame " << i;
+    EXPECT_EQ(c.trigger, i >= 3 && i <= 5 ? 1.0f : 0.0f) << "frame " << i;
+    // The simulated grip is 0.30 m below LOCAL's origin: the world pose maps back there.
+    EXPECT_NEAR(s->to_reference_m(c.grip_mm).y, -0.30, 1e-5) << "frame " << i;
+  }
+  EXPECT_NE(frames[1].controller.grip_mm, frames[7].controller.grip_mm) << "the hand moved";
+  EXPECT_TRUE(s->vibrate(0.5f, 0.02));
+  EXPECT_TRUE(s->vibrate(1.0f, 0.0));  // the shortest vibration the runtime has
+  EXPECT_THROW(s->vibrate(1.5f, 0.02), RenderError);
+  EXPECT_EQ(s->stats().vibrations, 2u);
+  expect_no_validation(*s);
+  r.reset();
+  s.reset();
+  const auto log = read_log(log_);
+  const auto haptics = events(log, "haptic");
+  ASSERT_EQ(haptics.size(), 2u);
+  EXPECT_DOUBLE_EQ(haptics[0]["amplitude"].get<double>(), 0.5);
+  EXPECT_EQ(haptics[0]["duration_ns"], 20'000'000);
+  EXPECT_EQ(haptics[1]["duration_ns"], -1) << "XR_MIN_HAPTIC_DURATION";
+  EXPECT_EQ(events(log, "attach").size(), 1u);
 }
 
 TEST_F(OpenXrSimTest, StageSpaceWhenAskedAndOffered) {

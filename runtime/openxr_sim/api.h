@@ -40,7 +40,21 @@
   _(BeginFrame) \
   _(EndFrame) \
   _(LocateViews) \
-  _(LocateSpace)
+  _(LocateSpace) \
+  _(StringToPath) \
+  _(PathToString) \
+  _(CreateActionSet) \
+  _(DestroyActionSet) \
+  _(CreateAction) \
+  _(DestroyAction) \
+  _(SuggestInteractionProfileBindings) \
+  _(AttachSessionActionSets) \
+  _(CreateActionSpace) \
+  _(SyncActions) \
+  _(GetActionStateFloat) \
+  _(GetActionStatePose) \
+  _(ApplyHapticFeedback) \
+  _(StopHapticFeedback)
 
 // XR_KHR_vulkan_enable2, the one extension offered.
 #define BISTURI_XRSIM_VULKAN(_) \
@@ -57,28 +71,14 @@
 // Core functions not implemented: the loader fills its dispatch table with every core function,
 // so these answer XR_ERROR_FUNCTION_UNSUPPORTED when called instead of being null.
 #define BISTURI_XRSIM_UNSUPPORTED(_) \
-  _(ApplyHapticFeedback) \
-  _(AttachSessionActionSets) \
-  _(CreateAction) \
-  _(CreateActionSet) \
-  _(CreateActionSpace) \
-  _(DestroyAction) \
-  _(DestroyActionSet) \
   _(EnumerateApiLayerProperties) \
   _(EnumerateBoundSourcesForAction) \
   _(GetActionStateBoolean) \
-  _(GetActionStateFloat) \
-  _(GetActionStatePose) \
   _(GetActionStateVector2f) \
   _(GetCurrentInteractionProfile) \
   _(GetInputSourceLocalizedName) \
   _(GetReferenceSpaceBoundsRect) \
-  _(GetViewConfigurationProperties) \
-  _(PathToString) \
-  _(StopHapticFeedback) \
-  _(StringToPath) \
-  _(SuggestInteractionProfileBindings) \
-  _(SyncActions)
+  _(GetViewConfigurationProperties)
 // clang-format on
 
 namespace bisturi::xrsim {

@@ -76,6 +76,13 @@ Config Config::from_environment() {
   if (const std::string n = env("BISTURI_XR_SIM_LOSE_INSTANCE_AFTER"); !n.empty()) {
     c.lose_instance_after_frames = std::atoll(n.c_str());
   }
+  if (const std::string range = env("BISTURI_XR_SIM_TRIGGER_FRAMES"); !range.empty()) {
+    long long a = -1, b = -1;
+    if (std::sscanf(range.c_str(), "%lld-%lld", &a, &b) == 2 && a >= 0 && b >= a) {
+      c.trigger_from = a;
+      c.trigger_to = b;
+    }
+  }
   c.log_path = env("BISTURI_XR_SIM_LOG");
   c.png_dir = env("BISTURI_XR_SIM_PNG_DIR");
   if (const std::string n = env("BISTURI_XR_SIM_EXIT_AFTER"); !n.empty()) {
@@ -170,6 +177,7 @@ XrResult DestroyInstance(XrInstance handle_) {
   Instance* instance = checked(handle_);
   if (instance == nullptr) return XR_ERROR_HANDLE_INVALID;
   if (instance->session != nullptr) DestroySession(handle<XrSession>(instance->session));
+  destroy_action_sets(*instance);
   instance->log.write("instance_destroyed");
   untrack(instance);
   delete instance;

@@ -170,6 +170,9 @@ XrResult DestroySession(XrSession handle_) {
                                        c.session == handle_;
                               }),
                events.end());
+  for (ActionSet* set : s->instance->action_sets) {
+    if (set->attached_to == s) set->attached_to = nullptr;  // free to attach to a new session
+  }
   s->instance->session = nullptr;
   untrack(s);
   delete s;

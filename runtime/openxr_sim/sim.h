@@ -48,6 +48,9 @@ struct Config {
   /// headset is back BISTURI_XR_SIM_LOST_MS (default 150) ms later (xrGetSystem fails until then).
   std::int64_t lose_after_frames = -1;
   double lost_ms = 150.0;
+  /// BISTURI_XR_SIM_TRIGGER_FRAMES=A-B: the right controller's trigger is held from frame A to
+  /// frame B (counted by xrWaitFrame), released otherwise.
+  std::int64_t trigger_from = -1, trigger_to = -1;
   /// BISTURI_XR_SIM_LOSE_INSTANCE_AFTER=N: after N ended frames the runtime goes away for good
   /// (instance loss pending; every call then answers XR_ERROR_INSTANCE_LOST).
   std::int64_t lose_instance_after_frames = -1;
@@ -55,6 +58,8 @@ struct Config {
 };
 
 struct Session;
+struct ActionSet;
+struct Action;
 
 struct Instance {
   Config config;
@@ -71,7 +76,25 @@ struct Instance {
   std::int64_t start_ns = 0;         ///< the head's motion is a function of time since this
   std::int64_t headset_back_ns = 0;  ///< after a session loss: xrGetSystem fails until then
   std::uint64_t sessions_created = 0;
-  bool lost = false;  ///< the instance is lost: every call fails
+  bool lost = false;               ///< the instance is lost: every call fails
+  std::vector<std::string> paths;  ///< XrPath n is paths[n - 1]
+  std::vector<ActionSet*> action_sets;
+};
+
+struct Action {
+  ActionSet* set = nullptr;
+  std::string name;
+  XrActionType type = XR_ACTION_TYPE_BOOLEAN_INPUT;
+  std::vector<XrPath> subactions;
+  std::vector<std::string> bindings;  ///< suggested for the simple controller, e.g. ".../grip/pose"
+};
+
+struct ActionSet {
+  Instance* instance = nullptr;
+  std::string name;
+  Session* attached_to = nullptr;  ///< the live session it is attached to
+  bool ever_attached = false;      ///< once attached it is immutable (actions, bindings)
+  std::vector<Action*> actions;
 };
 
 struct Swapchain {
@@ -94,6 +117,8 @@ struct Swapchain {
 struct Space {
   Session* session = nullptr;
   XrReferenceSpaceType type = XR_REFERENCE_SPACE_TYPE_LOCAL;
+  const Action* action = nullptr;  ///< an action space: the grip of the hand it is bound to
+  XrPath subaction = XR_NULL_PATH;
 };
 
 struct Session {
@@ -119,6 +144,9 @@ struct Session {
   std::uint64_t frames_waited = 0;
   std::vector<Swapchain*> swapchains;
   std::vector<Space*> spaces;
+  bool actions_attached = false;
+  bool synced = false;  ///< xrSyncActions was called while FOCUSED
+  std::uint64_t synced_frame = 0;
 };
 
 // --- Handles ---
@@ -144,6 +172,12 @@ XrPosef head_pose(const Instance& instance, std::int64_t time_ns, int view);
 XrPosef space_origin(XrReferenceSpaceType type);
 /// `pose` (in LOCAL) seen from a space whose origin in LOCAL is `origin`.
 XrPosef relative_to(const XrPosef& origin, const XrPosef& pose);
+/// The right controller's grip in LOCAL at `time`.
+XrPosef grip_pose(const Instance& instance, std::int64_t time_ns);
+/// Whether an action space's controller is tracked now (bound, and the session focused).
+bool action_space_tracked(const Space& space);
+/// Deletes an instance's action sets and actions.
+void destroy_action_sets(Instance& instance);
 /// Whether the instance is lost (the caller answers XR_ERROR_INSTANCE_LOST).
 bool instance_lost(const Instance* instance);
 const char* state_name(XrSessionState state);

@@ -154,12 +154,17 @@ XrResult LocateSpace(XrSpace space_handle, XrSpace base_handle, XrTime time,
   }
   if (time <= 0) return XR_ERROR_TIME_INVALID;
   const auto in_local = [&](const Space& sp) {
+    if (sp.action != nullptr) return grip_pose(*s.instance, time);  // a controller's grip
     return sp.type == XR_REFERENCE_SPACE_TYPE_VIEW ? head_pose(*s.instance, time, -1)
                                                    : space_origin(sp.type);
   };
-  const bool tracked =
-      space->type == XR_REFERENCE_SPACE_TYPE_VIEW || base->type == XR_REFERENCE_SPACE_TYPE_VIEW;
-  const bool valid = !(tracked && invalid_now(s));
+  const auto is_head = [](const Space& sp) {
+    return sp.action == nullptr && sp.type == XR_REFERENCE_SPACE_TYPE_VIEW;
+  };
+  // A controller is located only while it is bound and its input reaches the session.
+  const bool hands = (space->action == nullptr || action_space_tracked(*space)) &&
+                     (base->action == nullptr || action_space_tracked(*base));
+  const bool valid = !((is_head(*space) || is_head(*base)) && invalid_now(s)) && hands;
   location->locationFlags =
       valid ? XR_SPACE_LOCATION_ORIENTATION_VALID_BIT | XR_SPACE_LOCATION_POSITION_VALID_BIT |
                   XR_SPACE_LOCATION_ORIENTATION_TRACKED_BIT | XR_SPACE_LOCATION_POSITION_TRACKED_BIT

@@ -214,6 +214,7 @@ void OpenXrSink::Impl::create_session() {
   xr_setup(xrCreateReferenceSpace(session, &space_info, &space), "xrCreateReferenceSpace");
   space_info.referenceSpaceType = XR_REFERENCE_SPACE_TYPE_VIEW;
   xr_setup(xrCreateReferenceSpace(session, &space_info, &view_space), "xrCreateReferenceSpace");
+  if (options.controller) attach_input();
 }
 
 void OpenXrSink::Impl::choose_format() {
@@ -333,6 +334,8 @@ void OpenXrSink::Impl::poll_events() {
 
 void OpenXrSink::Impl::destroy_session() {
   destroy_swapchain();
+  if (grip_space != XR_NULL_HANDLE) xrDestroySpace(grip_space);
+  grip_space = XR_NULL_HANDLE;
   if (view_space != XR_NULL_HANDLE) xrDestroySpace(view_space);
   if (space != XR_NULL_HANDLE) xrDestroySpace(space);
   if (session != XR_NULL_HANDLE) xrDestroySession(session);
@@ -408,6 +411,7 @@ OpenXrSink::OpenXrSink(const OpenXrSinkOptions& options) : impl_(std::make_uniqu
   }
   s.create_instance();
   s.describe_system();
+  if (options.controller) s.create_input();
   s.create_vulkan();
   s.create_session();
   s.choose_format();
@@ -425,6 +429,9 @@ void OpenXrSink::end_frame(const HeadsetFrame& frame, bool rendered) {
   impl_->end_frame(frame, rendered);
 }
 void OpenXrSink::consume(const StereoFrame& /*frame*/) {}
+bool OpenXrSink::vibrate(float amplitude, double duration_s) {
+  return impl_->vibrate(amplitude, duration_s);
+}
 void OpenXrSink::finish() {
   impl_->finish();
 }

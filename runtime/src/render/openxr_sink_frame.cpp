@@ -34,6 +34,15 @@ glm::dvec3 OpenXrSink::to_reference_m(const glm::dvec3& world_mm) const {
   return o.field_position_m + world_to_xr() * ((world_mm - o.field_centre_mm) / 1000.0);
 }
 
+glm::dvec3 OpenXrSink::Impl::world_position(const glm::dvec3& reference_m) const {
+  return options.field_centre_mm +
+         glm::inverse(world_to_xr()) * (reference_m - options.field_position_m) * 1000.0;
+}
+
+glm::dquat OpenXrSink::Impl::world_orientation(const glm::dquat& reference) const {
+  return glm::normalize(glm::inverse(world_to_xr()) * reference);
+}
+
 std::uint32_t OpenXrSink::Impl::acquire_image() {
   std::uint32_t index = 0;
   XrSwapchainImageAcquireInfo acquire{};
@@ -99,6 +108,13 @@ HeadsetFrame OpenXrSink::Impl::begin_frame() {
   frame.display_time_ns = frame_state.predictedDisplayTime;
   frame.display_period_ns = period;
   frame.head.display_time = to_pose_clock(frame_state.predictedDisplayTime);
+  if (options.controller) {
+    frame.controller = read_controller(frame_state.predictedDisplayTime);
+    if (session == XR_NULL_HANDLE) {  // lost while reading it
+      frame.began = false;
+      return frame;
+    }
+  }
   if (frame_state.shouldRender != XR_TRUE) {
     ++stats.frames_not_rendered;
     return frame;
@@ -167,20 +183,16 @@ HeadsetFrame OpenXrSink::Impl::begin_frame() {
   }
 
   // The reference space's views into the world.
-  const glm::dquat to_world = glm::inverse(world_to_xr());
-  const auto world_position = [&](const glm::dvec3& xr_m) {
-    return options.field_centre_mm + to_world * (xr_m - options.field_position_m) * 1000.0;
-  };
   for (std::size_t e = 0; e < 2; ++e) {
     const XrView& v = last_views[e];
     EyePose& eye = frame.eyes[e];
     eye.position_mm = world_position(to_glm(v.pose.position));
-    eye.orientation = glm::normalize(to_world * to_glm(v.pose.orientation));
+    eye.orientation = world_orientation(to_glm(v.pose.orientation));
     eye.fov = {v.fov.angleLeft, v.fov.angleRight, v.fov.angleUp, v.fov.angleDown};
     headset.fov[e] = eye.fov;
   }
   frame.head.position_mm = world_position(last_head_m);
-  frame.head.orientation = glm::normalize(to_world * last_head_orientation);
+  frame.head.orientation = world_orientation(last_head_orientation);
   frame.head.sample_time = last_sample;  // reused views: motion-to-photon from their sample
 
   if (acquire_image() == UINT32_MAX) {

@@ -92,6 +92,14 @@ struct OpenXrSink::Impl {
   /// Called before the swapchain's images go away (the renderer drops its views of them).
   std::function<void()> before_swapchain_destroyed;
 
+  // The right controller (OpenXrSinkOptions::controller): actions made once per instance,
+  // attached and given a grip space in each session.
+  XrActionSet action_set = XR_NULL_HANDLE;
+  XrAction grip_action = XR_NULL_HANDLE, trigger_action = XR_NULL_HANDLE,
+           haptic_action = XR_NULL_HANDLE;
+  XrPath right_hand = XR_NULL_PATH;
+  XrSpace grip_space = XR_NULL_HANDLE;
+
   // The frame loop.
   std::int64_t last_display_ns = 0;
   bool have_views = false;  ///< some valid views were located: `last_*` hold them
@@ -132,9 +140,18 @@ struct OpenXrSink::Impl {
   XrTime now_xr() const;
 
   // openxr_sink_frame.cpp
+  /// A position (m) and an orientation in the reference space, in the world (mm).
+  glm::dvec3 world_position(const glm::dvec3& reference_m) const;
+  glm::dquat world_orientation(const glm::dquat& reference) const;
   HeadsetFrame begin_frame();
   void end_frame(const HeadsetFrame& frame, bool rendered);
   std::uint32_t acquire_image();
+
+  // openxr_sink_input.cpp
+  void create_input();
+  void attach_input();
+  ControllerState read_controller(XrTime display_time);
+  bool vibrate(float amplitude, double duration_s);
 
   // openxr_sink_vulkan.cpp
   void create_vulkan();

@@ -50,6 +50,19 @@ struct OpenXrSinkOptions {
   /// ...and where it sits in the reference space (metres, y up, -z ahead of the origin). LOCAL's
   /// origin is the head at the start: 0.35 m below the eyes, 0.45 m ahead.
   glm::dvec3 field_position_m{0.0, -0.35, -0.45};
+  /// Track the right hand's controller (the Khronos simple controller's bindings, which every
+  /// runtime maps): its grip pose and trigger in each frame, its vibration (vibrate).
+  bool controller = false;
+};
+
+/// The right hand's controller as the runtime tracks it (OpenXrSinkOptions::controller).
+struct ControllerState {
+  bool active = false;      ///< bound, and located this frame (input goes to a focused session)
+  glm::dvec3 grip_mm{0.0};  ///< the grip in the world, at the frame's display time
+  /// The grip's frame to the world (OpenXR's grip frame: -z along the closed hand's axis).
+  glm::dquat grip_orientation{1.0, 0.0, 0.0, 0.0};
+  float trigger = 0.0f;  ///< 0 released .. 1 pulled
+  PoseClock::time_point sample_time{};
 };
 
 /// A session state the runtime reported, and when (the event's time, on PoseClock).
@@ -74,6 +87,7 @@ struct OpenXrSinkStats {
   std::int64_t min_display_period_ns = 0, max_display_period_ns = 0;
   std::uint64_t sessions_lost = 0;       ///< LOSS_PENDING, or a call answered SESSION_LOST
   std::uint64_t sessions_recreated = 0;  ///< made again once the headset was back
+  std::uint64_t vibrations = 0;          ///< xrApplyHapticFeedback calls the runtime took
 };
 
 /// One frame of the runtime's loop (see begin_frame).
@@ -87,6 +101,7 @@ struct HeadsetFrame {
   /// located, display_time: the predicted display time.
   HeadPose head;
   std::array<EyePose, 2> eyes{};  ///< in the world, with the runtime's fields of view
+  ControllerState controller;     ///< with OpenXrSinkOptions::controller
 };
 
 class OpenXrSink : public FrameSink {
@@ -105,6 +120,11 @@ class OpenXrSink : public FrameSink {
   /// Ends `frame`: releases the swapchain image the renderer drew into and submits the layer
   /// when `rendered` (the frame's views), or no layer.
   void end_frame(const HeadsetFrame& frame, bool rendered);
+
+  /// Vibrates the right controller (a contact cue): amplitude 0..1 for `duration_s` (0: the
+  /// shortest the runtime has). False when there is no controller to vibrate (not asked for,
+  /// not bound, the session not focused). Throws RenderError on an amplitude outside 0..1.
+  bool vibrate(float amplitude, double duration_s);
 
   /// Ends the session the way the specification asks (xrRequestExitSession, xrEndSession at
   /// STOPPING, until EXITING), so that its last states are in state_changes(); the destructor
