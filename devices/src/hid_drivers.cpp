@@ -2,6 +2,7 @@
 
 #include <stdexcept>
 
+#include "bisturi/devices/simulated.h"
 #include "hid_mapping.h"
 
 namespace bisturi::devices {
@@ -18,8 +19,10 @@ class HidGlove final : public HapticDevice {
   HidGlove(std::unique_ptr<Transport> transport, Clock& clock, HidGloveOptions options)
       : HapticDevice(std::move(transport), clock),
         descriptor_(with_driver(Device::transport().descriptor(), kHidGloveDriver)),
-        mapping_(descriptor_, options.max_force_rate_N_per_s) {
-    const auto& caps = mapping_.capabilities();
+        mapping_(descriptor_, options.max_force_rate_N_per_s),
+        caps_(mapping_.capabilities()) {
+    caps_.spec.max_stiffness_N_per_m = options.max_stiffness_N_per_m;
+    const auto& caps = caps_;
     if (caps.finger_joints.empty() && !mapping_.has_pose() && caps.buttons == 0) {
       throw ProtocolError(describe(descriptor_), 0,
                           "the report descriptor describes no finger joints, pose or buttons");
@@ -32,7 +35,7 @@ class HidGlove final : public HapticDevice {
 
   const std::string& driver_name() const override { return name_; }
   const DeviceDescriptor& descriptor() const override { return descriptor_; }
-  const Capabilities& capabilities() const override { return mapping_.capabilities(); }
+  const Capabilities& capabilities() const override { return caps_; }
   const HapticState& state() const override { return state_; }
 
   std::size_t poll(std::chrono::microseconds timeout) override { return poll_transport(timeout); }
@@ -64,6 +67,7 @@ class HidGlove final : public HapticDevice {
   std::string name_ = kHidGloveDriver;
   DeviceDescriptor descriptor_;
   detail::HidMapping mapping_;
+  Capabilities caps_;
   HapticState state_;
   std::vector<double> zeros_;
   std::vector<Bytes> reports_;
@@ -83,6 +87,7 @@ class HidTracker final : public Tracker {
     caps_.head_pose = true;
     caps_.end_effectors = 0;
     caps_.force_channels.clear();
+    caps_.spec.max_stiffness_N_per_m = 0.0;  // renders no force
   }
   ~HidTracker() override { close(); }
 
@@ -148,6 +153,15 @@ DriverInfo hid_glove_driver_info() {
   info.create = [](std::unique_ptr<Transport> transport, Clock& clock) -> std::unique_ptr<Device> {
     return open_hid_glove(std::move(transport), clock);
   };
+  info.bus = TransportKind::Hid;
+  info.device_class = DeviceClass::HapticGlove;
+  info.make_twin = [](const DeviceScript& script, const std::string& serial,
+                      double haptic_hz) -> std::unique_ptr<SimulatedDevice> {
+    return std::make_unique<SimulatedGlove>(script, serial.empty() ? "GLOVE-0001" : serial,
+                                            haptic_hz);
+  };
+  // No list: the channels come from the descriptor; PID magnitudes (newtons) take the fingers in
+  // order, a unitless Haptics Intensity stays unused (ChannelLayout's defaults).
   return info;
 }
 
@@ -158,6 +172,12 @@ DriverInfo hid_tracker_driver_info() {
   info.matches = describes_hid_tracker;
   info.create = [](std::unique_ptr<Transport> transport, Clock& clock) -> std::unique_ptr<Device> {
     return open_hid_tracker(std::move(transport), clock);
+  };
+  info.bus = TransportKind::Hid;
+  info.device_class = DeviceClass::HeadTracker;
+  info.make_twin = [](const DeviceScript& script, const std::string& serial,
+                      double) -> std::unique_ptr<SimulatedDevice> {
+    return std::make_unique<SimulatedHeadTracker>(script, serial.empty() ? "HEAD-0001" : serial);
   };
   return info;
 }

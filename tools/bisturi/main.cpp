@@ -10,6 +10,8 @@
 #include "measure_command.h"
 #include "mesh_command.h"
 #include "mesh_demo.h"
+#include "pipeline_command.h"
+#include "cohort_command.h"
 #include "render_command.h"
 #include "run_command.h"
 #include "segment_command.h"
@@ -70,6 +72,14 @@ int run(int argc, char** argv) {
   int (*run_replay)(const bisturi::cli::ReplayOptions&) = nullptr;
   bisturi::cli::add_replay_command(app, replay, run_replay);
 
+  bisturi::cli::PipelineOptions pipeline;
+  int (*run_pipeline)(const bisturi::cli::PipelineOptions&) = nullptr;
+  bisturi::cli::add_pipeline_command(app, pipeline, run_pipeline);
+
+  bisturi::cli::CohortOptions cohort;
+  int (*run_cohort)(const bisturi::cli::CohortOptions&) = nullptr;
+  bisturi::cli::add_cohort_command(app, cohort, run_cohort);
+
   CLI11_PARSE(app, argc, argv);
   if (version) {
     std::cout << "bisturi " << bisturi::kVersion << " (" << bisturi::kBuildType << ")\n";
@@ -85,6 +95,8 @@ int run(int argc, char** argv) {
   if (run_render != nullptr) return run_render(render);
   if (run_run != nullptr) return run_run(run_options);
   if (run_replay != nullptr) return run_replay(replay);
+  if (run_pipeline != nullptr) return run_pipeline(pipeline);
+  if (run_cohort != nullptr) return run_cohort(cohort);
   std::cout << app.help();
   return 0;
 }

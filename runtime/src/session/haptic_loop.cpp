@@ -198,8 +198,9 @@ void HapticLoop::send_zero_locked(const char* note_text) noexcept {
 void HapticLoop::stop() noexcept {
   std::lock_guard lock(device_mutex_);
   if (stopped_.exchange(true, std::memory_order_acq_rel)) return;
+  // Latched first, so the zero goes out at once (a zero command alone is rate-limited down).
+  parts_.haptic->guard().device_disconnected();
   if (!lost_) send_zero_locked("haptic_stop");
-  parts_.haptic->guard().device_disconnected();  // latched: nothing but zero from here on
 }
 
 bool HapticLoop::zero_if_stalled(devices::Nanoseconds now, devices::Nanoseconds limit) noexcept {
@@ -210,6 +211,7 @@ bool HapticLoop::zero_if_stalled(devices::Nanoseconds now, devices::Nanoseconds 
   std::lock_guard lock(device_mutex_);
   if (zeroed_for_stall_.exchange(true, std::memory_order_acq_rel)) return false;
   if (stopped_.load(std::memory_order_acquire) || lost_) return false;
+  parts_.haptic->guard().deadline_missed();
   send_zero_locked("watchdog_zero");
   ++counters_.supervisor_zeros;
   return true;
@@ -218,6 +220,7 @@ bool HapticLoop::zero_if_stalled(devices::Nanoseconds now, devices::Nanoseconds 
 void HapticLoop::zero_now() noexcept {
   std::lock_guard lock(device_mutex_);
   if (stopped_.load(std::memory_order_acquire) || lost_) return;
+  parts_.haptic->guard().deadline_missed();
   send_zero_locked("watchdog_zero");
   ++counters_.supervisor_zeros;
 }

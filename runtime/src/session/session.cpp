@@ -36,6 +36,7 @@
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/sim/units.h"
 #include "haptic_loop.h"
+#include "haptic_thread.h"
 #include "lockstep_notes.h"
 #include "render_loop.h"
 #include "session_snapshot.h"
@@ -65,6 +66,50 @@ std::string read_text(const std::filesystem::path& file) {
   return s.str();
 }
 
+
+/// The session's trace (null when not recording): its header holds the scene's text and the
+/// settings a replay needs.
+std::unique_ptr<devices::TraceWriter> open_session_trace(const SceneDescription& scene,
+                                                         const SessionOptions& options,
+                                                         devices::Clock& clock, std::uint32_t lag,
+                                                         std::uint32_t ticks_per_step,
+                                                         std::uint32_t tissue_threads) {
+  if (options.record.empty()) return nullptr;
+  const std::string toml =
+      scene.file.empty() ? std::string(default_scene_toml()) : read_text(scene.file);
+  devices::TraceHeader header;
+  header.start_time_ns = clock.now().count();
+  header.wall_clock_unix_ns =
+      std::chrono::duration_cast<Nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+          .count();
+  header.producer = std::string("bisturi ") + kVersion;
+  // The haptic device is opened first, so it is device 0 of the trace.
+  header.config = session_trace_config(
+      toml, scene.file.empty() ? std::filesystem::path() : scene.file.parent_path(),
+      scene.rates.haptic_hz, 0, lag, ticks_per_step, tissue_threads);
+  return std::make_unique<devices::TraceWriter>(options.record, header);
+}
+
+/// What the haptic loop counted, into the report.
+void add_loop_counters(const HapticLoop& loop, SessionReport& report) {
+  const HapticLoopCounters& c = loop.counters();
+  report.late_ticks = c.late_ticks;
+  report.max_tissue_backlog = c.max_tissue_backlog;
+  report.tissue_rate_changes = c.tissue_rate_changes;
+  report.max_tissue_ticks_per_step =
+      std::max(report.max_tissue_ticks_per_step, c.max_ticks_per_step);
+  report.tissue_ticks_per_step = loop.schedule().ticks_per_step();
+  report.malformed_reports = c.malformed_reports;
+  report.guard_latches = c.guard_latches;
+  report.dropped_tissue_steps = c.dropped_steps;
+  report.supervisor_zeros = c.supervisor_zeros;
+  report.haptic_device_lost_s = c.haptic_lost_s;
+  report.haptic_device_lost_reason = c.haptic_lost_reason;
+  report.head_tracker_lost_s = c.head_lost_s;
+  report.head_tracker_lost_reason = c.head_lost_reason;
+  report.recording_error = c.recording_error;
+  report.headset.ticks_without_display = c.display_held_ticks;
+}
 
 }  // namespace
 
@@ -162,23 +207,9 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                      solids, duration, devices::SimulatedGlove::kJoints);
   const devices::Registry registry = devices::builtin_registry();
 
-  std::unique_ptr<devices::TraceWriter> writer;
-  if (!options.record.empty()) {
-    const std::string toml =
-        scene.file.empty() ? std::string(default_scene_toml()) : read_text(scene.file);
-    devices::TraceHeader header;
-    header.start_time_ns = clock.now().count();
-    header.wall_clock_unix_ns =
-        std::chrono::duration_cast<Nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
-            .count();
-    header.producer = std::string("bisturi ") + kVersion;
-    // The haptic device is opened first, so it is device 0 of the trace.
-    header.config = session_trace_config(
-        toml, scene.file.empty() ? std::filesystem::path() : scene.file.parent_path(),
-        scene.rates.haptic_hz, 0, lag, first_ticks_per_step, report.tissue_threads);
-    writer = std::make_unique<devices::TraceWriter>(options.record, header);
-    report.trace = options.record;
-  }
+  std::unique_ptr<devices::TraceWriter> writer =
+      open_session_trace(scene, options, clock, lag, first_ticks_per_step, report.tissue_threads);
+  if (writer) report.trace = options.record;
   SessionDevices session_devices(scene, procedure, registry, clock, writer.get());
   devices::HapticDevice* glove = &session_devices.haptic();
   devices::Tracker* head = &session_devices.head();
@@ -195,22 +226,13 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   SessionSim sim(scene, std::move(solids), glove->capabilities().force_channels, sim_options);
 
   // ---- The hand-off ----
-  Snapshot initial;
-  initial.solids.resize(sim.body_count());
-  for (std::size_t b = 0; b < sim.body_count(); ++b) {
-    const sim::SoftBody& body = sim.world().body(static_cast<std::uint32_t>(b));
-    initial.solids[b].positions_mm.resize(body.positions().size());
-    initial.solids[b].topology = make_topology(body.mesh());
-    for (std::size_t i = 0; i < body.positions().size(); ++i)
-      initial.solids[b].positions_mm[i] = sim::sim_to_scene(body.positions()[i]);
-  }
+  const Snapshot initial = initial_snapshot(sim);
   TripleBuffer<Snapshot> handoff(initial);
   TripleBuffer<render::HeadPose> head_handoff;
 
   std::atomic<bool> stop{false};
   std::atomic<bool> render_ready{false};
   std::atomic<std::uint64_t> ticks{0}, frames{0}, overruns{0};
-  std::atomic<std::size_t> event_count{0};
   std::atomic<double> force_now{0.0};
   std::string render_error;
   std::atomic<bool> interrupted{false};
@@ -222,39 +244,11 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   Nanoseconds t0{0};
 
   // ---- Tissue thread: each step publishes the snapshot the renderer draws ----
-  std::vector<std::shared_ptr<const Topology>> topology;
-  for (const SolidState& st : initial.solids)
-    topology.push_back(st.topology);
-  std::uint64_t published_events = 0;
-  std::array<EventStamp, 16> recent{};
+  SnapshotPublisher publisher(sim, initial, handoff, event_times);
   const auto publish_step = [&](const TickOutput& out, const devices::HapticState& state,
                                 double step_ms) {
     report.step_ms.record(step_ms);
-    Snapshot& s = handoff.back();
-    s.tick = sim.ticks();
-    for (std::size_t b = 0; b < sim.body_count(); ++b) {
-      const sim::SoftBody& body = sim.world().body(static_cast<std::uint32_t>(b));
-      SolidState& st = s.solids[b];
-      if (out.topology_changed && body.mesh().topology_version() != topology[b]->version)
-        topology[b] = make_topology(body.mesh());
-      st.topology = topology[b];
-      const auto& x = body.positions();
-      st.positions_mm.resize(x.size());
-      for (std::size_t i = 0; i < x.size(); ++i)
-        st.positions_mm[i] = sim::sim_to_scene(x[i]);
-    }
-    s.tip_mm = sim.tip_mm();
-    s.blade_to_mm = sim.blade_to_mm();
-    s.grasping = sim.grasping();
-    s.cutting = sim.cutting();
-    for (; published_events < sim.events().size(); ++published_events) {
-      if (event_times.size() < event_times.capacity()) event_times.push_back(state.sample_time);
-      recent[published_events % recent.size()] = {published_events, state.sample_time};
-    }
-    s.event_count = std::min<std::uint64_t>(published_events, event_times.size());
-    s.recent = recent;
-    handoff.publish();
-    event_count.store(sim.events().size(), std::memory_order_relaxed);
+    publisher.publish(out, state);
   };
   devices::HapticState glove_shape;
   glove_shape.end_effector_poses.resize(glove->capabilities().end_effectors);
@@ -282,8 +276,6 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   // ---- Haptic thread: paces the ticks of the one haptic loop (haptic_loop.h) ----
   const Nanoseconds period{static_cast<std::int64_t>(std::llround(1e9 / scene.rates.haptic_hz))};
   const Nanoseconds spin{static_cast<std::int64_t>(options.spin_us * 1e3)};
-  const std::size_t force_every =
-      std::max<std::size_t>(1, static_cast<std::size_t>(scene.rates.haptic_hz / 200.0));
   report.force.reserve(static_cast<std::size_t>(report.duration_s * 200.0) + 16);
   LiveTickSteps steps(tissue, options.adaptive_tissue_rate,
                       TissueRateController(first_ticks_per_step, options.max_tissue_ticks_per_step,
@@ -309,70 +301,15 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     head_handoff.publish();
   };
   HapticLoop loop(std::move(parts), lag, first_ticks_per_step);
-  std::thread haptic_thread([&] {
-    if (options.realtime_priority) realtime.store(request_realtime_priority(0));
-    while (!render_ready.load())
-      std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    t0 = clock.now();
-    Nanoseconds next = t0;
-    Nanoseconds previous_start{0};
-    bool first = true;
-    while (!stop.load(std::memory_order_relaxed)) {
-      if (options.stop_requested != nullptr && options.stop_requested->load()) {
-        interrupted.store(true);
-        break;
-      }
-      if (spin.count() > 0) {
-        clock.sleep_until(next - spin);
-        while (clock.now() < next) {
-        }
-      } else {
-        clock.sleep_until(next);
-      }
-      const Nanoseconds start = clock.now();
-      const Nanoseconds t = start - t0;
-      if (t >= duration) break;
-      if (!first) {
-        const double p_ms = ms(start - previous_start);
-        report.haptic_period_ms.record(p_ms);
-        report.haptic_period_error_ms.record(std::abs(p_ms - ms(period)));
-      }
-      first = false;
-      previous_start = start;
-
-      (void)loop.tick(t);
-      const std::uint64_t k = loop.counters().ticks;
-      const TickOutput* out = loop.step_output();
-      const double proxy_N = out != nullptr ? glm::length(out->force_N) : 0.0;
-      if (k % force_every == 0 && report.force.size() < report.force.capacity()) {
-        const std::vector<double>& command = loop.command();
-        report.force.push_back({ms(t) * 1e-3, proxy_N, command.empty() ? 0.0 : command[0],
-                                guarded.last_output_N().empty() ? 0.0
-                                                                : guarded.last_output_N()[0]});
-      }
-      force_now.store(proxy_N, std::memory_order_relaxed);
-
-      const Nanoseconds end = clock.now();
-      report.tick_ms.record(ms(end - start));
-      if (end - start > period) overruns.fetch_add(1, std::memory_order_relaxed);
-      next += period;
-      if (end > next) {
-        ++report.missed_deadlines;
-        // The tick's own work took under half a period: the thread was started late (the OS,
-        // or on a virtual machine the hypervisor, had the core), not slowed by its work.
-        if (end - start < period / 2) ++report.missed_by_late_wakeup;
-      }
-      if (end > next + period) {  // fell behind by more than a period: drop those ticks
-        const std::int64_t behind = (end - next).count() / period.count();
-        report.skipped_ticks += static_cast<std::uint64_t>(behind);
-        next += period * behind;
-      }
-      ticks.store(k, std::memory_order_relaxed);
-    }
-    // Zero first: before the tissue drains and the renderer joins.
-    loop.stop();
-    stop.store(true);
-  });
+  HapticPacing pacing;
+  pacing.period = period;
+  pacing.spin = spin;
+  pacing.duration = duration;
+  pacing.realtime_priority = options.realtime_priority;
+  pacing.stop_requested = options.stop_requested;
+  HapticThreadFlags flags{stop, render_ready, interrupted, realtime, ticks, overruns, force_now};
+  std::thread haptic_thread(
+      [&] { run_haptic_thread(loop, guarded, clock, pacing, flags, report, t0); });
 
   // ---- Supervisor: zero within the watchdog's limit when a tick stalls ----
   const Nanoseconds stall_limit = period + guard_config.deadline_margin;
@@ -394,7 +331,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     progress.ticks = ticks.load();
     progress.frames = frames.load();
     progress.overruns = overruns.load();
-    progress.events = event_count.load();
+    progress.events = publisher.events();
     progress.force_N = force_now.load();
     if (options.progress) options.progress(progress);
   }
@@ -413,23 +350,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   render_thread.join();
 
   // ---- The session ends: final state, devices closed (zero forces), trace closed ----
-  const HapticLoopCounters& c = loop.counters();
+  add_loop_counters(loop, report);
   report.ticks = ticks.load();  // haptic ticks (the tissue may have stepped fewer times)
-  report.late_ticks = c.late_ticks;
-  report.max_tissue_backlog = c.max_tissue_backlog;
-  report.tissue_rate_changes = c.tissue_rate_changes;
-  report.max_tissue_ticks_per_step = std::max(report.max_tissue_ticks_per_step, c.max_ticks_per_step);
-  report.tissue_ticks_per_step = loop.schedule().ticks_per_step();
-  report.malformed_reports = c.malformed_reports;
-  report.guard_latches = c.guard_latches;
-  report.dropped_tissue_steps = c.dropped_steps;
-  report.supervisor_zeros = c.supervisor_zeros;
-  report.headset.ticks_without_display = c.display_held_ticks;
-  report.haptic_device_lost_s = c.haptic_lost_s;
-  report.haptic_device_lost_reason = c.haptic_lost_reason;
-  report.head_tracker_lost_s = c.head_lost_s;
-  report.head_tracker_lost_reason = c.head_lost_reason;
-  report.recording_error = c.recording_error;
   report.overruns = overruns.load();
   report.realtime_priority = realtime.load();
   report.final_state_hash = sim.state_hash();

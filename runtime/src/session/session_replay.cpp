@@ -140,6 +140,31 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
   enum class Zero : std::uint8_t { None, Stop, Watchdog } pending_zero = Zero::None;
   std::vector<double> zeros;
 
+  bool open_pending = false;
+  const auto open_glove = [&](std::unique_ptr<devices::Transport> transport) {
+    device = registry.open(std::move(transport), clock);
+    glove = devices::as_haptic(device.get());
+    if (glove == nullptr)
+      throw devices::TraceError(reader.name() + ": the recorded glove is not a haptic device");
+    guard = std::make_unique<devices::ForceGuard>(glove->capabilities().force_channels,
+                                                  guard_config);
+    guarded = std::make_unique<devices::GuardedHaptic>(*glove, *guard, clock);
+    SessionSimOptions sim_options;
+    sim_options.tissue_threads = tissue_threads;
+    sim_options.device_frame = device_frame_of(*choice.haptic);
+    sim_options.device_spec = glove->capabilities().spec;
+    sim = std::make_unique<SessionSim>(scene, std::move(solids),
+                                       glove->capabilities().force_channels, sim_options);
+    steps = std::make_unique<ReplayTickSteps>(*sim);
+    HapticLoopParts parts;
+    parts.haptic = guarded.get();
+    parts.steps = steps.get();
+    parts.sim = sim.get();
+    parts.frame = sim_options.device_frame;
+    parts.clock = &clock;
+    loop = std::make_unique<HapticLoop>(std::move(parts), lag, ticks_per_step);
+    zeros.assign(sim->command_size(), 0.0);
+  };
   const auto compare = [&](const std::vector<double>& expected, const std::vector<double>& actual,
                            std::int64_t time_ns) {
     ++result.force_commands;
@@ -193,39 +218,33 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
     if (r->device != glove_index) continue;
     switch (r->type) {
       case devices::TraceRecordType::kConnect: {
-        if (device)
+        if (device || open_pending)
           throw devices::TraceError(reader.name() +
                                     ": the glove connects twice; a session never reopens it");
         auto transport = std::make_unique<devices::ReplayTransport>(
             devices::to_device_descriptor(reader.devices().at(glove_index)), clock);
         link = transport->link();
-        device = registry.open(std::move(transport), clock);
-        glove = devices::as_haptic(device.get());
-        if (glove == nullptr)
-          throw devices::TraceError(reader.name() + ": the recorded glove is not a haptic device");
-        guard = std::make_unique<devices::ForceGuard>(glove->capabilities().force_channels,
-                                                      guard_config);
-        guarded = std::make_unique<devices::GuardedHaptic>(*glove, *guard, clock);
-        SessionSimOptions sim_options;
-        sim_options.tissue_threads = tissue_threads;
-        sim_options.device_frame = device_frame_of(*choice.haptic);
-        sim_options.device_spec = glove->capabilities().spec;
-        sim = std::make_unique<SessionSim>(scene, std::move(solids),
-                                           glove->capabilities().force_channels, sim_options);
-        steps = std::make_unique<ReplayTickSteps>(*sim);
-        HapticLoopParts parts;
-        parts.haptic = guarded.get();
-        parts.steps = steps.get();
-        parts.sim = sim.get();
-        parts.frame = sim_options.device_frame;
-        parts.clock = &clock;
-        loop = std::make_unique<HapticLoop>(std::move(parts), lag, ticks_per_step);
-        zeros.assign(sim->command_size(), 0.0);
+        const devices::Nanoseconds now = clock.now();
+        try {
+          open_glove(std::move(transport));
+        } catch (const devices::DeviceError&) {
+          // A driver that waits for its device's first report while it opens (the vendor arm):
+          // it opens on that report (what this attempt wrote is dropped, its wait undone).
+          (void)link->take_written();
+          clock.set(now);
+          open_pending = true;
+        }
         break;
       }
       case devices::TraceRecordType::kReportIn:
-        if (!link || loop->device_lost()) break;
+        if (!link || (loop && loop->device_lost())) break;
         link->push_input(devices::Nanoseconds{r->time_ns}, r->payload);
+        if (open_pending) {
+          open_pending = false;
+          open_glove(std::make_unique<devices::ReplayTransport>(
+              devices::to_device_descriptor(reader.devices().at(glove_index)), clock, link));
+          break;
+        }
         // Read at its own time, as the live driver did (its sample time feeds the guard).
         try {
           guarded->poll(std::chrono::microseconds(0));

@@ -3,6 +3,7 @@
 // (shared, read-only) topologies, the instruments' poses and the events to show.
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -10,6 +11,9 @@
 #include <glm/vec3.hpp>
 
 #include "bisturi/devices/clock.h"
+#include "bisturi/devices/device.h"
+#include "bisturi/runtime/session/session_sim.h"
+#include "bisturi/runtime/session/triple_buffer.h"
 #include "bisturi/scene/dlfl.h"
 #include "bisturi/scene/oriented_builder.h"
 
@@ -49,6 +53,32 @@ struct Snapshot {
   bool cutting = false;
   std::uint64_t event_count = 0;
   std::array<EventStamp, 16> recent{};  ///< the last events, by index % size
+};
+
+/// The solids as they are before the first step.
+Snapshot initial_snapshot(SessionSim& sim);
+
+/// The tissue thread's side of the hand-off: after each step, the solids' positions (a new
+/// topology only after a cut), the instruments and the events, published for the renderer.
+class SnapshotPublisher {
+ public:
+  /// `event_times` gets each event's device sample time (read by the render thread below the
+  /// published count); its capacity bounds how many are kept.
+  SnapshotPublisher(SessionSim& sim, const Snapshot& initial, TripleBuffer<Snapshot>& snapshots,
+                    std::vector<devices::Nanoseconds>& event_times);
+  /// After a step: `out` its output, `state` the glove state it ran on.
+  void publish(const TickOutput& out, const devices::HapticState& state);
+  /// Events the simulation has made so far (any thread).
+  [[nodiscard]] std::size_t events() const { return event_count_.load(std::memory_order_relaxed); }
+
+ private:
+  SessionSim& sim_;
+  TripleBuffer<Snapshot>& snapshots_;
+  std::vector<devices::Nanoseconds>& event_times_;
+  std::vector<std::shared_ptr<const Topology>> topology_;
+  std::uint64_t published_events_ = 0;
+  std::array<EventStamp, 16> recent_{};
+  std::atomic<std::size_t> event_count_{0};
 };
 
 }  // namespace bisturi::runtime
