@@ -196,7 +196,9 @@ class SceneReader {
   }
 
   void read_headset(const toml::table& t, HeadsetDescription& h) const {
-    only_keys(t, "headset", {"ipd_mm", "fov_deg", "eye_width", "eye_height", "refresh_hz"});
+    only_keys(t, "headset",
+              {"ipd_mm", "fov_deg", "eye_width", "eye_height", "refresh_hz", "reference_space",
+               "field_centre_mm", "field_height_m", "field_distance_m"});
     h.ipd_mm = positive(t, "headset", "ipd_mm", h.ipd_mm);
     h.fov_deg = numbers<4>(t, "headset", "fov_deg", h.fov_deg);
     for (std::size_t i = 0; i < 4; ++i) {
@@ -208,6 +210,16 @@ class SceneReader {
     h.eye_width = static_cast<int>(integer(t, "headset", "eye_width", h.eye_width, 16, 8192));
     h.eye_height = static_cast<int>(integer(t, "headset", "eye_height", h.eye_height, 16, 8192));
     h.refresh_hz = positive(t, "headset", "refresh_hz", h.refresh_hz);
+    // Where the scene sits in an OpenXR headset's space.
+    h.stage_space = choice(t, "headset", "reference_space", h.stage_space,
+                           {{"local", false}, {"stage", true}});
+    if (t.get("field_centre_mm") != nullptr) {
+      h.field_centre_mm = numbers<3>(t, "headset", "field_centre_mm", {});
+    }
+    if (t.get("field_height_m") != nullptr) {
+      h.field_height_m = number(t, "headset", "field_height_m", 0.0);
+    }
+    h.field_distance_m = number(t, "headset", "field_distance_m", h.field_distance_m);
   }
 
   SolidDescription read_solid(const toml::table& t, const std::string& path) const {

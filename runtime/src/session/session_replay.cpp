@@ -200,6 +200,8 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
         pending_zero = Zero::Stop;
       } else if (text == "watchdog_zero") {
         pending_zero = Zero::Watchdog;
+      } else if (text == "display_hold" || text == "display_live") {
+        if (loop) loop->hold_display(text == "display_hold");
       } else if (auto l = parse_late_tick_note(text)) {
         if (steps) steps->late = l;
       } else if (auto c = parse_tissue_rate_note(text)) {

@@ -97,6 +97,15 @@ struct HeadsetDescription {
   int eye_width = 1024;
   int eye_height = 1024;
   double refresh_hz = 90.0;
+  // An OpenXR headset: the reference space (STAGE where the runtime offers it, else LOCAL) and
+  // where the scene sits in it: the world point at the operating field's centre (default: the
+  // centre of the solids' bounds at the start) is placed field_distance_m ahead of the space's
+  // origin and field_height_m above it (default -0.35 in LOCAL, whose origin is at the eyes;
+  // 0.95 in STAGE, whose origin is on the floor: a table's height).
+  bool stage_space = false;
+  std::optional<std::array<double, 3>> field_centre_mm;
+  std::optional<double> field_height_m;
+  double field_distance_m = 0.45;
 };
 
 struct RateDescription {
