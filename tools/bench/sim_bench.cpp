@@ -288,13 +288,15 @@ BENCHMARK(BM_MultirateAccuracy)
 
 // How the haptic force depends on the step length: the bench scene's 2 Hz probing for 3.2 s,
 // its sine lowered by the second argument (um; 0 is BM_FullStep's, where the probe reaches
-// 2 mm below the rest top of a sphere that sags away from it under gravity), run single-rate
-// with dt = 1 ms / k for k = 1, 2, 4, 8, 16 (the device held over a millisecond's steps).
+// 2 mm below the rest top of a sphere that sags away from it under gravity), run
+// with dt = 1 ms / k for k = 1, 2, 4, 8, 16 (the device held over a millisecond's steps), single-rate
+// or multirate with the third argument as far_field_interval.
 // Counters per k: the RMS force (force_k_mN), the RMS difference from the k = 16 run against
 // that run's RMS force (diff_k), and the contact changes per second (flips_k).
 void BM_ForceConvergence(benchmark::State& state) {
   const Shape& shape = sphere(radius_for(state.range(0)));
   const double lower = double(state.range(1)) * 1e-6;
+  const int interval = static_cast<int>(state.range(2));
   constexpr int kRuns = 5;
   for (auto _ : state) {
     std::vector<std::unique_ptr<SimWorld>> worlds;
@@ -302,6 +304,7 @@ void BM_ForceConvergence(benchmark::State& state) {
       WorldOptions options;
       options.embree_threads = 1;
       options.integrator.dt_s = 1e-3 / double(1 << k);
+      options.integrator.far_field_interval = interval;
       worlds.push_back(std::make_unique<SimWorld>(options));
       add_bench_sphere(*worlds.back(), shape);
     }
@@ -333,8 +336,10 @@ void BM_ForceConvergence(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_ForceConvergence)
-    ->Args({2000, 0})
-    ->Args({2000, 2000})
+    ->Args({2000, 0, 1})
+    ->Args({2000, 2000, 1})
+    ->Args({2000, 0, 8})
+    ->Args({2000, 2000, 8})
     ->Iterations(1)
     ->Unit(benchmark::kMillisecond);
 
