@@ -13,6 +13,7 @@
 #include "render_command.h"
 #include "run_command.h"
 #include "segment_command.h"
+#include "tissue_command.h"
 #include "trace_command.h"
 #include "volume_command.h"
 
@@ -70,6 +71,10 @@ int run(int argc, char** argv) {
   int (*run_replay)(const bisturi::cli::ReplayOptions&) = nullptr;
   bisturi::cli::add_replay_command(app, replay, run_replay);
 
+  bisturi::cli::TissueIndentOptions tissue;
+  int (*run_tissue)(const bisturi::cli::TissueIndentOptions&) = nullptr;
+  bisturi::cli::add_tissue_command(app, tissue, run_tissue);
+
   CLI11_PARSE(app, argc, argv);
   if (version) {
     std::cout << "bisturi " << bisturi::kVersion << " (" << bisturi::kBuildType << ")\n";
@@ -85,6 +90,7 @@ int run(int argc, char** argv) {
   if (run_render != nullptr) return run_render(render);
   if (run_run != nullptr) return run_run(run_options);
   if (run_replay != nullptr) return run_replay(replay);
+  if (run_tissue != nullptr) return run_tissue(tissue);
   std::cout << app.help();
   return 0;
 }
