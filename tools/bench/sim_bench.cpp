@@ -108,13 +108,18 @@ glm::dvec3 probe_tip(const Shape& shape, double t_ms, double lower_m = 0.0) {
 // Full step: the probe presses 0..3 mm into the top of the sphere and back (a 2 Hz sine), the
 // lower third is anchored, gravity on, default material and integrator options. The second
 // argument is the thread count (1: single thread; 0: every core for the integrator and Embree).
-void full_step(benchmark::State& state, std::int64_t vertices, bool all, int interval) {
+void full_step(benchmark::State& state, std::int64_t vertices, bool all, int interval,
+               bool bound = false) {
   const Shape& shape = sphere(radius_for(vertices));
   WorldOptions options;
   const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
   options.embree_threads = all ? 0 : 1;
   options.integrator.threads = all ? cores : 1;
   options.integrator.far_field_interval = interval;
+  if (bound) {
+    options.integrator.spring_hessian = SpringHessian::Bound;
+    options.integrator.cg_warm_start = true;
+  }
   SimWorld world(options);
   const std::uint32_t id = add_bench_sphere(world, shape);
   const SoftBody& body = world.body(id);
@@ -191,6 +196,20 @@ BENCHMARK(BM_Multirate)
     ->Args({20000, 16})
     ->Args({20000, 32})
     ->Args({100000, 16})
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond)
+    ->Iterations(3000);
+
+// The peer of BM_FullStep and BM_Multirate in the same run: the springs' bound Hessian k I with
+// the warm start (the solver before the clamped Hessian), single-rate (second argument 1) or
+// multirate with that interval.
+void BM_StepBound(benchmark::State& state) {
+  full_step(state, state.range(0), false, static_cast<int>(state.range(1)), true);
+}
+BENCHMARK(BM_StepBound)
+    ->Args({2000, 1})
+    ->Args({20000, 1})
+    ->Args({20000, 32})
     ->UseManualTime()
     ->Unit(benchmark::kMicrosecond)
     ->Iterations(3000);

@@ -159,9 +159,12 @@ Curve indent(const TissueIndentOptions& o, const sim::ElasticMaterial& elastic) 
   for (int p = 1; p <= o.points; ++p) {
     const double depth = o.depth_mm * 1e-3 * double(p) / double(o.points);
     const glm::dvec3 c(centre_x, centre_y, zmax + r - depth);
-    double force = 0.0;
+    // The probe's force: the mean over the last quarter of the steps held (a vertex at the
+    // probe's surface flickers in and out of it from step to step).
+    const int from = o.settle_steps - std::max(1, o.settle_steps / 4);
+    double force_sum = 0.0;
     for (int s = 0; s < o.settle_steps; ++s) {
-      force = 0.0;
+      double force = 0.0;
       const auto& x = body.positions();
       for (std::uint32_t i = 0; i < x.size(); ++i) {
         const glm::dvec3 d = x[i] - c;
@@ -171,11 +174,12 @@ Curve indent(const TissueIndentOptions& o, const sim::ElasticMaterial& elastic) 
         body.add_contact(VertexId(i), n, r - len, k_contact);
         force -= k_contact * (r - len) * n.z;
       }
+      if (s >= from) force_sum += force;
       integrator.step(body, options, events);
       progress.show("indent", std::size_t((p - 1) * o.settle_steps + s), std::size_t(total));
     }
     curve.depth_mm.push_back(depth * 1e3);
-    curve.force_N.push_back(force);
+    curve.force_N.push_back(force_sum / double(o.settle_steps - from));
     curve.hertz_N.push_back(hertz_force(depth, e_star, r, body_r, sphere));
   }
   curve.rollbacks = events.size();
