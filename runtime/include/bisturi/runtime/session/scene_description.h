@@ -22,10 +22,23 @@ class SceneFileError : public InputError {
   using InputError::InputError;
 };
 
+/// A solid's material. In physical units: a tissue preset (sim::tissue_presets: liver, kidney,
+/// spleen, vessel-wall, fat) and/or Young's modulus, Poisson's ratio, density and retardation
+/// time, from which the springs and the volume term are calibrated (sim::calibrate_surface):
+/// stiffness_N_per_m, damping_N_s_per_m and bulk_modulus_Pa are then the calibrated ones.
+/// stiffness_N_per_m given in the scene is the expert override of the structural spring
+/// constant (the scene reader warns that it is one).
 struct MaterialDescription {
-  double stiffness_N_per_m = 400.0;
+  std::string preset;               ///< empty: none
+  double youngs_modulus_kPa = 0.0;  ///< 0: not given
+  double poisson_ratio = 0.45;
+  double retardation_time_s = 0.01;
+  bool elastic = false;              ///< calibrated from the elastic parameters
+  double stiffness_N_per_m = 400.0;  ///< structural spring constant
   double damping_N_s_per_m = 0.8;
+  double bulk_modulus_Pa = 2000.0;    ///< the volume term's
   double density_kg_per_m3 = 1050.0;  // soft tissue
+  bool stiffness_override = false;    ///< stiffness_N_per_m was given by hand
   std::array<double, 3> colour{0.8, 0.35, 0.3};
 };
 
