@@ -105,6 +105,12 @@ printf 'case,scan\na,scans/case-00.nrrd\na,scans/case-01.nrrd\n' > "$work/ph/twi
   fail "a case listed twice was accepted"
 grep -q "twice.csv: line 3: case 'a' is listed twice" "$work/twice.err" || fail "$(cat "$work/twice.err")"
 
+# Batches: two cases per task give two tasks.
+sed 's/^cases_per_task = 1/cases_per_task = 2/' "$plan" > "$work/batch.toml"
+"$bisturi" cohort plan "$work/ph/manifest.csv" --plan "$work/batch.toml" --out "$work/batch" > /dev/null
+grep -q '^#SBATCH --array=0-1%3$' "$work/batch/cohort.sbatch" || fail "batch array line"
+[ "$(tail -n +2 "$work/batch/cases.tsv" | cut -f2 | tr '\n' ' ')" = "0 0 1 1 " ] || fail "batch tasks"
+
 # The cohort: plan, run each array task's body, gather, check against the truth.
 cohort=$work/cohort
 "$bisturi" cohort plan "$work/ph/manifest.csv" --plan "$plan" --out "$cohort" > /dev/null
