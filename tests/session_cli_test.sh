@@ -86,6 +86,34 @@ TOML
     echo "$out" | grep -q '"force_mismatches": 0' || { echo "$out"; fail "forces differ"; }
     echo "stored: ok"
     ;;
+  sigterm)
+    # SIGTERM ends a long session early and cleanly: exit 0, report.json whole ("interrupted"),
+    # the trace sealed and replaying exactly (its last force command is the stop's zero).
+    rm -rf "$work/term"
+    "$bisturi" run --duration 60 --eye-width 128 --eye-height 128 --no-openxr \
+      --out "$work/term" --record "$work/term.btrace" > "$work/term.txt" 2>&1 &
+    pid=$!
+    sleep 4
+    kill -TERM "$pid"
+    wait "$pid" || { cat "$work/term.txt"; fail "bisturi run exited with $? after SIGTERM"; }
+    grep -q '"ending": "interrupted"' "$work/term/report.json" || fail "report.json not interrupted"
+    out=$("$bisturi" replay "$work/term.btrace" --json) || { echo "$out"; fail "replay exited $?"; }
+    echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "the interrupted trace did not replay"; }
+    echo "sigterm: ok"
+    ;;
+  arm)
+    # The vendor arm (one 3-axis force channel) turned in the scene: recorded and replayed exactly.
+    rm -rf "$work/arm"
+    sed -e 's/driver = "hid-glove"/driver = "vendor-arm"\ndevice_to_scene_rotation_deg = [90.0, 0.0, 30.0]/' \
+      "$4" > "$work/arm.toml"
+    "$bisturi" run "$work/arm.toml" --duration 2 --eye-width 128 --eye-height 128 --no-openxr \
+      --out "$work/arm" --record "$work/arm.btrace" > "$work/arm.txt" 2>&1 ||
+      { cat "$work/arm.txt"; fail "bisturi run exited with $?"; }
+    grep -q 'vendor-arm' "$work/arm/report.json" || fail "the arm was not used"
+    out=$("$bisturi" replay "$work/arm.btrace" --json) || { echo "$out"; fail "replay exited $?"; }
+    echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "the arm's trace did not replay"; }
+    echo "arm: ok"
+    ;;
   lockstep)
     # The tissue step inside the haptic tick (for comparison); on its own thread with a lag of one
     # tick (steps often finish late, so late-tick notes get written); at a fixed quarter of the

@@ -137,6 +137,10 @@ bool ForceGuard::watchdog_expired(Nanoseconds now) {
   return true;
 }
 
+void ForceGuard::deadline_missed() {
+  if (state_ != GuardState::Latched) latch(Fault::DeadlineOverrun);
+}
+
 void ForceGuard::rearm() {
   state_ = GuardState::WaitingForSmallCommand;
   latch_reason_ = Fault::None;

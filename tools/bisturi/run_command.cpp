@@ -1,12 +1,15 @@
 #include "run_command.h"
 
 #include <CLI/CLI.hpp>
+#include <atomic>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
 #include <iostream>
 #include <nlohmann/json.hpp>
+#include <signal.h>
 #include <sstream>
 
 #include "bisturi/devices/trace/trace_format.h"
@@ -171,7 +174,27 @@ int run_run(const RunOptions& options) {
     line.show(text, static_cast<std::size_t>(p.elapsed_s * 1000.0),
               static_cast<std::size_t>(p.duration_s * 1000.0));
   };
-  runtime::SessionReport r = runtime::run_session(scene, so);
+  // Ctrl-C and SIGTERM end the session cleanly: forces zeroed first, the trace sealed, the
+  // report written (ending "interrupted"). The default handlers come back afterwards.
+  static std::atomic<bool> stop_requested{false};
+  stop_requested.store(false);
+  so.stop_requested = &stop_requested;
+  struct sigaction action {};
+  action.sa_handler = [](int) { stop_requested.store(true); };
+  sigemptyset(&action.sa_mask);
+  struct sigaction old_int {}, old_term {};
+  sigaction(SIGINT, &action, &old_int);
+  sigaction(SIGTERM, &action, &old_term);
+  runtime::SessionReport r;
+  try {
+    r = runtime::run_session(scene, so);
+  } catch (...) {
+    sigaction(SIGINT, &old_int, nullptr);
+    sigaction(SIGTERM, &old_term, nullptr);
+    throw;
+  }
+  sigaction(SIGINT, &old_int, nullptr);
+  sigaction(SIGTERM, &old_term, nullptr);
   line.clear();
 
   // Plots.
@@ -266,10 +289,24 @@ int run_run(const RunOptions& options) {
         {"dropped_frames", r.dropped_frames},
         {"malformed_reports", r.malformed_reports},
         {"divergence_events", r.divergence_events},
+        {"dropped_tissue_steps", r.dropped_tissue_steps},
+        {"supervisor_zeros", r.supervisor_zeros},
         {"events", r.events.size()}}},
+      {"ending", r.ending},
+      {"error", r.error.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.error)},
+      {"faults",
+       {{"haptic_device_lost_s",
+         r.haptic_device_lost_s < 0 ? nlohmann::json(nullptr) : nlohmann::json(r.haptic_device_lost_s)},
+        {"haptic_device_lost_reason", r.haptic_device_lost_reason},
+        {"head_tracker_lost_s",
+         r.head_tracker_lost_s < 0 ? nlohmann::json(nullptr) : nlohmann::json(r.head_tracker_lost_s)},
+        {"head_tracker_lost_reason", r.head_tracker_lost_reason},
+        {"recording_error",
+         r.recording_error.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.recording_error)}}},
       {"events", events},
       {"final_state_hash", hex(r.final_state_hash)},
       {"trace", r.trace.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.trace.string())},
+      {"headset", nlohmann::json::parse(runtime::to_json(r.headset))},
       {"out", out.string()}};
   std::ofstream(out / "report.json") << report.dump(2) << "\n";
 
@@ -296,6 +333,21 @@ int run_run(const RunOptions& options) {
               << " dropped frames; sink " << r.sink
               << (r.sink_note.empty() ? "" : " (" + r.sink_note + ")") << "\n"
               << "  report, plots and frames in " << out.string() << "\n";
+    if (r.haptic_device_lost_s >= 0)
+      std::cout << "  haptic device lost at " << r.haptic_device_lost_s
+                << " s (its force zero, the instrument held): " << r.haptic_device_lost_reason
+                << "\n";
+    if (r.head_tracker_lost_s >= 0)
+      std::cout << "  head tracker lost at " << r.head_tracker_lost_s
+                << " s (the view held its last pose): " << r.head_tracker_lost_reason << "\n";
+    if (!r.recording_error.empty())
+      std::cout << "  recording stopped: " << r.recording_error << "\n";
+    if (r.ending == "interrupted") std::cout << "  interrupted: ended early, cleanly\n";
+  }
+  if (r.ending == "error") {
+    std::cerr << "bisturi run: the session ended on an error: " << r.error
+              << " (report.json written)\n";
+    return 1;
   }
   return 0;
 }

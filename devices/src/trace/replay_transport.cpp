@@ -33,6 +33,10 @@ std::vector<CapturedReport> ReplayLink::take_written() {
 ReplayTransport::ReplayTransport(DeviceDescriptor descriptor, Clock& clock)
     : descriptor_(std::move(descriptor)), clock_(&clock), link_(std::make_shared<ReplayLink>()) {}
 
+ReplayTransport::ReplayTransport(DeviceDescriptor descriptor, Clock& clock,
+                                 std::shared_ptr<ReplayLink> link)
+    : descriptor_(std::move(descriptor)), clock_(&clock), link_(std::move(link)) {}
+
 std::optional<Bytes> ReplayTransport::read(std::chrono::microseconds timeout) {
   std::unique_lock lock(link_->mutex_);
   if (!link_->connected_) {

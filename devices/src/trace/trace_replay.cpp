@@ -1,5 +1,7 @@
 #include "bisturi/devices/trace/trace_replay.h"
 
+#include <string_view>
+
 #include <deque>
 #include <memory>
 #include <stdexcept>
@@ -29,6 +31,7 @@ struct Slot {
   std::unique_ptr<GuardedHaptic> haptic;
   std::deque<Output> expected;  // recorded, not matched yet
   std::deque<Output> actual;    // written during replay, not matched yet
+  bool open_pending = false;    // the driver opens at the device's first report
 };
 
 class Replayer {
@@ -112,7 +115,31 @@ class Replayer {
     auto transport =
         std::make_unique<ReplayTransport>(to_device_descriptor(s.stats.device), clock_);
     s.link = transport->link();
-    s.device = registry_.open(std::move(transport), clock_);
+    const Nanoseconds now = clock_.now();
+    try {
+      s.device = registry_.open(std::move(transport), clock_);
+    } catch (const DeviceError&) {
+      // A driver that waits for the device's first report while it opens (the vendor arm's
+      // info packet): it opens again once the recording gives that report. What the failed
+      // open wrote is dropped and its wait undone.
+      (void)s.link->take_written();
+      clock_.set(now);
+      s.open_pending = true;
+      return;
+    }
+    guard_device(s);
+  }
+
+  /// Opens the driver again on the link (fed with the report it waited for).
+  void open_with_link(Slot& s) {
+    s.open_pending = false;
+    s.device = registry_.open(
+        std::make_unique<ReplayTransport>(to_device_descriptor(s.stats.device), clock_, s.link),
+        clock_);
+    guard_device(s);
+  }
+
+  void guard_device(Slot& s) {
     if (HapticDevice* haptic = as_haptic(s.device.get())) {
       if (s.guard) {
         s.guard->rearm();
@@ -125,13 +152,24 @@ class Replayer {
   }
 
   void handle(const TraceRecord& r) {
-    if (r.type == TraceRecordType::kNote) return;
+    if (r.type == TraceRecordType::kNote) {
+      // The session's haptic loop latched its guard before the zero that follows these notes
+      // (runtime/src/session/haptic_loop.h): latch here too, so the zero goes out as it did.
+      const std::string_view text(reinterpret_cast<const char*>(r.payload.data()),
+                                  r.payload.size());
+      for (Slot& s : slots_) {
+        if (!s.guard) continue;
+        if (text == "haptic_stop") s.guard->device_disconnected();
+        if (text == "watchdog_zero") s.guard->deadline_missed();
+      }
+      return;
+    }
     Slot& s = slot(r.device);
     clock_.set(Nanoseconds{r.time_ns});
     // A device recorded without a kConnect (a trace cut after it connected) opens at its first
     // record.
     if (r.type != TraceRecordType::kConnect && r.type != TraceRecordType::kDeviceAdded &&
-        !s.device) {
+        !s.device && !s.open_pending) {
       connect(r.device);
     }
     switch (r.type) {
@@ -141,6 +179,10 @@ class Replayer {
       case TraceRecordType::kReportIn:
         ++s.stats.reports_in;
         s.link->push_input(Nanoseconds{r.time_ns}, r.payload);
+        if (s.open_pending) {
+          open_with_link(s);
+          break;
+        }
         try {
           if (s.haptic) {
             s.haptic->poll(std::chrono::microseconds(0));

@@ -60,6 +60,7 @@ void TraceWriter::write_all_locked(std::span<const std::uint8_t> bytes) {
       const std::string message = system_error(path_, "write failed");
       ::close(fd_);
       fd_ = -1;
+      failure_ = message;
       throw TraceError(message);
     }
     bytes = bytes.subspan(static_cast<std::size_t>(n));
@@ -69,6 +70,7 @@ void TraceWriter::write_all_locked(std::span<const std::uint8_t> bytes) {
     const std::string message = system_error(path_, "fdatasync failed");
     ::close(fd_);
     fd_ = -1;
+    failure_ = message;
     throw TraceError(message);
   }
 }
@@ -86,6 +88,7 @@ void TraceWriter::seal_locked(std::uint32_t flags) {
 
 void TraceWriter::append_locked(TraceRecordType type, std::uint16_t device, std::int64_t time_ns,
                                 std::span<const std::uint8_t> payload) {
+  if (!failure_.empty()) return;  // recording stopped at the failed write (failure() says why)
   if (fd_ < 0) throw TraceError(path_.string() + ": the trace is closed");
   if (type != TraceRecordType::kNote && device >= devices_) {
     throw TraceError(path_.string() + ": record for device " + std::to_string(device) +
@@ -207,6 +210,11 @@ void TraceWriter::close(bool session_ended) {
 std::size_t TraceWriter::device_count() const {
   std::lock_guard lock(mutex_);
   return devices_;
+}
+
+std::string TraceWriter::failure() const {
+  std::lock_guard lock(mutex_);
+  return failure_;
 }
 
 TraceWriterStats TraceWriter::stats() const {

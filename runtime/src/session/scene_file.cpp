@@ -252,7 +252,9 @@ class SceneReader {
   }
 
   void read_headset(const toml::table& t, HeadsetDescription& h) const {
-    only_keys(t, "headset", {"ipd_mm", "fov_deg", "eye_width", "eye_height", "refresh_hz"});
+    only_keys(t, "headset",
+              {"ipd_mm", "fov_deg", "eye_width", "eye_height", "refresh_hz", "reference_space",
+               "field_centre_mm", "field_height_m", "field_distance_m"});
     h.ipd_mm = positive(t, "headset", "ipd_mm", h.ipd_mm);
     h.fov_deg = numbers<4>(t, "headset", "fov_deg", h.fov_deg);
     for (std::size_t i = 0; i < 4; ++i) {
@@ -264,6 +266,16 @@ class SceneReader {
     h.eye_width = static_cast<int>(integer(t, "headset", "eye_width", h.eye_width, 16, 8192));
     h.eye_height = static_cast<int>(integer(t, "headset", "eye_height", h.eye_height, 16, 8192));
     h.refresh_hz = positive(t, "headset", "refresh_hz", h.refresh_hz);
+    // Where the scene sits in an OpenXR headset's space.
+    h.stage_space = choice(t, "headset", "reference_space", h.stage_space,
+                           {{"local", false}, {"stage", true}});
+    if (t.get("field_centre_mm") != nullptr) {
+      h.field_centre_mm = numbers<3>(t, "headset", "field_centre_mm", {});
+    }
+    if (t.get("field_height_m") != nullptr) {
+      h.field_height_m = number(t, "headset", "field_height_m", 0.0);
+    }
+    h.field_distance_m = number(t, "headset", "field_distance_m", h.field_distance_m);
   }
 
   SolidDescription read_solid(const toml::table& t, const std::string& path) const {
@@ -333,7 +345,7 @@ class SceneReader {
   DeviceDescription read_device(const toml::table& t, const std::string& path) const {
     only_keys(t, path,
               {"name", "driver", "role", "simulated", "script", "vendor_id", "product_id", "serial",
-               "max_force_N"});
+               "max_force_N", "device_to_scene_rotation_deg", "device_to_scene_translation_mm"});
     DeviceDescription d;
     d.name = string_or(t, path, "name", path);
     d.driver = string_or(t, path, "driver", d.driver);
@@ -346,6 +358,17 @@ class SceneReader {
     d.product_id = static_cast<std::uint16_t>(integer(t, path, "product_id", 0, 0, 0xffff));
     d.serial = string_or(t, path, "serial", d.serial);
     d.max_force_N = positive(t, path, "max_force_N", d.max_force_N);
+    d.device_to_scene_rotation_deg =
+        numbers<3>(t, path, "device_to_scene_rotation_deg", d.device_to_scene_rotation_deg);
+    for (std::size_t i = 0; i < 3; ++i) {
+      if (!(std::abs(d.device_to_scene_rotation_deg[i]) <= 360.0)) {
+        fail(t.get("device_to_scene_rotation_deg"), t,
+             path + ".device_to_scene_rotation_deg[" + std::to_string(i) + "]",
+             "must be an angle between -360 and 360 degrees");
+      }
+    }
+    d.device_to_scene_translation_mm =
+        numbers<3>(t, path, "device_to_scene_translation_mm", d.device_to_scene_translation_mm);
     if (d.driver.empty() && d.vendor_id == 0) {
       fail(nullptr, t, path, "give a 'driver' name or a 'vendor_id' and 'product_id'");
     }

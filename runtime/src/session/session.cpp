@@ -35,7 +35,11 @@
 #include "bisturi/scene/polygon_export.h"
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/sim/units.h"
+#include "haptic_loop.h"
+#include "haptic_thread.h"
 #include "lockstep_notes.h"
+#include "render_loop.h"
+#include "session_snapshot.h"
 #include "rate_calibration.h"
 #include "step_schedule.h"
 #include "tissue_thread.h"
@@ -54,71 +58,6 @@ render::PoseClock::time_point to_pose_clock(Nanoseconds t) {
   return render::PoseClock::time_point(std::chrono::duration_cast<render::PoseClock::duration>(t));
 }
 
-/// An event as the render thread sees it: which one, and when its device report was read.
-struct EventStamp {
-  std::uint64_t index = 0;
-  Nanoseconds time{0};
-};
-
-/// A solid's faces as the render thread rebuilds its own DLFL from them (a Dlfl is not
-/// copyable, and the haptic thread's one must not be read while it steps): made by the haptic
-/// thread at start and after each topology change (a cut), shared read-only.
-struct Topology {
-  std::uint64_t version = 0;
-  PolygonMesh polygons;
-  std::vector<std::uint32_t> slot_of_position;  ///< body vertex slot of each polygon position
-};
-
-std::shared_ptr<const Topology> make_topology(const Dlfl& mesh) {
-  auto t = std::make_shared<Topology>();
-  t->version = mesh.topology_version();
-  ExportedPolygons e = export_polygons(mesh);
-  t->polygons = std::move(e.polygons);
-  t->slot_of_position.reserve(e.vertex_of_position.size());
-  for (VertexId v : e.vertex_of_position)
-    t->slot_of_position.push_back(v.idx);
-  return t;
-}
-
-/// The render thread's copy of a solid: its DLFL and where each body vertex slot went.
-struct RenderSolid {
-  Dlfl mesh;
-  std::uint64_t version = 0;
-  std::vector<std::pair<std::uint32_t, VertexId>> slot_to_vertex;
-
-  void rebuild(const Topology& t) {
-    ImportResult r = import_polygons(t.polygons, true);
-    mesh = std::move(r.mesh);
-    version = t.version;
-    slot_to_vertex.clear();
-    for (std::size_t k = 0; k < t.slot_of_position.size(); ++k)
-      slot_to_vertex.emplace_back(t.slot_of_position[k], r.vertex_of_input[k]);
-  }
-  void set_positions(const std::vector<glm::dvec3>& positions_mm) {
-    for (const auto& [slot, v] : slot_to_vertex)
-      if (slot < positions_mm.size() && v.idx < mesh.vertex_capacity())
-        mesh.positions()[v.idx] = positions_mm[slot];
-  }
-};
-
-/// What the haptic thread hands the render thread.
-struct SolidState {
-  std::vector<glm::dvec3> positions_mm;  ///< by body vertex slot
-  std::shared_ptr<const Topology> topology;
-};
-
-/// What the tissue thread hands the render thread after each step (the head pose comes straight
-/// from the haptic thread, see HeadPose below).
-struct Snapshot {
-  std::uint64_t tick = 0;
-  std::vector<SolidState> solids;
-  glm::dvec3 tip_mm{0.0};
-  glm::dvec3 blade_to_mm{0.0};
-  bool grasping = false;
-  bool cutting = false;
-  std::uint64_t event_count = 0;
-  std::array<EventStamp, 16> recent{};  ///< the last events, by index % size
-};
 
 std::string read_text(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);
@@ -127,79 +66,49 @@ std::string read_text(const std::filesystem::path& file) {
   return s.str();
 }
 
-/// Frames pass through here on their way to the real sink: motion-to-photon and action-to-response
-/// are measured at the moment the image is finished.
-class MeasuringSink final : public render::FrameSink {
- public:
-  MeasuringSink(render::FrameSink* inner, SessionReport& report,
-                std::vector<double>& event_response_ms, std::vector<Nanoseconds>& event_times)
-      : inner_(inner), report_(report), response_(event_response_ms), event_times_(event_times) {}
 
-  /// Events first shown by frame `frame`. The frame may have reached the sink already (with one
-  /// frame in flight the renderer hands it over before render() returns): then it counts now.
-  void shows(std::uint64_t frame, std::uint64_t event) {
-    if (any_ready_ && frame <= last_frame_) {
-      respond(event, last_ready_);
-    } else {
-      pending_.push_back({frame, event});
-    }
-  }
+/// The session's trace (null when not recording): its header holds the scene's text and the
+/// settings a replay needs.
+std::unique_ptr<devices::TraceWriter> open_session_trace(const SceneDescription& scene,
+                                                         const SessionOptions& options,
+                                                         devices::Clock& clock, std::uint32_t lag,
+                                                         std::uint32_t ticks_per_step,
+                                                         std::uint32_t tissue_threads) {
+  if (options.record.empty()) return nullptr;
+  const std::string toml =
+      scene.file.empty() ? std::string(default_scene_toml()) : read_text(scene.file);
+  devices::TraceHeader header;
+  header.start_time_ns = clock.now().count();
+  header.wall_clock_unix_ns =
+      std::chrono::duration_cast<Nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+          .count();
+  header.producer = std::string("bisturi ") + kVersion;
+  // The haptic device is opened first, so it is device 0 of the trace.
+  header.config = session_trace_config(
+      toml, scene.file.empty() ? std::filesystem::path() : scene.file.parent_path(),
+      scene.rates.haptic_hz, 0, lag, ticks_per_step, tissue_threads);
+  return std::make_unique<devices::TraceWriter>(options.record, header);
+}
 
-  [[nodiscard]] bool wants_pixels(std::uint64_t index) const override {
-    return inner_ != nullptr && inner_->wants_pixels(index);
-  }
-  void consume(const render::StereoFrame& frame) override {
-    if (inner_ != nullptr) inner_->consume(frame);
-    ++consumed_;
-    if (frame.pose.sample_time.time_since_epoch().count() == 0) return;  // no pose yet
-    report_.motion_to_photon_ms.record(
-        std::chrono::duration<double, std::milli>(frame.ready_time - frame.pose.sample_time)
-            .count());
-    const Nanoseconds ready =
-        std::chrono::duration_cast<Nanoseconds>(frame.ready_time.time_since_epoch());
-    any_ready_ = true;
-    last_frame_ = frame.index;
-    last_ready_ = ready;
-    std::size_t kept = 0;
-    for (const auto& [f, e] : pending_) {
-      if (f <= frame.index) {
-        respond(e, ready);
-      } else {
-        pending_[kept++] = {f, e};
-      }
-    }
-    pending_.resize(kept);
-  }
-  [[nodiscard]] std::uint64_t consumed() const { return consumed_; }
-
- private:
-  void respond(std::uint64_t event, Nanoseconds ready) {
-    const double latency = ms(ready - event_times_[event]);
-    response_[event] = latency;
-    report_.action_to_response_ms.record(latency);
-  }
-
-  render::FrameSink* inner_;
-  SessionReport& report_;
-  std::vector<double>& response_;
-  std::vector<Nanoseconds>& event_times_;
-  std::vector<std::pair<std::uint64_t, std::uint64_t>> pending_;
-  std::uint64_t consumed_ = 0;
-  bool any_ready_ = false;
-  std::uint64_t last_frame_ = 0;
-  Nanoseconds last_ready_{0};
-};
-
-glm::dmat4 instrument_pose(const glm::dvec3& from_mm, const glm::dvec3& to_mm) {
-  // The capsule runs along +z from the origin: rotate +z onto (to - from), then translate.
-  const glm::dvec3 axis = to_mm - from_mm;
-  const double len = glm::length(axis);
-  glm::dmat4 m = glm::translate(glm::dmat4(1.0), from_mm);
-  if (len > 1e-9) {
-    const glm::dquat q = glm::rotation(glm::dvec3(0, 0, 1), axis / len);
-    m = m * glm::mat4_cast(q);
-  }
-  return m;
+/// What the haptic loop counted, into the report.
+void add_loop_counters(const HapticLoop& loop, SessionReport& report) {
+  const HapticLoopCounters& c = loop.counters();
+  report.late_ticks = c.late_ticks;
+  report.max_tissue_backlog = c.max_tissue_backlog;
+  report.tissue_rate_changes = c.tissue_rate_changes;
+  report.max_tissue_ticks_per_step =
+      std::max(report.max_tissue_ticks_per_step, c.max_ticks_per_step);
+  report.tissue_ticks_per_step = loop.schedule().ticks_per_step();
+  report.malformed_reports = c.malformed_reports;
+  report.guard_latches = c.guard_latches;
+  report.dropped_tissue_steps = c.dropped_steps;
+  report.supervisor_zeros = c.supervisor_zeros;
+  report.haptic_device_lost_s = c.haptic_lost_s;
+  report.haptic_device_lost_reason = c.haptic_lost_reason;
+  report.head_tracker_lost_s = c.head_lost_s;
+  report.head_tracker_lost_reason = c.head_lost_reason;
+  report.recording_error = c.recording_error;
+  report.headset.ticks_without_display = c.display_held_ticks;
 }
 
 }  // namespace
@@ -298,23 +207,9 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                      solids, duration, devices::SimulatedGlove::kJoints);
   const devices::Registry registry = devices::builtin_registry();
 
-  std::unique_ptr<devices::TraceWriter> writer;
-  if (!options.record.empty()) {
-    const std::string toml =
-        scene.file.empty() ? std::string(default_scene_toml()) : read_text(scene.file);
-    devices::TraceHeader header;
-    header.start_time_ns = clock.now().count();
-    header.wall_clock_unix_ns =
-        std::chrono::duration_cast<Nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
-            .count();
-    header.producer = std::string("bisturi ") + kVersion;
-    // The haptic device is opened first, so it is device 0 of the trace.
-    header.config = session_trace_config(
-        toml, scene.file.empty() ? std::filesystem::path() : scene.file.parent_path(),
-        scene.rates.haptic_hz, 0, lag, first_ticks_per_step, report.tissue_threads);
-    writer = std::make_unique<devices::TraceWriter>(options.record, header);
-    report.trace = options.record;
-  }
+  std::unique_ptr<devices::TraceWriter> writer =
+      open_session_trace(scene, options, clock, lag, first_ticks_per_step, report.tissue_threads);
+  if (writer) report.trace = options.record;
   SessionDevices session_devices(scene, procedure, registry, clock, writer.get());
   devices::HapticDevice* glove = &session_devices.haptic();
   devices::Tracker* head = &session_devices.head();
@@ -326,27 +221,23 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   devices::GuardedHaptic guarded(*glove, guard, clock, writer.get(), glove_index);
   report.max_force_N = choice.haptic->max_force_N;
 
+  sim_options.device_frame = device_frame_of(*choice.haptic);
+  sim_options.device_spec = glove->capabilities().spec;
+  sim_options.channel_roles = session_devices.haptic_channels();
   SessionSim sim(scene, std::move(solids), glove->capabilities().force_channels, sim_options);
 
   // ---- The hand-off ----
-  Snapshot initial;
-  initial.solids.resize(sim.body_count());
-  for (std::size_t b = 0; b < sim.body_count(); ++b) {
-    const sim::SoftBody& body = sim.world().body(static_cast<std::uint32_t>(b));
-    initial.solids[b].positions_mm.resize(body.positions().size());
-    initial.solids[b].topology = make_topology(body.mesh());
-    for (std::size_t i = 0; i < body.positions().size(); ++i)
-      initial.solids[b].positions_mm[i] = sim::sim_to_scene(body.positions()[i]);
-  }
+  const Snapshot initial = initial_snapshot(sim);
   TripleBuffer<Snapshot> handoff(initial);
   TripleBuffer<render::HeadPose> head_handoff;
 
   std::atomic<bool> stop{false};
   std::atomic<bool> render_ready{false};
   std::atomic<std::uint64_t> ticks{0}, frames{0}, overruns{0};
-  std::atomic<std::size_t> event_count{0};
   std::atomic<double> force_now{0.0};
-  std::exception_ptr render_error, haptic_error;
+  std::string render_error;
+  std::atomic<bool> interrupted{false};
+  const auto wall_start = std::chrono::steady_clock::now();
   std::vector<Nanoseconds> event_times;  // written by the tissue thread, read after the join...
   event_times.reserve(4096);             // ...and by the render thread below its published count
   std::vector<double> event_response(4096, -1.0);
@@ -354,39 +245,11 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   Nanoseconds t0{0};
 
   // ---- Tissue thread: each step publishes the snapshot the renderer draws ----
-  std::vector<std::shared_ptr<const Topology>> topology;
-  for (const SolidState& st : initial.solids)
-    topology.push_back(st.topology);
-  std::uint64_t published_events = 0;
-  std::array<EventStamp, 16> recent{};
+  SnapshotPublisher publisher(sim, initial, handoff, event_times);
   const auto publish_step = [&](const TickOutput& out, const devices::HapticState& state,
                                 double step_ms) {
     report.step_ms.record(step_ms);
-    Snapshot& s = handoff.back();
-    s.tick = sim.ticks();
-    for (std::size_t b = 0; b < sim.body_count(); ++b) {
-      const sim::SoftBody& body = sim.world().body(static_cast<std::uint32_t>(b));
-      SolidState& st = s.solids[b];
-      if (out.topology_changed && body.mesh().topology_version() != topology[b]->version)
-        topology[b] = make_topology(body.mesh());
-      st.topology = topology[b];
-      const auto& x = body.positions();
-      st.positions_mm.resize(x.size());
-      for (std::size_t i = 0; i < x.size(); ++i)
-        st.positions_mm[i] = sim::sim_to_scene(x[i]);
-    }
-    s.tip_mm = sim.tip_mm();
-    s.blade_to_mm = sim.blade_to_mm();
-    s.grasping = sim.grasping();
-    s.cutting = sim.cutting();
-    for (; published_events < sim.events().size(); ++published_events) {
-      if (event_times.size() < event_times.capacity()) event_times.push_back(state.sample_time);
-      recent[published_events % recent.size()] = {published_events, state.sample_time};
-    }
-    s.event_count = std::min<std::uint64_t>(published_events, event_times.size());
-    s.recent = recent;
-    handoff.publish();
-    event_count.store(sim.events().size(), std::memory_order_relaxed);
+    publisher.publish(out, state);
   };
   devices::HapticState glove_shape;
   glove_shape.end_effector_poses.resize(glove->capabilities().end_effectors);
@@ -395,314 +258,100 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                       publish_step);
 
   // ---- Render thread ----
-  const double display_period_ms = 1000.0 / report.display_hz;
+  std::atomic<bool> display_live{true};  // false while a headset shows nothing: no forces
   std::thread render_thread([&] {
     try {
-      render::RendererOptions ro;
-      ro.device = options.render_device;
-      ro.headset.ipd_mm = scene.headset.ipd_mm;
-      ro.headset.eye_width = report.eye_width;
-      ro.headset.eye_height = report.eye_height;
-      constexpr double kRad = 3.14159265358979323846 / 180.0;
-      for (render::EyeFov& f : ro.headset.fov) {
-        f.angle_left = static_cast<float>(-scene.headset.fov_deg[0] * kRad);
-        f.angle_right = static_cast<float>(scene.headset.fov_deg[1] * kRad);
-        f.angle_up = static_cast<float>(scene.headset.fov_deg[2] * kRad);
-        f.angle_down = static_cast<float>(-scene.headset.fov_deg[3] * kRad);
-      }
-      render::StereoRenderer renderer(ro);
-      report.render_device = renderer.device_name();
-      report.render_device_is_cpu = renderer.device_is_cpu();
-      std::unique_ptr<render::FrameSink> sink;
-      render::PngSink* png = nullptr;
-      if (options.openxr) {
-        try {
-          sink = std::make_unique<render::OpenXrSink>(
-              render::OpenXrSinkOptions{.rendered = ro.headset});  // views carry its fov and IPD
-          report.sink = "openxr";
-        } catch (const render::XrUnavailable& e) {
-          report.sink_note =
-              std::string("OpenXR unavailable (") + e.what() + "): frames go to the PNG sink";
-        }
-      }
-      if (!sink && !options.frames_dir.empty()) {
-        auto p = std::make_unique<render::PngSink>(
-            options.frames_dir,
-            render::PngSinkOptions{render::PngLayout::SideBySide, options.image_every});
-        png = p.get();
-        sink = std::move(p);
-        report.sink = "png";
-      }
-      if (!sink) report.sink = "none";
-      const bool runtime_paces = report.sink == "openxr";
-      MeasuringSink measuring(sink.get(), report, event_response, event_times);
-      renderer.set_sink(&measuring);
-
-      std::vector<RenderSolid> meshes(initial.solids.size());
-      std::vector<render::SolidId> ids;
-      for (std::size_t b = 0; b < initial.solids.size(); ++b) {
-        meshes[b].rebuild(*initial.solids[b].topology);
-        meshes[b].set_positions(initial.solids[b].positions_mm);
-        const auto& c = scene.solids[b].material.colour;
-        render::Material m;
-        m.colour =
-            glm::vec3(static_cast<float>(c[0]), static_cast<float>(c[1]), static_cast<float>(c[2]));
-        ids.push_back(renderer.add_solid(meshes[b].mesh, m));
-      }
-      double probe_radius = 1.5, probe_length = 60.0;
-      for (const InstrumentDescription& in : scene.instruments) {
-        if (in.kind == InstrumentDescription::Kind::Probe) {
-          probe_radius = in.radius_mm;
-          probe_length = in.length_mm;
-        }
-      }
-      render::Material steel;
-      steel.colour = {0.75f, 0.78f, 0.82f};
-      steel.specular = 0.8f;
-      const render::SolidId probe_id = renderer.add_instrument(
-          render::capsule_solid(probe_radius, probe_length), steel, glm::dmat4(1.0));
-      render::Material blade_material = steel;
-      blade_material.colour = {0.95f, 0.95f, 1.0f};
-      const render::SolidId blade_id =
-          renderer.add_instrument(render::capsule_solid(0.4, 1.0), blade_material, glm::dmat4(1.0));
-      renderer.set_visible(blade_id, false);
+      run_render_loop({scene, options, report, initial, handoff, head_handoff, stop, render_ready,
+                       frames, event_response, event_times, display_live, writer.get()});
+    } catch (const std::exception& e) {
+      render_error = e.what();
       render_ready.store(true);
-
-      std::uint64_t seen_events = 0;
-      const auto period = std::chrono::duration<double, std::milli>(display_period_ms);
-      auto next = std::chrono::steady_clock::now();
-      auto previous = next;
-      bool first = true;
-      // The first frame waits for the first snapshot (the haptic thread's start).
-      while (!stop.load(std::memory_order_relaxed) && !handoff.take())
-        std::this_thread::sleep_for(std::chrono::microseconds(200));
-      while (!stop.load(std::memory_order_relaxed)) {
-        const auto begin = std::chrono::steady_clock::now();
-        handoff.take();
-        const Snapshot& s = handoff.front();
-        for (std::size_t b = 0; b < s.solids.size(); ++b) {
-          const SolidState& st = s.solids[b];
-          if (st.topology->version != meshes[b].version) meshes[b].rebuild(*st.topology);
-          meshes[b].set_positions(st.positions_mm);
-          renderer.update_solid(ids[b], meshes[b].mesh);
-        }
-        // The probe's shaft rises from the tip along the hand; the blade shows while it cuts.
-        const glm::dvec3 along = s.blade_to_mm - s.tip_mm;
-        const double along_len = glm::length(along);
-        const glm::dvec3 dir = along_len > 1e-9 ? along / along_len : glm::dvec3(0, 0, 1);
-        renderer.set_pose(probe_id, instrument_pose(s.tip_mm, s.tip_mm + dir * probe_length));
-        renderer.set_visible(blade_id, s.cutting);
-        if (s.cutting) {
-          glm::dmat4 m = instrument_pose(s.tip_mm, s.blade_to_mm);
-          m = m * glm::scale(glm::dmat4(1.0),
-                             glm::dvec3(1.0, 1.0, glm::length(s.blade_to_mm - s.tip_mm)));
-          renderer.set_pose(blade_id, m);
-        }
-        head_handoff.take();
-        const render::HeadPose pose = head_handoff.front();
-        const render::FrameStats stats = renderer.render(pose);
-        for (; seen_events < s.event_count; ++seen_events) {
-          if (s.event_count - seen_events <= s.recent.size())
-            measuring.shows(stats.frame, seen_events);
-        }
-        const auto end = std::chrono::steady_clock::now();
-        report.render_ms.record(std::chrono::duration<double, std::milli>(end - begin).count());
-        if (!first) {
-          const double gap = std::chrono::duration<double, std::milli>(begin - previous).count();
-          report.frame_ms.record(gap);
-          const auto missed = static_cast<std::uint64_t>(gap / display_period_ms + 0.5);
-          if (missed > 1) report.dropped_frames += missed - 1;
-        }
-        first = false;
-        previous = begin;
-        frames.fetch_add(1, std::memory_order_relaxed);
-        next += std::chrono::duration_cast<std::chrono::steady_clock::duration>(period);
-        if (next < end || runtime_paces) {
-          // Behind: the next frame starts at once (no catch-up burst). With OpenXR the runtime's
-          // xrWaitFrame paces the frames to the headset's display; sleeping too would halve it.
-          next = end;
-        } else {
-          std::this_thread::sleep_until(next);
-        }
-      }
-      renderer.flush();
-      if (png != nullptr) png->finish();
-      report.frames = frames.load();
-      report.images = png != nullptr ? png->images_written() : measuring.consumed();
+      stop.store(true);
     } catch (...) {
-      render_error = std::current_exception();
+      render_error = "unknown error";
       render_ready.store(true);
       stop.store(true);
     }
   });
 
-  // ---- Haptic thread ----
+  // ---- Haptic thread: paces the ticks of the one haptic loop (haptic_loop.h) ----
   const Nanoseconds period{static_cast<std::int64_t>(std::llround(1e9 / scene.rates.haptic_hz))};
   const Nanoseconds spin{static_cast<std::int64_t>(options.spin_us * 1e3)};
-  const std::size_t force_every =
-      std::max<std::size_t>(1, static_cast<std::size_t>(scene.rates.haptic_hz / 200.0));
   report.force.reserve(static_cast<std::size_t>(report.duration_s * 200.0) + 16);
-  std::thread haptic_thread([&] {
-    try {
-      if (options.realtime_priority) realtime.store(request_realtime_priority(0));
-      while (!render_ready.load())
-        std::this_thread::sleep_for(std::chrono::milliseconds(1));
-      t0 = clock.now();
-      Nanoseconds next = t0;
-      Nanoseconds previous_start{0};
-      bool first = true, lost = false;
-      devices::HapticState last_state;
-      std::vector<double> command(sim.command_size(), 0.0);
-      StepSchedule schedule(lag, first_ticks_per_step);
-      TissueRateController rate(first_ticks_per_step, options.max_tissue_ticks_per_step, ms(period),
-                                options.tissue_max_load);
-      std::uint64_t k = 0;
-      while (!stop.load(std::memory_order_relaxed)) {
-        if (spin.count() > 0) {
-          clock.sleep_until(next - spin);
-          while (clock.now() < next) {
-          }
-        } else {
-          clock.sleep_until(next);
-        }
-        const Nanoseconds start = clock.now();
-        const Nanoseconds t = start - t0;
-        if (t >= duration) break;
-        if (!first) {
-          const double p_ms = ms(start - previous_start);
-          report.haptic_period_ms.record(p_ms);
-          report.haptic_period_error_ms.record(std::abs(p_ms - ms(period)));
-        }
-        first = false;
-        previous_start = start;
+  LiveTickSteps steps(tissue, options.adaptive_tissue_rate,
+                      TissueRateController(first_ticks_per_step, options.max_tissue_ticks_per_step,
+                                           ms(period), options.tissue_max_load));
+  HapticLoopParts parts;
+  parts.haptic = &guarded;
+  parts.steps = &steps;
+  parts.sim = &sim;
+  parts.frame = sim_options.device_frame;
+  parts.clock = &clock;
+  parts.writer = writer.get();
+  parts.head = head;
+  parts.step_twins = [&](Nanoseconds t) { session_devices.step_twins(t); };
+  parts.display_live = &display_live;
+  parts.head_state = [&](const devices::TrackerState& hs) {
+    // The head pose straight to the renderer (motion-to-photon starts at its sample).
+    render::HeadPose& hp = head_handoff.back();
+    hp.position_mm = sim::sim_to_scene(glm::dvec3(
+        hs.head_pose.position_m.x, hs.head_pose.position_m.y, hs.head_pose.position_m.z));
+    hp.orientation = glm::dquat(hs.head_pose.orientation.w, hs.head_pose.orientation.x,
+                                hs.head_pose.orientation.y, hs.head_pose.orientation.z);
+    hp.sample_time = to_pose_clock(hs.sample_time);
+    head_handoff.publish();
+  };
+  HapticLoop loop(std::move(parts), lag, first_ticks_per_step);
+  HapticPacing pacing;
+  pacing.period = period;
+  pacing.spin = spin;
+  pacing.duration = duration;
+  pacing.realtime_priority = options.realtime_priority;
+  pacing.stop_requested = options.stop_requested;
+  HapticThreadFlags flags{stop, render_ready, interrupted, realtime, ticks, overruns, force_now};
+  std::thread haptic_thread(
+      [&] { run_haptic_thread(loop, guarded, clock, pacing, flags, report, t0); });
 
-        // Device input: the twins send (as hardware would), the drivers read.
-        session_devices.step_twins(t);
-        try {
-          if (!lost) guarded.poll(std::chrono::microseconds(0));
-        } catch (const devices::DeviceDisconnected&) {
-          lost = true;
-        } catch (const devices::ProtocolError&) {
-          ++report.malformed_reports;
-        }
-        try {
-          head->poll(std::chrono::microseconds(0));
-        } catch (const devices::ProtocolError&) {
-          ++report.malformed_reports;
-        }
-        if (!lost) last_state = glove->state();
-
-        // A hand-over tick gives its state to the tissue thread as the next step (and may change
-        // the steps' length, noted in the trace); every tick sends the command of the step due
-        // (or, when that step is late, the newest one, noted in the trace for the replay).
-        ++k;
-        if (schedule.hands_over(k)) {
-          tissue.push(last_state, schedule.handed_over_ticks());
-          // A fixed rate stays fixed (the controller would also lower a rate given too low).
-          const std::uint32_t n = options.adaptive_tissue_rate
-                                      ? rate.decide(tissue.median_step_ms())
-                                      : schedule.ticks_per_step();
-          if (n != schedule.ticks_per_step()) {
-            schedule.set_ticks_per_step(k, n);
-            ++report.tissue_rate_changes;
-            report.max_tissue_ticks_per_step = std::max(report.max_tissue_ticks_per_step, n);
-            if (writer) writer->note(clock.now().count(), tissue_rate_note(k, n));
-          }
-        }
-        const TissueThread::TickStep use = tissue.step_for(schedule.due(k));
-        report.max_tissue_backlog =
-            std::max(report.max_tissue_backlog, tissue.pushed() - tissue.done());
-        if (use.late) {
-          ++report.late_ticks;
-          if (writer) writer->note(clock.now().count(), late_tick_note(k, use.step));
-        }
-        const TickOutput* out = use.output;
-        if (out != nullptr) {
-          sim.command_for(*out, SessionSim::tip_of(last_state), command);
-        } else {
-          std::fill(command.begin(), command.end(), 0.0);
-        }
-        devices::GuardStep g;
-        if (!lost) {
-          try {
-            g = guarded.send(command);
-          } catch (const devices::DeviceDisconnected&) {
-            lost = true;
-          }
-        }
-        if (lost && writer) writer->note(clock.now().count(), "tick");
-        if (g.latched != devices::Fault::None) ++report.guard_latches;
-        if (k % force_every == 0 && report.force.size() < report.force.capacity()) {
-          report.force.push_back(
-              {ms(t) * 1e-3, out != nullptr ? glm::length(out->force_N) : 0.0,
-               command.empty() ? 0.0 : command[0],
-               guarded.last_output_N().empty() ? 0.0 : guarded.last_output_N()[0]});
-        }
-        force_now.store(out != nullptr ? glm::length(out->force_N) : 0.0,
-                        std::memory_order_relaxed);
-
-        // The head pose straight to the renderer (motion-to-photon starts at its sample).
-        render::HeadPose& hp = head_handoff.back();
-        const devices::TrackerState& hs = head->state();
-        hp.position_mm = sim::sim_to_scene(glm::dvec3(
-            hs.head_pose.position_m.x, hs.head_pose.position_m.y, hs.head_pose.position_m.z));
-        hp.orientation = glm::dquat(hs.head_pose.orientation.w, hs.head_pose.orientation.x,
-                                    hs.head_pose.orientation.y, hs.head_pose.orientation.z);
-        hp.sample_time = to_pose_clock(hs.sample_time);
-        head_handoff.publish();
-
-        const Nanoseconds end = clock.now();
-        report.tick_ms.record(ms(end - start));
-        if (end - start > period) overruns.fetch_add(1, std::memory_order_relaxed);
-        next += period;
-        if (end > next) {
-          ++report.missed_deadlines;
-          // The tick's own work took under half a period: the thread was started late (the OS,
-          // or on a virtual machine the hypervisor, had the core), not slowed by its work.
-          if (end - start < period / 2) ++report.missed_by_late_wakeup;
-        }
-        if (end > next + period) {  // fell behind by more than a period: drop those ticks
-          const std::int64_t behind = (end - next).count() / period.count();
-          report.skipped_ticks += static_cast<std::uint64_t>(behind);
-          next += period * behind;
-        }
-        ticks.store(k, std::memory_order_relaxed);
-      }
-      report.tissue_ticks_per_step = schedule.ticks_per_step();
-    } catch (...) {
-      haptic_error = std::current_exception();
+  // ---- Supervisor: zero within the watchdog's limit when a tick stalls ----
+  const Nanoseconds stall_limit = period + guard_config.deadline_margin;
+  std::atomic<bool> supervising{true};
+  std::thread supervisor([&] {
+    while (supervising.load(std::memory_order_relaxed)) {
+      std::this_thread::sleep_for(std::chrono::microseconds(250));
+      (void)loop.zero_if_stalled(clock.now(), stall_limit);
     }
-    stop.store(true);
   });
 
   // ---- The calling thread watches ----
   progress.stage = "run";
-  const auto wall_start = std::chrono::steady_clock::now();
   while (!stop.load()) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    if (options.stop_requested != nullptr && options.stop_requested->load()) interrupted.store(true);
     progress.elapsed_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
     progress.ticks = ticks.load();
     progress.frames = frames.load();
     progress.overruns = overruns.load();
-    progress.events = event_count.load();
+    progress.events = publisher.events();
     progress.force_N = force_now.load();
     if (options.progress) options.progress(progress);
   }
   haptic_thread.join();
+  supervising.store(false);
+  supervisor.join();
+  loop.stop();  // already done by the haptic thread; kept in case it never started its loop
   // The steps still queued run to the last tick, so the final state is that of every tick.
-  std::exception_ptr tissue_error;
+  std::string tissue_error;
   try {
     tissue.finish();
-  } catch (...) {
-    tissue_error = std::current_exception();
+  } catch (const std::exception& e) {
+    tissue_error = e.what();
   }
   stop.store(true);
   render_thread.join();
-  const double run_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
 
   // ---- The session ends: final state, devices closed (zero forces), trace closed ----
+  add_loop_counters(loop, report);
   report.ticks = ticks.load();  // haptic ticks (the tissue may have stepped fewer times)
   report.overruns = overruns.load();
   report.realtime_priority = realtime.load();
@@ -713,7 +362,6 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   report.render_fps = report.frames > 1 && report.frame_ms.count() > 0
                           ? 1000.0 / report.frame_ms.summary().mean
                           : 0.0;
-  (void)run_s;
   for (std::size_t i = 0; i < sim.events().size(); ++i) {
     EventReport e;
     e.event = sim.events()[i];
@@ -721,18 +369,41 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     if (i < event_response.size()) e.response_ms = event_response[i];
     report.events.push_back(std::move(e));
   }
-  if (writer) {
-    const nlohmann::json end = {{"session_end",
-                                 {{"ticks", report.ticks},
-                                  {"state_hash", report.final_state_hash},
-                                  {"events", report.events.size()}}}};
-    writer->note(clock.now().count(), end.dump());
+  // Every ending writes the closing note and closes the devices and the trace; a failure there
+  // is reported, not thrown, so the report is written either way.
+  try {
+    if (writer && writer->failure().empty()) {
+      const nlohmann::json end = {{"session_end",
+                                   {{"ticks", report.ticks},
+                                    {"state_hash", report.final_state_hash},
+                                    {"events", report.events.size()}}}};
+      writer->note(clock.now().count(), end.dump());
+    }
+  } catch (const std::exception& e) {
+    if (report.recording_error.empty()) report.recording_error = e.what();
   }
   session_devices.close();
-  if (writer) writer->close();
-  if (render_error) std::rethrow_exception(render_error);
-  if (tissue_error) std::rethrow_exception(tissue_error);
-  if (haptic_error) std::rethrow_exception(haptic_error);
+  if (writer) {
+    try {
+      writer->close();
+    } catch (const std::exception& e) {
+      if (report.recording_error.empty()) report.recording_error = e.what();
+    }
+    if (report.recording_error.empty()) report.recording_error = writer->failure();
+  }
+  if (!render_error.empty()) {
+    report.ending = "error";
+    report.error = "renderer: " + render_error;
+  } else if (!tissue_error.empty()) {
+    report.ending = "error";
+    report.error = "soft tissue: " + tissue_error;
+  } else if (interrupted.load()) {
+    report.ending = "interrupted";
+  } else if (!report.headset.stop_reason.empty()) {
+    report.ending = "headset";
+  } else {
+    report.ending = "completed";
+  }
   return report;
 }
 

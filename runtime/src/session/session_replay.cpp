@@ -16,6 +16,11 @@
 #include "bisturi/devices/trace/trace_reader.h"
 #include "bisturi/runtime/session/scene_builder.h"
 #include "bisturi/runtime/session/session_sim.h"
+#include "bisturi/devices/force_guard.h"
+#include "bisturi/devices/trace/guarded_haptic.h"
+#include "bisturi/runtime/session/device_frame.h"
+#include "bisturi/runtime/session/session_devices.h"
+#include "haptic_loop.h"
 #include "lockstep_notes.h"
 #include "step_schedule.h"
 #include "tissue_thread.h"
@@ -28,6 +33,51 @@ bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {
   return a.size() == b.size() &&
          (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0);
 }
+
+/// The tissue steps of a replay: run in place when a tick needs them, late where the trace's
+/// late-tick note says, their length changed where a rate note says (each note applies to the
+/// tick that follows it).
+class ReplayTickSteps final : public TickSteps {
+ public:
+  explicit ReplayTickSteps(SessionSim& sim) : sim_(sim) {}
+  TissueThread::Push push(const devices::HapticState& state, std::uint32_t ticks) override {
+    queued_.emplace_back(state, ticks);
+    ++pushed_;
+    return TissueThread::Push::Queued;
+  }
+  TissueThread::TickStep step_for(std::uint64_t k, std::uint64_t due) override {
+    TissueThread::TickStep use{due, nullptr, false};
+    if (late && late->tick == k) use = {std::min(late->step, pushed_), nullptr, true};
+    late.reset();
+    rate.reset();
+    run_to(use.step);
+    if (use.step > 0) use.output = newest_;
+    return use;
+  }
+  std::uint32_t ticks_per_step(std::uint64_t k, std::uint32_t n) override {
+    return rate && rate->tick == k ? rate->ticks_per_step : n;
+  }
+  [[nodiscard]] std::uint64_t backlog() const override { return queued_.size(); }
+  void run_all() { run_to(pushed_); }
+
+  std::optional<LateTick> late;
+  std::optional<TissueRateChange> rate;
+
+ private:
+  void run_to(std::uint64_t j) {
+    while (run_ < j && !queued_.empty()) {
+      newest_ = &sim_.tick(queued_.front().first, queued_.front().second);
+      queued_.pop_front();
+      ++run_;
+    }
+  }
+
+  SessionSim& sim_;
+  std::deque<std::pair<devices::HapticState, std::uint32_t>> queued_;
+  std::uint64_t pushed_ = 0;
+  std::uint64_t run_ = 0;
+  const TickOutput* newest_ = nullptr;
+};
 
 }  // namespace
 
@@ -73,44 +123,63 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
   std::vector<BuiltSolid> solids = build_solids(scene);
 
   devices::VirtualClock clock(devices::Nanoseconds{reader.header().start_time_ns});
+  const devices::Nanoseconds t0{reader.header().start_time_ns};
   const devices::Registry registry = devices::builtin_registry();
+  const devices::ForceGuardConfig guard_config =
+      devices::force_guard_config_from_json(reader.header().config);
+  const DeviceChoice choice = choose_session_devices(scene);
   std::unique_ptr<devices::Device> device;
   devices::HapticDevice* glove = nullptr;
   std::shared_ptr<devices::ReplayLink> link;
+  std::unique_ptr<devices::ForceGuard> guard;
+  std::unique_ptr<devices::GuardedHaptic> guarded;
   std::unique_ptr<SessionSim> sim;
-  devices::HapticState state;
-  bool lost = false;
+  std::unique_ptr<ReplayTickSteps> steps;
+  std::unique_ptr<HapticLoop> loop;
+  // A "haptic_stop" or "watchdog_zero" note: the next force command is that zero, not a tick.
+  enum class Zero : std::uint8_t { None, Stop, Watchdog } pending_zero = Zero::None;
+  std::vector<double> zeros;
 
-  // The lockstep of the live session (step_schedule.h): a hand-over tick queues its glove state
-  // as the next step, each tick uses the step due, or the one its late-tick note names, and the
-  // ticks per step change where a rate note says; steps run when a tick needs them.
-  StepSchedule schedule(lag, ticks_per_step);
-  std::deque<std::pair<devices::HapticState, std::uint32_t>> queued;
-  std::uint64_t steps_run = 0;
-  const TickOutput* step_output = nullptr;
-  std::optional<LateTick> late;
-  std::optional<TissueRateChange> rate;
-  std::vector<double> command;
-  const auto run_steps_to = [&](std::uint64_t j) {
-    while (steps_run < j && !queued.empty()) {
-      step_output = &sim->tick(queued.front().first, queued.front().second);
-      queued.pop_front();
-      ++steps_run;
+  bool open_pending = false;
+  const auto open_glove = [&](std::unique_ptr<devices::Transport> transport) {
+    device = registry.open(std::move(transport), clock);
+    glove = devices::as_haptic(device.get());
+    if (glove == nullptr)
+      throw devices::TraceError(reader.name() + ": the recorded glove is not a haptic device");
+    guard = std::make_unique<devices::ForceGuard>(glove->capabilities().force_channels,
+                                                  guard_config);
+    guarded = std::make_unique<devices::GuardedHaptic>(*glove, *guard, clock);
+    SessionSimOptions sim_options;
+    sim_options.tissue_threads = tissue_threads;
+    sim_options.device_frame = device_frame_of(*choice.haptic);
+    sim_options.device_spec = glove->capabilities().spec;
+    if (const devices::DriverInfo* driver = registry.find_by_name(glove->driver_name()))
+      sim_options.channel_roles = driver->layout.roles(glove->capabilities());
+    sim = std::make_unique<SessionSim>(scene, std::move(solids),
+                                       glove->capabilities().force_channels, sim_options);
+    steps = std::make_unique<ReplayTickSteps>(*sim);
+    HapticLoopParts parts;
+    parts.haptic = guarded.get();
+    parts.steps = steps.get();
+    parts.sim = sim.get();
+    parts.frame = sim_options.device_frame;
+    parts.clock = &clock;
+    loop = std::make_unique<HapticLoop>(std::move(parts), lag, ticks_per_step);
+    zeros.assign(sim->command_size(), 0.0);
+  };
+  const auto compare = [&](const std::vector<double>& expected, const std::vector<double>& actual,
+                           std::int64_t time_ns) {
+    ++result.force_commands;
+    if (!same_bits(expected, actual)) {
+      ++result.force_mismatches;
+      if (!result.first_mismatch)
+        result.first_mismatch = ForceMismatch{result.ticks, time_ns, expected, actual};
     }
   };
-  const auto haptic_tick = [&] {  // returns the step the tick's command comes from
-    ++result.ticks;
-    const std::uint64_t k = result.ticks;
-    if (schedule.hands_over(k)) {
-      queued.emplace_back(state, schedule.handed_over_ticks());
-      if (rate && rate->tick == k) schedule.set_ticks_per_step(k, rate->ticks_per_step);
-    }
-    rate.reset();
-    std::uint64_t j = schedule.due(k);
-    if (late && late->tick == k) j = std::min(late->step, schedule.steps());
-    late.reset();
-    run_steps_to(j);
-    return j;
+  const auto tick = [&] {
+    (void)loop->tick(clock.now() - t0);
+    result.ticks = loop->counters().ticks;
+    if (link) (void)link->take_written();  // devices::replay_trace checks the bytes
   };
 
   for (;;) {
@@ -125,12 +194,18 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
     clock.set(devices::Nanoseconds{r->time_ns});
     if (r->type == devices::TraceRecordType::kNote) {
       const std::string text(r->payload.begin(), r->payload.end());
-      if (text == "tick" && sim) {
-        (void)haptic_tick();
+      if (text == "tick" && loop) {
+        tick();
+      } else if (text == "haptic_stop") {
+        pending_zero = Zero::Stop;
+      } else if (text == "watchdog_zero") {
+        pending_zero = Zero::Watchdog;
+      } else if (text == "display_hold" || text == "display_live") {
+        if (loop) loop->hold_display(text == "display_hold");
       } else if (auto l = parse_late_tick_note(text)) {
-        late = l;
+        if (steps) steps->late = l;
       } else if (auto c = parse_tissue_rate_note(text)) {
-        rate = c;
+        if (steps) steps->rate = c;
       } else {
         const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
         if (!j.is_discarded() && j.is_object() && j.contains("session_end")) {
@@ -145,55 +220,58 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
     if (r->device != glove_index) continue;
     switch (r->type) {
       case devices::TraceRecordType::kConnect: {
-        if (device) device->close();
+        if (device || open_pending)
+          throw devices::TraceError(reader.name() +
+                                    ": the glove connects twice; a session never reopens it");
         auto transport = std::make_unique<devices::ReplayTransport>(
             devices::to_device_descriptor(reader.devices().at(glove_index)), clock);
         link = transport->link();
-        device = registry.open(std::move(transport), clock);
-        glove = devices::as_haptic(device.get());
-        if (glove == nullptr)
-          throw devices::TraceError(reader.name() + ": the recorded glove is not a haptic device");
-        if (!sim) {
-          SessionSimOptions sim_options;
-          sim_options.tissue_threads = tissue_threads;
-          sim = std::make_unique<SessionSim>(scene, std::move(solids),
-                                             glove->capabilities().force_channels, sim_options);
+        const devices::Nanoseconds now = clock.now();
+        try {
+          open_glove(std::move(transport));
+        } catch (const devices::DeviceError&) {
+          // A driver that waits for its device's first report while it opens (the vendor arm):
+          // it opens on that report (what this attempt wrote is dropped, its wait undone).
+          (void)link->take_written();
+          clock.set(now);
+          open_pending = true;
         }
-        lost = false;
         break;
       }
       case devices::TraceRecordType::kReportIn:
-        if (!link || lost) break;
+        if (!link || (loop && loop->device_lost())) break;
         link->push_input(devices::Nanoseconds{r->time_ns}, r->payload);
+        if (open_pending) {
+          open_pending = false;
+          open_glove(std::make_unique<devices::ReplayTransport>(
+              devices::to_device_descriptor(reader.devices().at(glove_index)), clock, link));
+          break;
+        }
+        // Read at its own time, as the live driver did (its sample time feeds the guard).
         try {
-          glove->poll(std::chrono::microseconds(0));
-          state = glove->state();
+          guarded->poll(std::chrono::microseconds(0));
         } catch (const devices::ProtocolError&) {
-          state = glove->state();
         } catch (const devices::DeviceDisconnected&) {
-          lost = true;
         }
         break;
       case devices::TraceRecordType::kForceCommand: {
-        if (!sim) throw devices::TraceError(reader.name() + ": a force command before the glove");
-        const std::uint64_t j = haptic_tick();
-        if (j > 0 && step_output != nullptr) {
-          sim->command_for(*step_output, SessionSim::tip_of(state), command);
-        } else {
-          command.assign(sim->command_size(), 0.0);
-        }
-        ++result.force_commands;
+        if (!loop) throw devices::TraceError(reader.name() + ": a force command before the glove");
         const std::vector<double> expected = r->forces_N();
-        if (!same_bits(expected, command)) {
-          ++result.force_mismatches;
-          if (!result.first_mismatch)
-            result.first_mismatch = ForceMismatch{result.ticks, r->time_ns, expected, command};
+        if (pending_zero == Zero::Stop) {
+          loop->stop();
+          compare(expected, zeros, r->time_ns);
+        } else if (pending_zero == Zero::Watchdog) {
+          loop->zero_now();
+          compare(expected, zeros, r->time_ns);
+        } else {
+          tick();
+          compare(expected, loop->command(), r->time_ns);
         }
+        pending_zero = Zero::None;
         break;
       }
       case devices::TraceRecordType::kDisconnect:
         if (link) link->disconnect();
-        lost = true;
         break;
       default:
         break;
@@ -201,7 +279,7 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
   }
   if (device) device->close();
   if (sim) {
-    run_steps_to(schedule.steps());  // the live session ran every queued step before its hash
+    steps->run_all();  // the live session ran every queued step before its hash
     result.state_hash = sim->state_hash();
   }
   result.seconds =

@@ -10,6 +10,8 @@
 #include <glm/geometric.hpp>
 #include <glm/gtc/quaternion.hpp>
 
+#include "hand_model.h"
+#include "bisturi/sim/collision.h"
 #include "bisturi/sim/errors.h"
 #include "bisturi/sim/units.h"
 
@@ -62,6 +64,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   for (const InstrumentDescription& in : scene.instruments) {
     if (in.kind == InstrumentDescription::Kind::Probe) {
       world_.options().haptic.probe_radius_m = in.radius_mm * sim::kMetresPerMillimetre;
+      probe_length_mm_ = in.length_mm;
     } else if (in.kind == InstrumentDescription::Kind::Grasper) {
       jaw_radius_mm_ = in.radius_mm;
     } else {
@@ -69,7 +72,16 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
     }
   }
   world_.options().haptic.max_force_N = max_force_N_;
+  // The coupling spring is what the hand feels in contact: never stiffer than the device renders.
+  const double device_k = options_.device_spec.max_stiffness_N_per_m;
+  if (device_k > 0.0) {
+    world_.options().haptic.coupling_N_per_m =
+        std::min(world_.options().haptic.coupling_N_per_m, device_k);
+  }
   coupling_N_per_m_ = world_.options().haptic.coupling_N_per_m;
+  finger_stiffness_N_per_m_ = device_k > 0.0
+                                  ? std::min(options_.finger_stiffness_N_per_m, device_k)
+                                  : options_.finger_stiffness_N_per_m;
   haptic_hz_ = scene.rates.haptic_hz;
   world_.options().integrator.dt_s = 1.0 / haptic_hz_;
   world_.options().integrator.far_field_interval = scene.simulation.far_field_interval;
@@ -96,9 +108,17 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   // Everything the first step would build lazily (solver structure, BVHs, scratch) is built now,
   // before the haptic clock starts: tick 1 costs what tick 2 costs.
   world_.prepare();
-  for (const devices::ForceChannel& c : channels_)
-    command_size_ += c.components;
+  devices::Capabilities shape;
+  shape.force_channels = channels_;
+  const devices::ChannelLayout layout{options_.channel_roles};
+  roles_ = layout.roles(shape);
+  for (std::size_t i = 0; i < channels_.size(); ++i) {
+    command_size_ += channels_[i].components;
+    if (roles_[i].use == devices::ChannelUse::Finger)
+      fingers_ = std::max<std::size_t>(fingers_, roles_[i].finger + 1u);
+  }
   out_.command_N.assign(command_size_, 0.0);
+  out_.finger_contact_N.assign(fingers_, 0.0);
 }
 
 glm::dvec3 SessionSim::tip_of(const devices::HapticState& state) {
@@ -194,6 +214,7 @@ const TickOutput& SessionSim::tick(const devices::HapticState& state, std::uint3
     (void)e;
     ++divergence_events_;
   }
+  finger_contacts(tip_m, q, state.finger_joint_angles_rad);
 
   // Scalpel: button 0 held sweeps the blade, its release cuts.
   const bool button = (state.buttons & 1u) != 0;
@@ -234,30 +255,59 @@ const TickOutput& SessionSim::tick(const devices::HapticState& state, std::uint3
   return out_;
 }
 
+void SessionSim::finger_contacts(const glm::dvec3& tip_m, const glm::dquat& hand,
+                                 const std::vector<double>& joints_rad) {
+  std::fill(out_.finger_contact_N.begin(), out_.finger_contact_N.end(), 0.0);
+  if (fingers_ == 0) return;
+  const auto tips = fingertips_mm(sim::sim_to_scene(tip_m), hand, probe_length_mm_, joints_rad);
+  constexpr double kReach_m = 0.02;  // deeper than any finger presses
+  for (std::size_t f = 0; f < std::min(fingers_, tips.size()); ++f) {
+    const glm::dvec3 p = sim::scene_to_sim(tips[f]);
+    double depth = 0.0;
+    for (std::size_t b = 0; b < world_.body_count(); ++b) {
+      const auto i = static_cast<std::uint32_t>(b);
+      const sim::SurfacePoint c = world_.bvh(i).closest_point(world_.body(i), p, kReach_m);
+      // Inside the tissue when the closest surface point lies out along its outward normal.
+      if (c.found) depth = std::max(depth, glm::dot(c.point_m - p, c.normal));
+    }
+    out_.finger_contact_N[f] = finger_stiffness_N_per_m_ * depth;
+  }
+}
+
 void SessionSim::command_for(const TickOutput& step, const glm::dvec3& tip_now_m,
                              std::vector<double>& command_N) const {
   // In contact the proxy stays where the step put it while the tip moves on: the coupling
   // spring's change (k times the tip's motion) is added. Outside contact there is no force.
   glm::dvec3 force = step.force_N;
   if (step.contact) force += coupling_N_per_m_ * (step.tip_m - tip_now_m);
-  // The contact force on the thumb and index actuators, the grasp on every finger, a vibration
-  // while cutting; never above the scene's limit for the device.
   const double contact_N = std::min(glm::length(force), max_force_N_);
   command_N.resize(command_size_);
-  std::size_t k = 0, finger = 0;
-  for (const devices::ForceChannel& c : channels_) {
-    for (std::size_t i = 0; i < c.components; ++i, ++k) {
-      double f = 0.0;
-      if (c.unitless) {
-        f = step.cutting ? options_.cut_vibration : 0.0;
-      } else {
-        if (finger < 2) f += contact_N;
-        if (step.grasping) f += options_.grasp_force_N;
-        f = std::min(f, std::min(max_force_N_, c.max_force_N));
-      }
-      command_N[k] = f;
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < channels_.size(); ++i) {
+    const devices::ForceChannel& c = channels_[i];
+    const devices::ChannelRole& role = roles_[i];
+    const double limit_N = std::min(max_force_N_, c.max_force_N);
+    if (role.use == devices::ChannelUse::Vector) {
+      // The force itself, in the device's frame: scaled down as a whole, never turned.
+      glm::dvec3 f = options_.device_frame.force_to_device(force);
+      const double magnitude = glm::length(f);
+      if (magnitude > limit_N) f *= limit_N / magnitude;
+      command_N[k++] = f.x;
+      command_N[k++] = f.y;
+      command_N[k++] = f.z;
+      continue;
     }
-    if (!c.unitless) ++finger;
+    double f = 0.0;
+    if (role.use == devices::ChannelUse::Finger) {
+      if (role.finger < step.finger_contact_N.size()) f += step.finger_contact_N[role.finger];
+      if (role.finger < 2) f += contact_N;  // thumb and index hold the instrument
+      if (step.grasping) f += options_.grasp_force_N;
+      f = std::min(f, limit_N);
+    } else if (c.unitless && c.components == 1) {
+      f = step.cutting ? options_.cut_vibration : 0.0;  // a cue, not a force
+    }
+    for (std::size_t j = 0; j < c.components; ++j)
+      command_N[k++] = j == 0 ? f : 0.0;
   }
 }
 

@@ -48,22 +48,26 @@ bool request_realtime_priority(int below) {
   return pthread_setschedparam(pthread_self(), SCHED_FIFO, &p) == 0;
 }
 
-void TissueThread::push(const devices::HapticState& state, std::uint32_t ticks) {
-  if (failed_.load(std::memory_order_acquire))
-    throw std::runtime_error("session: the soft-tissue simulation failed");
+TissueThread::Push TissueThread::push(const devices::HapticState& state, std::uint32_t ticks) {
+  if (failed_.load(std::memory_order_acquire)) return Push::Failed;
   const std::uint64_t k = pushed_.load(std::memory_order_relaxed) + 1;
-  if (k - done_.load(std::memory_order_acquire) >= capacity_)
-    throw std::runtime_error("session: the soft-tissue simulation fell " +
-                             std::to_string(capacity_) + " steps behind the haptic loop");
+  if (k - done_.load(std::memory_order_acquire) >= capacity_) return Push::Behind;
   states_[k % capacity_] = state;
   ticks_[k % capacity_] = ticks;
   pushed_.store(k, std::memory_order_release);
   if (!thread_.joinable()) {
-    step(k);
-    return;
+    try {
+      step(k);
+    } catch (...) {  // kept for finish(), which rethrows it outside the tick
+      error_ = std::current_exception();
+      failed_.store(true, std::memory_order_release);
+      return Push::Failed;
+    }
+    return Push::Queued;
   }
   wake_.fetch_add(1, std::memory_order_release);
   wake_.notify_one();
+  return Push::Queued;
 }
 
 const TickOutput* TissueThread::output(std::uint64_t j) const {

@@ -41,9 +41,10 @@ class TissueThread {
   TissueThread& operator=(const TissueThread&) = delete;
 
   /// Haptic thread: hands over the next step's glove state; the step covers `ticks` haptic
-  /// periods. Throws std::runtime_error when the simulation is a whole ring (capacity steps)
-  /// behind, or has failed.
-  void push(const devices::HapticState& state, std::uint32_t ticks = 1);
+  /// periods. Never throws: Behind when the simulation is a whole ring (capacity steps) behind
+  /// (the state is not queued), Failed once a step has thrown (finish() rethrows it).
+  enum class Push : std::uint8_t { Queued, Behind, Failed };
+  Push push(const devices::HapticState& state, std::uint32_t ticks = 1);
   /// Haptic thread: step j's output (1-based) once it is finished, else nullptr.
   [[nodiscard]] const TickOutput* output(std::uint64_t j) const;
 

@@ -48,6 +48,14 @@ struct ForceChannel {
                                       // value is a fraction of max_force_N == 1
 };
 
+// What the hardware can render, from its datasheet (the driver states it): the force guard and the
+// session's haptic coupling read it. 0 means the device does not say.
+struct DeviceSpec {
+  double max_stiffness_N_per_m = 0.0;  // stiffest virtual spring it renders stably at 1 kHz
+  Vec3 workspace_min_m{};              // reachable box in the device frame
+  Vec3 workspace_max_m{};
+};
+
 // What a device can do, discovered from its descriptor or its info report.
 struct Capabilities {
   DeviceClass device_class = DeviceClass::HapticGlove;
@@ -56,6 +64,7 @@ struct Capabilities {
   std::vector<std::string> finger_joints;    // names, in HapticState::finger_joint_angles_rad order
   std::vector<ForceChannel> force_channels;  // in force vector order
   bool head_pose = false;                    // a tracker
+  DeviceSpec spec;                           // limits with units
 
   // Sum of the channels' components: the length of a force vector for send_forces.
   std::size_t force_components() const;

@@ -88,6 +88,11 @@ class ForceGuard {
   // when the loop missed its deadline or the device went silent.
   bool watchdog_expired(Nanoseconds now);
 
+  // A supervisor saw the loop stall past its deadline (LoopWatchdog): latches zero at once, as a
+  // missed deadline does (the output is zero immediately, not rate-limited down; it re-arms by
+  // itself like a missed deadline when watchdog_auto_rearm).
+  void deadline_missed();
+
   // Clears any latch; forces engage again once the command is small, then ramp in.
   void rearm();
 

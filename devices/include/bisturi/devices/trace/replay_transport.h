@@ -61,6 +61,8 @@ class ReplayTransport final : public Transport {
  public:
   /// `clock` is observed and must outlive the transport.
   ReplayTransport(DeviceDescriptor descriptor, Clock& clock);
+  /// On an existing link (a driver opened again on what was already fed to it).
+  ReplayTransport(DeviceDescriptor descriptor, Clock& clock, std::shared_ptr<ReplayLink> link);
 
   const DeviceDescriptor& descriptor() const override { return descriptor_; }
   std::optional<Bytes> read(std::chrono::microseconds timeout) override;

@@ -58,7 +58,9 @@ class TraceWriter {
   void connect(std::uint16_t device, std::int64_t time_ns);
   void disconnect(std::uint16_t device, std::int64_t time_ns);
   void note(std::int64_t time_ns, std::string_view text);
-  /// Any record. Throws TraceError for an unknown device index or after close().
+  /// Any record. Throws TraceError for an unknown device index or after close(), and when a
+  /// write to the file fails; after such a failure the trace is closed and every later record is
+  /// dropped without a throw (failure() says why), so a session can go on without its recording.
   void append(TraceRecordType type, std::uint16_t device, std::int64_t time_ns,
               std::span<const std::uint8_t> payload);
 
@@ -75,6 +77,8 @@ class TraceWriter {
   const std::filesystem::path& path() const { return path_; }
   std::size_t device_count() const;
   TraceWriterStats stats() const;
+  /// Why writing stopped (a failed write or fdatasync); empty while the trace is being written.
+  std::string failure() const;
 
  private:
   void seal_locked(std::uint32_t flags);
@@ -92,6 +96,7 @@ class TraceWriter {
   std::int64_t chunk_first_time_ns_ = 0;
   TraceWriterStats stats_;
   std::uint64_t total_records_ = 0;  // appended, sealed or not
+  std::string failure_;
 };
 
 }  // namespace bisturi::devices

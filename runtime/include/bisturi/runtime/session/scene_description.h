@@ -96,6 +96,11 @@ struct DeviceDescription {
   std::string serial;
   /// Upper bound on the force sent (the device's own limit applies too, the lower wins).
   double max_force_N = 3.0;
+  /// Where a haptic device sits in the scene: its frame's rotation (degrees about the scene's
+  /// x, then y, then z axis) and origin (mm) in scene coordinates. Poses come in through it; a
+  /// 3-axis force channel gets the force vector through its inverse.
+  std::array<double, 3> device_to_scene_rotation_deg{0.0, 0.0, 0.0};
+  std::array<double, 3> device_to_scene_translation_mm{0.0, 0.0, 0.0};
 };
 
 struct HeadsetDescription {
@@ -105,6 +110,15 @@ struct HeadsetDescription {
   int eye_width = 1024;
   int eye_height = 1024;
   double refresh_hz = 90.0;
+  // An OpenXR headset: the reference space (STAGE where the runtime offers it, else LOCAL) and
+  // where the scene sits in it: the world point at the operating field's centre (default: the
+  // centre of the solids' bounds at the start) is placed field_distance_m ahead of the space's
+  // origin and field_height_m above it (default -0.35 in LOCAL, whose origin is at the eyes;
+  // 0.95 in STAGE, whose origin is on the floor: a table's height).
+  bool stage_space = false;
+  std::optional<std::array<double, 3>> field_centre_mm;
+  std::optional<double> field_height_m;
+  double field_distance_m = 0.45;
 };
 
 struct RateDescription {

@@ -23,6 +23,7 @@
 // (TissueRateController) settles there at 250-500 Hz.
 // All times come from one injectable devices::Clock (SteadyClock live).
 
+#include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -32,6 +33,7 @@
 
 #include "bisturi/devices/clock.h"
 #include "bisturi/runtime/render/stereo_renderer.h"
+#include "bisturi/runtime/session/headset_report.h"
 #include "bisturi/runtime/session/scene_description.h"
 #include "bisturi/runtime/session/session_sim.h"
 #include "bisturi/runtime/session/timing.h"
@@ -89,6 +91,9 @@ struct SessionOptions {
   devices::Clock* clock = nullptr;
   /// Called from the calling thread about ten times a second, and for start-up stages.
   std::function<void(const SessionProgress&)> progress;
+  /// Set (e.g. by a SIGINT/SIGTERM handler) to end the session early and cleanly: forces zeroed
+  /// first, the trace sealed, the report complete (ending "interrupted").
+  const std::atomic<bool>* stop_requested = nullptr;
 };
 
 struct SolidReport {
@@ -169,11 +174,30 @@ struct SessionReport {
   std::uint64_t dropped_frames = 0;  ///< display refreshes without a new frame
   std::uint64_t malformed_reports = 0;
   std::uint64_t divergence_events = 0;
+  /// Hand-overs the tissue could not queue (a whole ring behind); the ticks then used older steps.
+  std::uint64_t dropped_tissue_steps = 0;
+  /// Stalled ticks whose output the supervisor zeroed (LoopWatchdog: period + guard margin).
+  std::uint64_t supervisor_zeros = 0;
+  /// Session time the haptic device / head tracker was lost (-1: never) and why. A lost haptic
+  /// device's force is zero and its instrument holds its pose; a lost tracker's view holds.
+  double haptic_device_lost_s = -1.0;
+  std::string haptic_device_lost_reason;
+  double head_tracker_lost_s = -1.0;
+  std::string head_tracker_lost_reason;
+  /// Why the recording stopped before the end (empty: it did not, or nothing was recorded).
+  std::string recording_error;
+  /// How the session ended: "completed" (its duration), "interrupted" (stop_requested),
+  /// "headset" (the OpenXR runtime ended it early: the user exited or the runtime went away;
+  /// headset.stop_reason says which) or "error" (the renderer or the soft tissue failed; `error`
+  /// says what). The report is whole in every case.
+  std::string ending;
+  std::string error;
   std::vector<EventReport> events;
   std::vector<ForceSample> force;
   double max_force_N = 0.0;
   std::uint64_t final_state_hash = 0;
   std::filesystem::path trace;
+  HeadsetReport headset;
 };
 
 /// The soft-tissue step's thread count for solids of `simulated_vertices` vertices in all on a
@@ -182,8 +206,9 @@ struct SessionReport {
 /// the hand-offs than the parts save), at most 8. 1 on a machine with 3 cores or fewer.
 std::uint32_t auto_tissue_threads(std::size_t simulated_vertices, unsigned cores);
 
-/// Runs a live session of `scene`. Throws SceneFileError, render::RenderError (no Vulkan device),
-/// devices::DeviceError / TraceError from the layers below.
+/// Runs a live session of `scene`. Throws at set-up only: SceneFileError, devices::DeviceError /
+/// TraceError (a device or the trace cannot be opened). Once the session runs, every ending
+/// returns a whole report (see SessionReport::ending).
 SessionReport run_session(const SceneDescription& scene, const SessionOptions& options);
 
 /// The configuration a session writes into its trace (JSON): the force guard's settings and the

@@ -20,9 +20,12 @@
 #include <string>
 #include <vector>
 
+#include <glm/gtc/quaternion.hpp>
 #include <glm/vec3.hpp>
 
 #include "bisturi/devices/device.h"
+#include "bisturi/devices/registry.h"
+#include "bisturi/runtime/session/device_frame.h"
 #include "bisturi/runtime/session/scene_builder.h"
 #include "bisturi/runtime/session/scene_description.h"
 #include "bisturi/sim/grasp.h"
@@ -45,6 +48,9 @@ struct TickOutput {
   glm::dvec3 force_N{0.0};        ///< proxy force on the tip (world frame)
   glm::dvec3 tip_m{0.0};          ///< the tip the step was computed for
   std::vector<double> command_N;  ///< per glove force component, before the force guard
+  /// Per finger actuator (the device's 1-component channels with a force unit, in order): the
+  /// force of that finger's own contact with the tissue (N, >= 0; hand_model.h).
+  std::vector<double> finger_contact_N;
   bool contact = false;
   bool grasping = false;  ///< the grasper holds tissue after this step
   bool cutting = false;   ///< the scalpel is sweeping after this step
@@ -68,6 +74,18 @@ struct SessionSimOptions {
   /// Threads of the soft-tissue step (sim::IntegratorOptions::threads). The bits of the state
   /// depend on it, so a trace records it and its replay uses the same count.
   unsigned tissue_threads = 1;
+  /// Where the haptic device sits in the scene: its poses arrive in the scene frame (the haptic
+  /// loop converts them), and a 3-component channel's force vector leaves through the inverse
+  /// rotation, in the device's own frame.
+  DeviceFrame device_frame;
+  /// The device's datasheet limits: the coupling spring and the fingers' contact stiffness never
+  /// exceed max_stiffness_N_per_m (when it is given).
+  devices::DeviceSpec device_spec;
+  /// Stiffness of a fingertip's own contact with the tissue (before the device's limit).
+  double finger_stiffness_N_per_m = 300.0;
+  /// What each force channel gets (the driver's ChannelLayout, devices/registry.h); empty: by
+  /// the channel's shape (3 components a vector, 1 with a force unit the next finger).
+  std::vector<devices::ChannelRole> channel_roles;
 };
 
 class SessionSim {
@@ -82,11 +100,16 @@ class SessionSim {
   const TickOutput& tick(const devices::HapticState& state, std::uint32_t ticks = 1);
   [[nodiscard]] double haptic_period_ms() const { return 1000.0 / haptic_hz_; }
 
-  /// The glove's command for a step's output with the tip now at tip_now_m (the step may be a
-  /// few ticks old when the tissue runs on its own thread): the proxy force corrected by the
-  /// coupling spring for the tip's motion since the step, so the force follows the hand at the
-  /// haptic rate. For the step's own tip it is the step's command_N, bit for bit. Reads only
-  /// what the constructor set: safe to call from another thread while tick() runs.
+  /// The device's command for a step's output with the tip now at tip_now_m (scene frame; the
+  /// step may be a few ticks old when the tissue runs on its own thread): the proxy force
+  /// corrected by the coupling spring for the tip's motion since the step, so the force follows
+  /// the hand at the haptic rate. By channel role: a Vector channel gets that force in the
+  /// device's frame (its magnitude capped, its direction kept); a Finger channel that finger's
+  /// own contact, plus the instrument's reaction for the thumb and index that hold it, plus the
+  /// grasp while the jaws hold tissue; an Unused channel zero, except a unitless one (a
+  /// vibration motor), which vibrates while the scalpel cuts.
+  /// For the step's own tip it is the step's command_N, bit for bit. Reads only what the
+  /// constructor set: safe to call from another thread while tick() runs.
   void command_for(const TickOutput& step, const glm::dvec3& tip_now_m,
                    std::vector<double>& command_N) const;
   /// The probe tip (metres) of a glove state: its first end effector's position.
@@ -118,8 +141,14 @@ class SessionSim {
   sim::SimWorld world_;
   std::vector<std::string> names_;
   std::vector<devices::ForceChannel> channels_;
+  std::vector<devices::ChannelRole> roles_;  ///< one per channel
   double max_force_N_ = 3.0;
   double coupling_N_per_m_ = 0.0;
+  double finger_stiffness_N_per_m_ = 300.0;
+  double probe_length_mm_ = 60.0;
+  std::size_t fingers_ = 0;  ///< finger actuators (1-component channels with a force unit)
+  void finger_contacts(const glm::dvec3& tip_m, const glm::dquat& hand,
+                       const std::vector<double>& joints_rad);
   std::size_t command_size_ = 0;
   double jaw_radius_mm_ = 1.5;
   sim::Grasp grasp_;

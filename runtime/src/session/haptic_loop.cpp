@@ -1,0 +1,228 @@
+// One haptic tick, live and on replay (see haptic_loop.h).
+
+#include "haptic_loop.h"
+
+#include <algorithm>
+#include <exception>
+
+#include "lockstep_notes.h"
+
+namespace bisturi::runtime {
+
+namespace {
+
+double seconds(devices::Nanoseconds t) {
+  return static_cast<double>(t.count()) * 1e-9;
+}
+
+}  // namespace
+
+HapticLoop::HapticLoop(HapticLoopParts parts, std::uint32_t lag, std::uint32_t ticks_per_step)
+    : parts_(std::move(parts)),
+      schedule_(lag, ticks_per_step),
+      command_(parts_.sim->command_size(), 0.0),
+      zeros_(parts_.sim->command_size(), 0.0) {
+  counters_.max_ticks_per_step = ticks_per_step;
+  const devices::Capabilities& caps = parts_.haptic->device().capabilities();
+  // Every state the loop copies is made in the device's shape now: a tick never allocates.
+  device_state_.end_effector_poses.resize(caps.end_effectors);
+  device_state_.finger_joint_angles_rad.resize(caps.finger_joints.size());
+  scene_state_ = device_state_;
+}
+
+void HapticLoop::note(const std::string& text) noexcept {
+  if (parts_.writer == nullptr || !recording_.load(std::memory_order_acquire)) return;
+  try {
+    parts_.writer->note(parts_.clock->now().count(), text);
+  } catch (const std::exception& e) {
+    recording_failed(e.what());
+  }
+}
+
+void HapticLoop::recording_failed(const char* why) noexcept {
+  // The trace is lost from here on; the session is not.
+  std::lock_guard lock(error_mutex_);
+  if (!recording_.exchange(false)) return;
+  try {
+    counters_.recording_error = why;
+  } catch (...) {  // no memory for the message: the flag says it all
+  }
+}
+
+void HapticLoop::lose_device(devices::Nanoseconds t, const std::string& why) noexcept {
+  if (lost_) return;
+  lost_ = true;
+  counters_.haptic_lost_s = seconds(t);
+  counters_.haptic_lost_reason = why;
+}
+
+void HapticLoop::poll_devices(devices::Nanoseconds t) noexcept {
+  if (parts_.step_twins) parts_.step_twins(t);
+  if (!lost_) {
+    std::lock_guard lock(device_mutex_);
+    try {
+      parts_.haptic->poll(std::chrono::microseconds(0));
+    } catch (const devices::DeviceDisconnected& e) {
+      lose_device(t, e.what());  // the guard has latched: its output is zero
+    } catch (const devices::ProtocolError&) {
+      ++counters_.malformed_reports;  // dropped; the state keeps its previous values
+    } catch (const devices::TraceError& e) {
+      recording_failed(e.what());
+    } catch (const std::exception& e) {
+      // Any other failure of the device (an I/O error of its transport) loses it too.
+      parts_.haptic->guard().device_disconnected();
+      lose_device(t, e.what());
+    }
+  }
+  if (parts_.head != nullptr && !head_lost_) {
+    try {
+      parts_.head->poll(std::chrono::microseconds(0));
+    } catch (const devices::ProtocolError&) {
+      ++counters_.malformed_reports;
+    } catch (const std::exception& e) {
+      // The view holds the last pose the tracker gave.
+      head_lost_ = true;
+      counters_.head_lost_s = seconds(t);
+      counters_.head_lost_reason = e.what();
+    }
+    if (!head_lost_ && parts_.head_state) parts_.head_state(parts_.head->state());
+  }
+  // A lost device keeps its last state: the instrument holds where it was.
+  if (!lost_) {
+    const devices::HapticState& s = parts_.haptic->device().state();
+    device_state_.sample_time = s.sample_time;
+    device_state_.reports = s.reports;
+    device_state_.buttons = s.buttons;
+    std::copy_n(s.end_effector_poses.begin(),
+                std::min(s.end_effector_poses.size(), device_state_.end_effector_poses.size()),
+                device_state_.end_effector_poses.begin());
+    std::copy_n(
+        s.finger_joint_angles_rad.begin(),
+        std::min(s.finger_joint_angles_rad.size(), device_state_.finger_joint_angles_rad.size()),
+        device_state_.finger_joint_angles_rad.begin());
+    parts_.frame.to_scene(device_state_, scene_state_);
+  }
+}
+
+void HapticLoop::hand_over(std::uint64_t k) noexcept {
+  // A hand-over tick gives its state to the tissue as the next step (and may change the steps'
+  // length, noted in the trace).
+  if (!schedule_.hands_over(k)) return;
+  switch (parts_.steps->push(scene_state_, schedule_.handed_over_ticks())) {
+    case TissueThread::Push::Queued:
+      break;
+    case TissueThread::Push::Behind:
+      ++counters_.dropped_steps;
+      break;
+    case TissueThread::Push::Failed:
+      counters_.tissue_failed = true;
+      break;
+  }
+  const std::uint32_t n = parts_.steps->ticks_per_step(k, schedule_.ticks_per_step());
+  if (n != schedule_.ticks_per_step()) {
+    schedule_.set_ticks_per_step(k, n);
+    ++counters_.tissue_rate_changes;
+    counters_.max_ticks_per_step = std::max(counters_.max_ticks_per_step, n);
+    note(tissue_rate_note(k, n));
+  }
+}
+
+void HapticLoop::send(devices::Nanoseconds t) noexcept {
+  std::lock_guard lock(device_mutex_);
+  if (stopped_.load(std::memory_order_acquire)) return;
+  try {
+    const devices::GuardStep g = parts_.haptic->send(command_);
+    if (g.latched != devices::Fault::None) ++counters_.guard_latches;
+  } catch (const devices::DeviceDisconnected& e) {
+    lose_device(t, e.what());
+  } catch (const devices::TraceError& e) {
+    // The command was not recorded, so it was not sent either (GuardedHaptic records first).
+    recording_failed(e.what());
+  } catch (const std::exception& e) {
+    parts_.haptic->guard().device_disconnected();
+    lose_device(t, e.what());
+  }
+}
+
+TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
+  tick_start_ns_.store(parts_.clock->now().count(), std::memory_order_release);
+  zeroed_for_stall_.store(false, std::memory_order_release);
+  ++counters_.ticks;
+  if (stopped_.load(std::memory_order_acquire)) return TickStatus::Stopped;
+  poll_devices(t);
+
+  // Every tick sends the command of the step due (or, when that step is late, the newest one,
+  // noted in the trace for the replay).
+  const std::uint64_t k = ++k_;
+  hand_over(k);
+  const TissueThread::TickStep use = parts_.steps->step_for(k, schedule_.due(k));
+  counters_.max_tissue_backlog = std::max(counters_.max_tissue_backlog, parts_.steps->backlog());
+  if (use.late) {
+    ++counters_.late_ticks;
+    note(late_tick_note(k, use.step));
+  }
+  step_output_ = use.output;
+  if (step_output_ != nullptr && !counters_.tissue_failed) {
+    parts_.sim->command_for(*step_output_, SessionSim::tip_of(scene_state_), command_);
+  } else {
+    std::fill(command_.begin(), command_.end(), 0.0);
+  }
+  // No force the trainee cannot see the cause of: while the headset shows nothing, zero.
+  if (parts_.display_live != nullptr) {
+    const bool held = !parts_.display_live->load(std::memory_order_acquire);
+    if (held != display_held_) note(held ? "display_hold" : "display_live");
+    display_held_ = held;
+  }
+  if (display_held_) {
+    std::fill(command_.begin(), command_.end(), 0.0);
+    ++counters_.display_held_ticks;
+  }
+  const bool was_lost = lost_;
+  if (!lost_) send(t);
+  // A tick without a force command is noted, so the replay counts it too.
+  if (was_lost) note("tick");
+  if (stopped_.load(std::memory_order_acquire)) return TickStatus::Stopped;
+  return lost_ ? TickStatus::DeviceLost : TickStatus::Sent;
+}
+
+void HapticLoop::send_zero_locked(const char* note_text) noexcept {
+  note(note_text);
+  try {
+    parts_.haptic->send(zeros_);
+  } catch (const std::exception&) {
+    // Gone or unrecordable: the guard is latched either way, nothing more can be sent.
+    parts_.haptic->guard().device_disconnected();
+  }
+}
+
+void HapticLoop::stop() noexcept {
+  std::lock_guard lock(device_mutex_);
+  if (stopped_.exchange(true, std::memory_order_acq_rel)) return;
+  // Latched first, so the zero goes out at once (a zero command alone is rate-limited down).
+  parts_.haptic->guard().device_disconnected();
+  if (!lost_) send_zero_locked("haptic_stop");
+}
+
+bool HapticLoop::zero_if_stalled(devices::Nanoseconds now, devices::Nanoseconds limit) noexcept {
+  const auto start = tick_start_ns_.load(std::memory_order_acquire);
+  if (start < 0 || now.count() - start <= limit.count()) return false;
+  if (zeroed_for_stall_.load(std::memory_order_acquire)) return false;
+  // A tick stuck inside the device's own I/O holds the lock: the zero goes out when it returns.
+  std::lock_guard lock(device_mutex_);
+  if (zeroed_for_stall_.exchange(true, std::memory_order_acq_rel)) return false;
+  if (stopped_.load(std::memory_order_acquire) || lost_) return false;
+  parts_.haptic->guard().deadline_missed();
+  send_zero_locked("watchdog_zero");
+  ++counters_.supervisor_zeros;
+  return true;
+}
+
+void HapticLoop::zero_now() noexcept {
+  std::lock_guard lock(device_mutex_);
+  if (stopped_.load(std::memory_order_acquire) || lost_) return;
+  parts_.haptic->guard().deadline_missed();
+  send_zero_locked("watchdog_zero");
+  ++counters_.supervisor_zeros;
+}
+
+}  // namespace bisturi::runtime

@@ -1,0 +1,182 @@
+#pragma once
+// One haptic tick, the same code for the live session and its replay (session_replay.cpp):
+//   the twins send (live) -> the haptic device is polled (through its force guard) and the head
+//   tracker too -> the device state goes into the scene frame (DeviceFrame) -> on a hand-over
+//   tick it becomes the next tissue step (TickSteps) -> the command of the step due
+//   (SessionSim::command_for: force vectors for 3-axis channels, per-finger scalars) -> the
+//   force guard -> the driver -> the trace notes the replay needs.
+// tick() never throws: a lost device, a malformed report, a tissue that falls behind or a trace
+// that cannot be written is counted and the session goes on (HapticLoopCounters). stop() sends
+// zero through the guard and latches; zero_if_stalled() is the supervisor's (haptic_supervisor.h):
+// both may run on another thread than tick(), and share one lock with it around the device.
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "bisturi/devices/clock.h"
+#include "bisturi/devices/device.h"
+#include "bisturi/devices/force_guard.h"
+#include "bisturi/devices/trace/guarded_haptic.h"
+#include "bisturi/devices/trace/trace_writer.h"
+#include "bisturi/runtime/session/device_frame.h"
+#include "bisturi/runtime/session/session_sim.h"
+#include "step_schedule.h"
+#include "tissue_thread.h"
+
+namespace bisturi::runtime {
+
+/// Where a tick's tissue step comes from: the tissue thread live (LiveTickSteps), steps run in
+/// place from the trace's notes on replay.
+class TickSteps {
+ public:
+  virtual ~TickSteps() = default;
+  /// A hand-over tick's glove state (scene frame) as the next step over `ticks` periods.
+  virtual TissueThread::Push push(const devices::HapticState& state, std::uint32_t ticks) = 0;
+  /// The step tick k uses when step `due` is due (late: an older one).
+  virtual TissueThread::TickStep step_for(std::uint64_t k, std::uint64_t due) = 0;
+  /// At hand-over tick k, with n ticks per step now: the ticks per step from the next step on.
+  virtual std::uint32_t ticks_per_step(std::uint64_t k, std::uint32_t n) = 0;
+  /// Steps handed over and not finished.
+  [[nodiscard]] virtual std::uint64_t backlog() const = 0;
+};
+
+/// The live session's steps: the tissue thread, its rate from TissueRateController (adaptive) or
+/// fixed.
+class LiveTickSteps final : public TickSteps {
+ public:
+  LiveTickSteps(TissueThread& tissue, bool adaptive, TissueRateController controller)
+      : tissue_(tissue), adaptive_(adaptive), controller_(controller) {}
+  TissueThread::Push push(const devices::HapticState& state, std::uint32_t ticks) override {
+    return tissue_.push(state, ticks);
+  }
+  TissueThread::TickStep step_for(std::uint64_t, std::uint64_t due) override {
+    return tissue_.step_for(due);
+  }
+  std::uint32_t ticks_per_step(std::uint64_t, std::uint32_t n) override {
+    // A fixed rate stays fixed (the controller would also lower a rate given too low).
+    return adaptive_ ? controller_.decide(tissue_.median_step_ms()) : n;
+  }
+  [[nodiscard]] std::uint64_t backlog() const override {
+    return tissue_.pushed() - tissue_.done();
+  }
+
+ private:
+  TissueThread& tissue_;
+  bool adaptive_;
+  TissueRateController controller_;
+};
+
+/// What went wrong or degraded during the ticks (read once the haptic thread has stopped).
+struct HapticLoopCounters {
+  std::uint64_t ticks = 0;
+  std::uint64_t late_ticks = 0;          ///< used an older step than the due one
+  std::uint64_t max_tissue_backlog = 0;  ///< most steps the tissue was behind at a tick
+  std::uint64_t tissue_rate_changes = 0;
+  std::uint32_t max_ticks_per_step = 1;
+  std::uint64_t dropped_steps = 0;  ///< hand-overs the tissue could not queue (a ring behind)
+  bool tissue_failed = false;       ///< a step threw: no new steps, the force is zero
+  std::uint64_t malformed_reports = 0;
+  std::uint64_t guard_latches = 0;     ///< steps on which the guard latched
+  std::uint64_t supervisor_zeros = 0;  ///< stalls the supervisor zeroed the output for
+  std::uint64_t display_held_ticks = 0;  ///< ticks held at zero: the headset showed nothing
+  /// Session time when the haptic device / head tracker was lost (-1: never), and why.
+  double haptic_lost_s = -1.0;
+  std::string haptic_lost_reason;
+  double head_lost_s = -1.0;
+  std::string head_lost_reason;
+  /// Why the recording stopped (empty: it did not).
+  std::string recording_error;
+};
+
+enum class TickStatus : std::uint8_t {
+  Sent,        ///< the command went through the guard to the device
+  DeviceLost,  ///< the haptic device is gone: nothing sent, the instrument holds its pose
+  Stopped,     ///< after stop(): nothing sent
+};
+
+/// The parts a loop drives; all observed, and they must outlive it.
+struct HapticLoopParts {
+  devices::GuardedHaptic* haptic = nullptr;
+  TickSteps* steps = nullptr;
+  const SessionSim* sim = nullptr;
+  DeviceFrame frame;
+  devices::Clock* clock = nullptr;
+  devices::TraceWriter* writer = nullptr;  ///< null: nothing recorded (replay)
+  devices::Tracker* head = nullptr;        ///< null: no head tracker (replay)
+  /// Live: the twins send the reports due at session time t (hardware sends on its own).
+  std::function<void(devices::Nanoseconds)> step_twins;
+  /// Live: the head tracker's newest state, for the renderer (not called once it is lost).
+  std::function<void(const devices::TrackerState&)> head_state;
+  /// Live: false while a headset shows nothing (not visible yet, its session lost): the ticks
+  /// send zero then, and each change is noted ("display_hold", "display_live") for the replay.
+  /// Null: always shown (files, the replay, which follows the notes: hold_display).
+  const std::atomic<bool>* display_live = nullptr;
+};
+
+class HapticLoop {
+ public:
+  /// `lag`: ticks between a hand-over and the tick that uses its step (step_schedule.h).
+  HapticLoop(HapticLoopParts parts, std::uint32_t lag, std::uint32_t ticks_per_step);
+
+  /// One tick at session time t (since the session's start). Never throws.
+  TickStatus tick(devices::Nanoseconds t) noexcept;
+  /// Sends zero through the guard (recorded as a force command after a "haptic_stop" note) and
+  /// latches: later ticks send nothing. Idempotent, never throws.
+  void stop() noexcept;
+  /// The supervisor: when the last tick began more than `limit` before `now` and the output has
+  /// not been zeroed for this stall, sends zero through the guard (after a "watchdog_zero" note;
+  /// the guard latches on the overrun itself). Returns true when it zeroed. Never throws.
+  bool zero_if_stalled(devices::Nanoseconds now, devices::Nanoseconds limit) noexcept;
+  /// The supervisor's zero, unconditionally (the replay, where the trace says it happened).
+  void zero_now() noexcept;
+  /// The replay: the ticks from here send zero (held) or their command, as the trace's
+  /// "display_hold" / "display_live" notes say the live session did.
+  void hold_display(bool held) noexcept { display_held_ = held; }
+
+  /// The last tick's command (N, per force component, before the guard).
+  [[nodiscard]] const std::vector<double>& command() const { return command_; }
+  /// The step the last tick's command came from (null: none yet, a zero command).
+  [[nodiscard]] const TickOutput* step_output() const { return step_output_; }
+  /// The haptic device's last state, in the scene frame.
+  [[nodiscard]] const devices::HapticState& state() const { return scene_state_; }
+  [[nodiscard]] const HapticLoopCounters& counters() const { return counters_; }
+  [[nodiscard]] const StepSchedule& schedule() const { return schedule_; }
+  [[nodiscard]] bool device_lost() const { return lost_; }
+  [[nodiscard]] bool stopped() const { return stopped_.load(std::memory_order_acquire); }
+
+ private:
+  void poll_devices(devices::Nanoseconds t) noexcept;
+  void hand_over(std::uint64_t k) noexcept;
+  void send(devices::Nanoseconds t) noexcept;
+  void note(const std::string& text) noexcept;
+  void recording_failed(const char* why) noexcept;
+  void lose_device(devices::Nanoseconds t, const std::string& why) noexcept;
+  /// Zero through the guard, with `note_text` first; device_mutex_ held.
+  void send_zero_locked(const char* note_text) noexcept;
+
+  HapticLoopParts parts_;
+  StepSchedule schedule_;
+  HapticLoopCounters counters_;
+  std::vector<double> command_;
+  std::vector<double> zeros_;
+  devices::HapticState device_state_;
+  devices::HapticState scene_state_;
+  const TickOutput* step_output_ = nullptr;
+  bool lost_ = false;
+  bool head_lost_ = false;
+  bool display_held_ = false;
+  std::atomic<bool> recording_{true};
+  std::mutex error_mutex_;
+  std::uint64_t k_ = 0;
+
+  std::mutex device_mutex_;  ///< the guard and the device's output: tick, stop, supervisor
+  std::atomic<bool> stopped_{false};
+  std::atomic<devices::Nanoseconds::rep> tick_start_ns_{-1};  ///< clock time of the last tick
+  std::atomic<bool> zeroed_for_stall_{false};
+};
+
+}  // namespace bisturi::runtime

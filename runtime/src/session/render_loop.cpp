@@ -1,0 +1,401 @@
+// The session's render thread (see render_loop.h).
+
+#include "render_loop.h"
+
+#include <chrono>
+#include <limits>
+#include <thread>
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtx/quaternion.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include "bisturi/devices/trace/trace_format.h"
+#include "bisturi/runtime/render/errors.h"
+#include "bisturi/runtime/render/instrument_mesh.h"
+#include "bisturi/runtime/render/openxr_sink.h"
+#include "bisturi/runtime/render/png_sink.h"
+#include "bisturi/scene/polygon_import.h"
+
+namespace bisturi::runtime {
+
+namespace {
+
+using devices::Nanoseconds;
+
+double ms(Nanoseconds d) {
+  return static_cast<double>(d.count()) * 1e-6;
+}
+
+/// The render thread's copy of a solid: its DLFL and where each body vertex slot went.
+struct RenderSolid {
+  Dlfl mesh;
+  std::uint64_t version = 0;
+  std::vector<std::pair<std::uint32_t, VertexId>> slot_to_vertex;
+
+  void rebuild(const Topology& t) {
+    ImportResult r = import_polygons(t.polygons, true);
+    mesh = std::move(r.mesh);
+    version = t.version;
+    slot_to_vertex.clear();
+    for (std::size_t k = 0; k < t.slot_of_position.size(); ++k)
+      slot_to_vertex.emplace_back(t.slot_of_position[k], r.vertex_of_input[k]);
+  }
+  void set_positions(const std::vector<glm::dvec3>& positions_mm) {
+    for (const auto& [slot, v] : slot_to_vertex)
+      if (slot < positions_mm.size() && v.idx < mesh.vertex_capacity())
+        mesh.positions()[v.idx] = positions_mm[slot];
+  }
+};
+
+/// Frames pass through here on their way to the real sink: motion-to-photon and action-to-response
+/// are measured at the moment the image is finished.
+class MeasuringSink final : public render::FrameSink {
+ public:
+  MeasuringSink(render::FrameSink* inner, SessionReport& report,
+                std::vector<double>& event_response_ms, std::vector<Nanoseconds>& event_times)
+      : inner_(inner), report_(report), response_(event_response_ms), event_times_(event_times) {}
+
+  /// Events first shown by frame `frame`. The frame may have reached the sink already (with one
+  /// frame in flight the renderer hands it over before render() returns): then it counts now.
+  void shows(std::uint64_t frame, std::uint64_t event) {
+    if (any_ready_ && frame <= last_frame_) {
+      respond(event, last_ready_);
+    } else {
+      pending_.push_back({frame, event});
+    }
+  }
+
+  [[nodiscard]] bool wants_pixels(std::uint64_t index) const override {
+    return inner_ != nullptr && inner_->wants_pixels(index);
+  }
+  void consume(const render::StereoFrame& frame) override {
+    if (inner_ != nullptr) inner_->consume(frame);
+    ++consumed_;
+    if (frame.pose.sample_time.time_since_epoch().count() == 0) return;  // no pose yet
+    // Shown at the runtime's predicted display time (OpenXR), or when finished (files).
+    const render::PoseClock::time_point shown =
+        frame.pose.display_time.time_since_epoch().count() != 0 ? frame.pose.display_time
+                                                                : frame.ready_time;
+    report_.motion_to_photon_ms.record(
+        std::chrono::duration<double, std::milli>(shown - frame.pose.sample_time).count());
+    const Nanoseconds ready = std::chrono::duration_cast<Nanoseconds>(shown.time_since_epoch());
+    any_ready_ = true;
+    last_frame_ = frame.index;
+    last_ready_ = ready;
+    std::size_t kept = 0;
+    for (const auto& [f, e] : pending_) {
+      if (f <= frame.index) {
+        respond(e, ready);
+      } else {
+        pending_[kept++] = {f, e};
+      }
+    }
+    pending_.resize(kept);
+  }
+  [[nodiscard]] std::uint64_t consumed() const { return consumed_; }
+
+ private:
+  void respond(std::uint64_t event, Nanoseconds ready) {
+    const double latency = ms(ready - event_times_[event]);
+    response_[event] = latency;
+    report_.action_to_response_ms.record(latency);
+  }
+
+  render::FrameSink* inner_;
+  SessionReport& report_;
+  std::vector<double>& response_;
+  std::vector<Nanoseconds>& event_times_;
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> pending_;
+  std::uint64_t consumed_ = 0;
+  bool any_ready_ = false;
+  std::uint64_t last_frame_ = 0;
+  Nanoseconds last_ready_{0};
+};
+
+glm::dmat4 instrument_pose(const glm::dvec3& from_mm, const glm::dvec3& to_mm) {
+  // The capsule runs along +z from the origin: rotate +z onto (to - from), then translate.
+  const glm::dvec3 axis = to_mm - from_mm;
+  const double len = glm::length(axis);
+  glm::dmat4 m = glm::translate(glm::dmat4(1.0), from_mm);
+  if (len > 1e-9) {
+    const glm::dquat q = glm::rotation(glm::dvec3(0, 0, 1), axis / len);
+    m = m * glm::mat4_cast(q);
+  }
+  return m;
+}
+
+/// Where the scene sits in the headset's space (the scene's [headset] keys; see
+/// scene_description.h): the field's centre defaults to the centre of the solids' bounds.
+render::OpenXrSinkOptions headset_options(const SceneDescription& scene, const Snapshot& initial,
+                                          const SessionReport& report) {
+  render::OpenXrSinkOptions o;
+  o.stage_space = scene.headset.stage_space;
+  o.eye_width = report.eye_width;
+  o.eye_height = report.eye_height;
+  if (scene.headset.field_centre_mm) {
+    const auto& c = *scene.headset.field_centre_mm;
+    o.field_centre_mm = {c[0], c[1], c[2]};
+  } else {
+    glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
+    for (const SolidState& s : initial.solids) {
+      for (const glm::dvec3& p : s.positions_mm) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+      }
+    }
+    if (lo.x <= hi.x) o.field_centre_mm = (lo + hi) * 0.5;
+  }
+  const double height =
+      scene.headset.field_height_m.value_or(scene.headset.stage_space ? 0.95 : -0.35);
+  o.field_position_m = {0.0, height, -scene.headset.field_distance_m};
+  return o;
+}
+
+/// The runtime's head pose of a drawn frame, for the trace.
+std::string head_note(const render::HeadsetFrame& f) {
+  const nlohmann::json j = {
+      {"xr_head",
+       {{"display_time_ns", f.display_time_ns},
+        {"views_valid", f.views_valid},
+        {"position_mm", {f.head.position_mm.x, f.head.position_mm.y, f.head.position_mm.z}},
+        {"orientation_wxyz",
+         {f.head.orientation.w, f.head.orientation.x, f.head.orientation.y,
+          f.head.orientation.z}}}}};
+  return j.dump();
+}
+
+/// The headset's figures into the report; the display rate and dropped frames are the runtime's.
+void report_headset(const render::OpenXrSink& xr, const render::StereoRenderer& renderer,
+                    render::PoseClock::time_point origin, SessionReport& report) {
+  HeadsetReport& h = report.headset;
+  const render::OpenXrSinkStats st = xr.stats();
+  h.sink = "openxr";
+  h.runtime = xr.runtime_name();
+  h.reference_space = xr.reference_space();
+  h.swapchain_format = xr.swapchain_format();
+  h.eye_width = renderer.options().headset.eye_width;
+  h.eye_height = renderer.options().headset.eye_height;
+  h.display_period_ms = static_cast<double>(st.display_period_ns) * 1e-6;
+  h.min_display_period_ms = static_cast<double>(st.min_display_period_ns) * 1e-6;
+  h.max_display_period_ms = static_cast<double>(st.max_display_period_ns) * 1e-6;
+  h.display_hz = st.display_period_ns > 0 ? 1e9 / static_cast<double>(st.display_period_ns) : 0.0;
+  h.frames_begun = st.frames_begun;
+  h.frames_submitted = st.frames_submitted;
+  h.frames_not_rendered = st.frames_not_rendered;
+  h.frames_without_views = st.frames_without_views;
+  h.dropped_frames = st.dropped_frames;
+  h.invalid_view_locations = st.invalid_view_locations;
+  h.states.clear();
+  for (const render::XrStateChange& c : xr.state_changes())
+    h.states.push_back({c.state, std::chrono::duration<double>(c.time - origin).count()});
+  h.sessions_lost = st.sessions_lost;
+  h.sessions_recreated = st.sessions_recreated;
+  h.shared_device = renderer.draws_into_headset();
+  h.frames_read_back = renderer.frames_read_back();
+  h.frames_crossed_cpu = h.frames_read_back > 0;
+  for (std::size_t e = 0; e < 2; ++e) {
+    const render::EyeFov& f = xr.headset().fov[e];
+    h.fov[e] = {f.angle_left, f.angle_right, f.angle_up, f.angle_down};
+  }
+  h.stop_reason = xr.stop_reason();
+  h.note =
+      "views, head pose and pacing from the OpenXR runtime; the scene's head tracker does not "
+      "place the views";
+  if (h.display_hz > 0.0) report.display_hz = h.display_hz;
+  report.dropped_frames = h.dropped_frames;
+}
+
+}  // namespace
+
+void run_render_loop(const RenderLoopContext& c) {
+  const SceneDescription& scene = c.scene;
+  const SessionOptions& options = c.options;
+  SessionReport& report = c.report;
+  const Snapshot& initial = c.initial;
+  TripleBuffer<Snapshot>& handoff = c.snapshots;
+  TripleBuffer<render::HeadPose>& head_handoff = c.head_poses;
+  std::atomic<bool>& stop = c.stop;
+  devices::Clock& clock = options.clock != nullptr ? *options.clock : devices::steady_clock();
+  std::atomic<bool>& render_ready = c.ready;
+  std::atomic<std::uint64_t>& frames = c.frames;
+  std::vector<double>& event_response = c.event_response_ms;
+  std::vector<Nanoseconds>& event_times = c.event_times;
+  const double display_period_ms = 1000.0 / report.display_hz;
+  render::RendererOptions ro;
+  ro.device = options.render_device;
+  ro.headset.ipd_mm = scene.headset.ipd_mm;
+  ro.headset.eye_width = report.eye_width;
+  ro.headset.eye_height = report.eye_height;
+  constexpr double kRad = 3.14159265358979323846 / 180.0;
+  for (render::EyeFov& f : ro.headset.fov) {
+    f.angle_left = static_cast<float>(-scene.headset.fov_deg[0] * kRad);
+    f.angle_right = static_cast<float>(scene.headset.fov_deg[1] * kRad);
+    f.angle_up = static_cast<float>(scene.headset.fov_deg[2] * kRad);
+    f.angle_down = static_cast<float>(-scene.headset.fov_deg[3] * kRad);
+  }
+  // The headset first: the renderer draws on its device (and goes before it).
+  std::unique_ptr<render::OpenXrSink> xr;
+  if (options.openxr) {
+    try {
+      xr = std::make_unique<render::OpenXrSink>(headset_options(scene, initial, report));
+      report.sink = "openxr";
+    } catch (const render::XrUnavailable& e) {
+      report.sink_note =
+          std::string("OpenXR unavailable (") + e.what() + "): frames go to the PNG sink";
+    }
+  }
+  std::unique_ptr<render::StereoRenderer> renderer_owner =
+      xr ? std::make_unique<render::StereoRenderer>(ro, *xr)
+         : std::make_unique<render::StereoRenderer>(ro);
+  render::StereoRenderer& renderer = *renderer_owner;
+  report.render_device = renderer.device_name();
+  report.render_device_is_cpu = renderer.device_is_cpu();
+  if (xr) {
+    report.eye_width = renderer.options().headset.eye_width;
+    report.eye_height = renderer.options().headset.eye_height;
+  }
+  std::unique_ptr<render::FrameSink> png_owner;
+  render::PngSink* png = nullptr;
+  if (!xr && !options.frames_dir.empty()) {
+    auto p = std::make_unique<render::PngSink>(
+        options.frames_dir,
+        render::PngSinkOptions{render::PngLayout::SideBySide, options.image_every});
+    png = p.get();
+    png_owner = std::move(p);
+    report.sink = "png";
+  }
+  if (!xr && !png) report.sink = "none";
+  render::FrameSink* sink = xr ? static_cast<render::FrameSink*>(xr.get()) : png_owner.get();
+  c.display_live.store(!xr);
+  MeasuringSink measuring(sink, report, event_response, event_times);
+  renderer.set_sink(&measuring);
+
+  std::vector<RenderSolid> meshes(initial.solids.size());
+  std::vector<render::SolidId> ids;
+  for (std::size_t b = 0; b < initial.solids.size(); ++b) {
+    meshes[b].rebuild(*initial.solids[b].topology);
+    meshes[b].set_positions(initial.solids[b].positions_mm);
+    const auto& rgb = scene.solids[b].material.colour;
+    render::Material m;
+    m.colour = glm::vec3(static_cast<float>(rgb[0]), static_cast<float>(rgb[1]),
+                         static_cast<float>(rgb[2]));
+    ids.push_back(renderer.add_solid(meshes[b].mesh, m));
+  }
+  double probe_radius = 1.5, probe_length = 60.0;
+  for (const InstrumentDescription& in : scene.instruments) {
+    if (in.kind == InstrumentDescription::Kind::Probe) {
+      probe_radius = in.radius_mm;
+      probe_length = in.length_mm;
+    }
+  }
+  render::Material steel;
+  steel.colour = {0.75f, 0.78f, 0.82f};
+  steel.specular = 0.8f;
+  const render::SolidId probe_id = renderer.add_instrument(
+      render::capsule_solid(probe_radius, probe_length), steel, glm::dmat4(1.0));
+  render::Material blade_material = steel;
+  blade_material.colour = {0.95f, 0.95f, 1.0f};
+  const render::SolidId blade_id =
+      renderer.add_instrument(render::capsule_solid(0.4, 1.0), blade_material, glm::dmat4(1.0));
+  renderer.set_visible(blade_id, false);
+  render_ready.store(true);
+  const render::PoseClock::time_point origin = render::PoseClock::now();  // ~ the haptic start
+
+  std::uint64_t seen_events = 0;
+  const auto period = std::chrono::duration<double, std::milli>(display_period_ms);
+  auto next = std::chrono::steady_clock::now();
+  auto previous = next;
+  bool first = true;
+  // The first frame waits for the first snapshot (the haptic thread's start).
+  while (!stop.load(std::memory_order_relaxed) && !handoff.take())
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  while (!stop.load(std::memory_order_relaxed)) {
+    render::HeadsetFrame xr_frame;
+    if (xr) {
+      // The runtime's frame: paced by xrWaitFrame, posed by its views.
+      xr_frame = xr->begin_frame();
+      c.display_live.store(xr->presenting());
+      if (xr->stopped()) {
+        stop.store(true);  // the user exited or the runtime went away: the session ends
+        break;
+      }
+      if (!xr_frame.began) continue;
+    }
+    const auto begin = std::chrono::steady_clock::now();
+    handoff.take();
+    const Snapshot& s = handoff.front();
+    for (std::size_t b = 0; b < s.solids.size(); ++b) {
+      const SolidState& st = s.solids[b];
+      if (st.topology->version != meshes[b].version) meshes[b].rebuild(*st.topology);
+      meshes[b].set_positions(st.positions_mm);
+      renderer.update_solid(ids[b], meshes[b].mesh);
+    }
+    // The probe's shaft rises from the tip along the hand; the blade shows while it cuts.
+    const glm::dvec3 along = s.blade_to_mm - s.tip_mm;
+    const double along_len = glm::length(along);
+    const glm::dvec3 dir = along_len > 1e-9 ? along / along_len : glm::dvec3(0, 0, 1);
+    renderer.set_pose(probe_id, instrument_pose(s.tip_mm, s.tip_mm + dir * probe_length));
+    renderer.set_visible(blade_id, s.cutting);
+    if (s.cutting) {
+      glm::dmat4 m = instrument_pose(s.tip_mm, s.blade_to_mm);
+      m = m *
+          glm::scale(glm::dmat4(1.0), glm::dvec3(1.0, 1.0, glm::length(s.blade_to_mm - s.tip_mm)));
+      renderer.set_pose(blade_id, m);
+    }
+    render::FrameStats stats;
+    if (xr) {
+      if (xr_frame.should_render) stats = renderer.render(xr_frame.head, xr_frame.eyes);
+      if (xr_frame.should_render && c.writer != nullptr) {
+        try {
+          c.writer->note(clock.now().count(), head_note(xr_frame));
+        } catch (const devices::TraceError&) {
+          // The recording failed; the haptic loop reports why. Frames go on.
+        }
+      }
+      xr->end_frame(xr_frame, xr_frame.should_render);
+      if (!xr_frame.should_render) continue;  // nothing drawn: no frame to time
+    } else {
+      head_handoff.take();
+      stats = renderer.render(head_handoff.front());
+    }
+    for (; seen_events < s.event_count; ++seen_events) {
+      if (s.event_count - seen_events <= s.recent.size()) measuring.shows(stats.frame, seen_events);
+    }
+    const auto end = std::chrono::steady_clock::now();
+    report.render_ms.record(std::chrono::duration<double, std::milli>(end - begin).count());
+    if (!first) {
+      const double gap = std::chrono::duration<double, std::milli>(begin - previous).count();
+      report.frame_ms.record(gap);
+      // With OpenXR the runtime's display periods count the dropped frames (report_headset).
+      const auto missed = static_cast<std::uint64_t>(gap / display_period_ms + 0.5);
+      if (missed > 1 && !xr) report.dropped_frames += missed - 1;
+    }
+    first = false;
+    previous = begin;
+    frames.fetch_add(1, std::memory_order_relaxed);
+    next += std::chrono::duration_cast<std::chrono::steady_clock::duration>(period);
+    if (next < end || xr) {
+      // Behind: the next frame starts at once (no catch-up burst). With OpenXR the runtime's
+      // xrWaitFrame paces the frames to the headset's display; sleeping too would halve it.
+      next = end;
+    } else {
+      std::this_thread::sleep_until(next);
+    }
+  }
+  renderer.flush();
+  c.display_live.store(false);
+  if (xr) {
+    const std::string reason = xr->stop_reason();  // before finish() gives its own
+    xr->finish();
+    report_headset(*xr, renderer, origin, report);
+    report.headset.stop_reason = reason;
+  }
+  if (png != nullptr) png->finish();
+  report.frames = frames.load();
+  report.images = png != nullptr ? png->images_written() : measuring.consumed();
+}
+
+}  // namespace bisturi::runtime

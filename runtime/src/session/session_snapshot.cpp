@@ -1,0 +1,72 @@
+// A solid's topology for the render thread (see session_snapshot.h).
+
+#include "session_snapshot.h"
+
+#include <algorithm>
+
+#include "bisturi/scene/polygon_export.h"
+#include "bisturi/sim/units.h"
+
+namespace bisturi::runtime {
+
+std::shared_ptr<const Topology> make_topology(const Dlfl& mesh) {
+  auto t = std::make_shared<Topology>();
+  t->version = mesh.topology_version();
+  ExportedPolygons e = export_polygons(mesh);
+  t->polygons = std::move(e.polygons);
+  t->slot_of_position.reserve(e.vertex_of_position.size());
+  for (VertexId v : e.vertex_of_position)
+    t->slot_of_position.push_back(v.idx);
+  return t;
+}
+
+Snapshot initial_snapshot(SessionSim& sim) {
+  Snapshot initial;
+  initial.solids.resize(sim.body_count());
+  for (std::size_t b = 0; b < sim.body_count(); ++b) {
+    const sim::SoftBody& body = sim.world().body(static_cast<std::uint32_t>(b));
+    initial.solids[b].positions_mm.resize(body.positions().size());
+    initial.solids[b].topology = make_topology(body.mesh());
+    for (std::size_t i = 0; i < body.positions().size(); ++i)
+      initial.solids[b].positions_mm[i] = sim::sim_to_scene(body.positions()[i]);
+  }
+  return initial;
+}
+
+SnapshotPublisher::SnapshotPublisher(SessionSim& sim, const Snapshot& initial,
+                                     TripleBuffer<Snapshot>& snapshots,
+                                     std::vector<devices::Nanoseconds>& event_times)
+    : sim_(sim), snapshots_(snapshots), event_times_(event_times) {
+  for (const SolidState& st : initial.solids)
+    topology_.push_back(st.topology);
+}
+
+void SnapshotPublisher::publish(const TickOutput& out, const devices::HapticState& state) {
+  Snapshot& s = snapshots_.back();
+  s.tick = sim_.ticks();
+  for (std::size_t b = 0; b < sim_.body_count(); ++b) {
+    const sim::SoftBody& body = sim_.world().body(static_cast<std::uint32_t>(b));
+    SolidState& st = s.solids[b];
+    if (out.topology_changed && body.mesh().topology_version() != topology_[b]->version)
+      topology_[b] = make_topology(body.mesh());
+    st.topology = topology_[b];
+    const auto& x = body.positions();
+    st.positions_mm.resize(x.size());
+    for (std::size_t i = 0; i < x.size(); ++i)
+      st.positions_mm[i] = sim::sim_to_scene(x[i]);
+  }
+  s.tip_mm = sim_.tip_mm();
+  s.blade_to_mm = sim_.blade_to_mm();
+  s.grasping = sim_.grasping();
+  s.cutting = sim_.cutting();
+  for (; published_events_ < sim_.events().size(); ++published_events_) {
+    if (event_times_.size() < event_times_.capacity()) event_times_.push_back(state.sample_time);
+    recent_[published_events_ % recent_.size()] = {published_events_, state.sample_time};
+  }
+  s.event_count = std::min<std::uint64_t>(published_events_, event_times_.size());
+  s.recent = recent_;
+  snapshots_.publish();
+  event_count_.store(sim_.events().size(), std::memory_order_relaxed);
+}
+
+}  // namespace bisturi::runtime
