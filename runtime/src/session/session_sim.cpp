@@ -42,6 +42,7 @@ sim::Material to_material(const MaterialDescription& m) {
   out.bending_N_per_m = m.stiffness_N_per_m * 0.05;
   out.spring_damping_N_s_per_m = m.damping_N_s_per_m;
   out.density_kg_per_m3 = m.density_kg_per_m3;
+  out.bulk_modulus_Pa = m.bulk_modulus_Pa;  // calibrated from the modulus, or the default
   return out;
 }
 
