@@ -90,11 +90,11 @@ Accuracy section_accuracy(const PhantomRun& r) {
     a.centre_max = std::max(a.centre_max, n.distance_mm);
     a.diameter_mean += std::abs(d);
     a.diameter_max = std::max(a.diameter_max, std::abs(d));
-    a.area_max_percent = std::max(a.area_max_percent, 100.0 * std::abs(s.measures.area - area) / area);
-    a.perimeter_max_percent =
-        std::max(a.perimeter_max_percent,
-                 100.0 * std::abs(s.measures.perimeter - 2.0 * kPi * n.radius_mm) /
-                     (2.0 * kPi * n.radius_mm));
+    a.area_max_percent =
+        std::max(a.area_max_percent, 100.0 * std::abs(s.measures.area - area) / area);
+    a.perimeter_max_percent = std::max(
+        a.perimeter_max_percent, 100.0 * std::abs(s.measures.perimeter - 2.0 * kPi * n.radius_mm) /
+                                     (2.0 * kPi * n.radius_mm));
     // The true normal: the axis piece's direction.
     const AxisPiece& p = r.phantom.axis[n.piece];
     const double c = std::abs(glm::dot(s.normal, glm::normalize(p.b - p.a)));
@@ -111,8 +111,8 @@ void report(const char* name, const PhantomRun& r, double voxel) {
       "%zu sections: centre <= %.3f mm, |mean d - true| mean %.4f max %.4f mm, area <= %.2f%%, "
       "perimeter <= %.2f%%, normal <= %.2f deg\n",
       name, voxel, r.centreline.branches.size(), worst_axis_error(r, r.raw),
-      worst_axis_error(r, r.centreline), a.sections, a.centre_max, a.diameter_mean,
-      a.diameter_max, a.area_max_percent, a.perimeter_max_percent, a.tilt_max_deg);
+      worst_axis_error(r, r.centreline), a.sections, a.centre_max, a.diameter_mean, a.diameter_max,
+      a.area_max_percent, a.perimeter_max_percent, a.tilt_max_deg);
 }
 
 // The measurement's accuracy on these phantoms (2.5-4.5 mm radii, 0.6-0.8 mm voxels, a blurred
@@ -150,8 +150,8 @@ TEST(DistanceField, ExactOnABallOfVoxels) {
             for (std::int64_t y = 0; y < 17; ++y)
               for (std::int64_t x = 0; x < 21; ++x)
                 if (!m.at(x, y, z))
-                  best = std::min(best, glm::length(glm::dvec3(x - i, y - j, z - k) *
-                                                    m.geometry.spacing));
+                  best = std::min(
+                      best, glm::length(glm::dvec3(x - i, y - j, z - k) * m.geometry.spacing));
         }
         worst = std::max(worst, std::abs(best - d.at(i, j, k)));
       }

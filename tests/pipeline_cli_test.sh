@@ -4,7 +4,7 @@
 # hand), gathered and checked against the phantoms' truth; idempotence (an unchanged case does no
 # work, a changed plan redoes it); failures (a truncated scan, a bad plan) leave a result.json
 # that names the error and exit non-zero; the gather lists the failed task with the exact rerun
-# command; nothing is written outside the case's folder.
+# command; nothing is written outside the case's folder; the session solid runs in a session scene.
 # usage: pipeline_cli_test.sh BISTURI WORKDIR SOURCE_DIR
 set -eu
 bisturi=$1 work=$2 src=$3
@@ -28,6 +28,18 @@ for f in result.json surface.ply vessel.obj scene_solid.toml centreline.csv prof
 done
 [ -z "$(ls "$work/one" | grep partial || true)" ] || fail "partial files left"
 [ -z "$(ls -A "$work/cwd")" ] || fail "files written outside --out: $(ls -A "$work/cwd")"
+
+# The session solid goes into a session scene as written: the default scene with its vessel
+# replaced by scene_solid.toml's entry (the mesh named from the scene's folder), run briefly.
+mkdir -p "$work/session"
+"$bisturi" run --print-default-scene |
+  awk '/^\[\[solids\]\]/ { held = $0; next } held != "" { if ($0 ~ /^name = "vessel"/) skip = 1; else print held; held = "" }
+       /^\[\[devices\]\]/ { skip = 0 } !skip { print }' > "$work/session/scene.toml"
+sed "s|^mesh = \"vessel.obj\"|mesh = \"$work/one/vessel.obj\"|" "$work/one/scene_solid.toml" >> "$work/session/scene.toml"
+"$bisturi" run "$work/session/scene.toml" --duration 0.1 --eye-width 32 --eye-height 32 --no-openxr \
+  --cpu --out "$work/session/out" --json > "$work/session/report.json" 2> "$work/session/err.txt" ||
+  fail "the session did not take the solid: $(tail -3 "$work/session/err.txt")"
+grep -q '"name": "case-00"' "$work/session/report.json" || fail "the session has no case-00 solid"
 
 # Unchanged: no work, result untouched. Changed plan: redone.
 before=$(cksum < "$work/one/result.json")
@@ -93,6 +105,12 @@ printf 'case,scan\na,scans/case-00.nrrd\na,scans/case-01.nrrd\n' > "$work/ph/twi
   fail "a case listed twice was accepted"
 grep -q "twice.csv: line 3: case 'a' is listed twice" "$work/twice.err" || fail "$(cat "$work/twice.err")"
 
+# Batches: two cases per task give two tasks.
+sed 's/^cases_per_task = 1/cases_per_task = 2/' "$plan" > "$work/batch.toml"
+"$bisturi" cohort plan "$work/ph/manifest.csv" --plan "$work/batch.toml" --out "$work/batch" > /dev/null
+grep -q '^#SBATCH --array=0-1%3$' "$work/batch/cohort.sbatch" || fail "batch array line"
+[ "$(tail -n +2 "$work/batch/cases.tsv" | cut -f2 | tr '\n' ' ')" = "0 0 1 1 " ] || fail "batch tasks"
+
 # The cohort: plan, run each array task's body, gather, check against the truth.
 cohort=$work/cohort
 "$bisturi" cohort plan "$work/ph/manifest.csv" --plan "$plan" --out "$cohort" > /dev/null
@@ -121,5 +139,12 @@ cp "$work/case-02.good" "$work/ph/scans/case-02.nrrd"
 SLURM_ARRAY_TASK_ID=2 bash "$cohort/cohort.sbatch" > /dev/null 2>&1 || fail "task 2 rerun"
 "$bisturi" cohort gather "$cohort" --json > "$work/gather3.json" || fail "gather after the rerun"
 grep -q '"rerun": null' "$work/gather3.json" || fail "still a rerun after the fix"
+# A case made with another plan is stale, and listed for a rerun.
+cp "$cohort/plan.toml" "$work/plan.saved"
+sed -i 's/section_step_mm = 2.0/section_step_mm = 2.5/' "$cohort/plan.toml"
+"$bisturi" cohort gather "$cohort" > "$work/gather4.txt" && fail "stale results taken as ok"
+grep -q "rerun them: sbatch --array=0-3%3 $cohort/cohort.sbatch" "$work/gather4.txt" ||
+  fail "stale: $(cat "$work/gather4.txt")"
+cp "$work/plan.saved" "$cohort/plan.toml"
 [ -z "$(ls -A "$work/cwd")" ] || fail "files written outside the cohort: $(ls -A "$work/cwd")"
 echo "pipeline and cohort: ok"

@@ -18,6 +18,7 @@
 #include "bisturi/scene/vessel/vessel_phantoms.h"
 #include "bisturi/scene/volume/volume_io.h"
 #include "pipeline_plan.h"
+#include "sha256.h"
 
 namespace bisturi::cli {
 
@@ -149,7 +150,8 @@ std::string ranges(const std::vector<std::size_t>& v) {
   std::string out;
   for (std::size_t i = 0; i < v.size();) {
     std::size_t j = i;
-    while (j + 1 < v.size() && v[j + 1] == v[j] + 1) ++j;
+    while (j + 1 < v.size() && v[j + 1] == v[j] + 1)
+      ++j;
     if (!out.empty()) out += ",";
     out += std::to_string(v[i]);
     if (j > i) out += "-" + std::to_string(v[j]);
@@ -183,7 +185,8 @@ std::string sbatch_script(const fs::path& dir, const fs::path& bisturi, const Pi
     << "  [ \"$case_task\" = \"$task\" ] || continue\n"
     << "  echo \"bisturi cohort: task $task, case $index ($name) on ${SLURMD_NODENAME:-$(hostname)}"
        " at $(date -u +%FT%TZ)\"\n"
-    << "  \"$bisturi\" pipeline \"$scan\" --plan \"$cohort/plan.toml\" --out \"$cohort/cases/$name\""
+    << "  \"$bisturi\" pipeline \"$scan\" --plan \"$cohort/plan.toml\" --out "
+       "\"$cohort/cases/$name\""
        " --case \"$name\" || status=1\n"
     << "done < <(tail -n +2 \"$cohort/cases.tsv\")\n"
     << "exit $status\n";
@@ -220,8 +223,8 @@ int run_plan(const CohortOptions& o) {
   fs::rename(dir / "plan.toml.partial", dir / "plan.toml");
   std::string tsv = "index\ttask\tcase\tscan\n";
   for (const CohortCase& c : cases)
-    tsv += std::to_string(c.index) + "\t" + std::to_string(c.task) + "\t" + c.name + "\t" +
-           c.scan + "\n";
+    tsv += std::to_string(c.index) + "\t" + std::to_string(c.task) + "\t" + c.name + "\t" + c.scan +
+           "\n";
   write_text(dir / "cases.tsv", tsv);
   write_text(dir / "cohort.sbatch", sbatch_script(dir, bisturi, plan, tasks));
   fs::permissions(dir / "cohort.sbatch", fs::perms::owner_exec | fs::perms::group_exec,
@@ -245,8 +248,9 @@ int run_plan(const CohortOptions& o) {
 std::vector<CohortCase> read_cases_tsv(const fs::path& file) {
   std::ifstream in(file);
   if (!in) {
-    throw std::runtime_error(file.string() + ": cannot be read (is this a folder that "
-                                             "`bisturi cohort plan` wrote?)");
+    throw std::runtime_error(file.string() +
+                             ": cannot be read (is this a folder that "
+                             "`bisturi cohort plan` wrote?)");
   }
   std::vector<CohortCase> cases;
   std::string line;
@@ -296,7 +300,12 @@ int run_gather(const CohortOptions& o) {
   const fs::path dir = fs::absolute(o.out).lexically_normal();
   const std::vector<CohortCase> cases = read_cases_tsv(dir / "cases.tsv");
   int max_running = 8;
-  if (fs::exists(dir / "plan.toml")) max_running = read_plan(dir / "plan.toml").max_running;
+  std::string plan_sha;  // a result made with another plan is stale
+  if (fs::exists(dir / "plan.toml")) {
+    const PipelinePlan plan = read_plan(dir / "plan.toml");
+    max_running = plan.max_running;
+    plan_sha = sha256_of_text(plan_processing_json(plan).dump());
+  }
 
   std::string sections_csv =
       "case,index,branch,distance_mm,centre_x_mm,centre_y_mm,centre_z_mm,normal_x,normal_y,"
@@ -330,41 +339,52 @@ int run_gather(const CohortOptions& o) {
     }
     if (status == "failed" && r.contains("error")) {
       error = r["error"].value("stage", "") + ": " + r["error"].value("message", "");
+    } else if (status == "ok" && !plan_sha.empty() &&
+               r["inputs"]["plan"].value("processing_sha256", "") != plan_sha) {
+      status = "stale";
+      error = "made with another plan than " + (dir / "plan.toml").string();
     } else if (status == "running") {
       status = "incomplete";
       error = "result.json still says running (the task was killed, or is still running)";
     }
-    const nlohmann::json fig = status == "ok" ? r.value("figures", nlohmann::json::object())
-                                              : nlohmann::json::object();
+    const nlohmann::json fig =
+        status == "ok" ? r.value("figures", nlohmann::json::object()) : nlohmann::json::object();
     const auto f = [&](const char* k) {
       return fig.contains(k) ? fig[k] : nlohmann::json(nullptr);
     };
-    const nlohmann::json total =
-        r.contains("timings_ms") ? nlohmann::json(r["timings_ms"].value("total", 0.0))
-                                 : nlohmann::json(nullptr);
+    const nlohmann::json total = r.contains("timings_ms")
+                                     ? nlohmann::json(r["timings_ms"].value("total", 0.0))
+                                     : nlohmann::json(nullptr);
     cases_csv += std::to_string(c.index) + "," + std::to_string(c.task) + "," + csv_text(c.name) +
                  "," + status + "," + csv_text(error) + "," + csv_number(f("branches")) + "," +
-                 csv_number(f("bifurcations")) + "," + csv_number(f("centreline_length_mm")) +
-                 "," + csv_number(f("sections")) + "," + csv_number(f("diameter_min_mm")) + "," +
+                 csv_number(f("bifurcations")) + "," + csv_number(f("centreline_length_mm")) + "," +
+                 csv_number(f("sections")) + "," + csv_number(f("diameter_min_mm")) + "," +
                  csv_number(f("diameter_median_mm")) + "," + csv_number(f("diameter_max_mm")) +
                  "," + csv_number(total) + ",";
-    for (const char* stage : {"checksums", "read", "segment", "surface", "centreline", "sections",
-                              "solid", "write"}) {
+    for (const char* stage :
+         {"checksums", "read", "segment", "surface", "centreline", "sections", "solid", "write"}) {
       const nlohmann::json t = r.contains("timings_ms") && r["timings_ms"].is_object()
                                    ? r["timings_ms"].value(stage, nlohmann::json(nullptr))
                                    : nlohmann::json(nullptr);
       cases_csv += csv_number(t) + ",";
     }
     cases_csv += csv_text(c.scan) + "\n";
-    nlohmann::json entry = {{"index", c.index}, {"task", c.task},   {"case", c.name},
-                            {"scan", c.scan},   {"status", status}, {"figures", fig},
+    nlohmann::json entry = {{"index", c.index},
+                            {"task", c.task},
+                            {"case", c.name},
+                            {"scan", c.scan},
+                            {"status", status},
+                            {"figures", fig},
                             {"timings_ms", r.value("timings_ms", nlohmann::json(nullptr))}};
     if (!error.empty()) entry["error"] = error;
     out_cases.push_back(entry);
     if (status != "ok") {
-      failed.push_back({{"index", c.index}, {"task", c.task}, {"case", c.name}, {"error", error},
-                        {"log", (dir / "logs").string() + "/task-" + std::to_string(c.task) +
-                                    ".job-*.log"}});
+      failed.push_back(
+          {{"index", c.index},
+           {"task", c.task},
+           {"case", c.name},
+           {"error", error},
+           {"log", (dir / "logs").string() + "/task-" + std::to_string(c.task) + ".job-*.log"}});
       failed_tasks.push_back(c.task);
       continue;
     }
@@ -388,11 +408,10 @@ int run_gather(const CohortOptions& o) {
   }
   std::sort(failed_tasks.begin(), failed_tasks.end());
   failed_tasks.erase(std::unique(failed_tasks.begin(), failed_tasks.end()), failed_tasks.end());
-  const std::string rerun =
-      failed_tasks.empty() ? std::string()
-                           : "sbatch --array=" + ranges(failed_tasks) + "%" +
-                                 std::to_string(max_running) + " " +
-                                 (dir / "cohort.sbatch").string();
+  const std::string rerun = failed_tasks.empty() ? std::string()
+                                                 : "sbatch --array=" + ranges(failed_tasks) + "%" +
+                                                       std::to_string(max_running) + " " +
+                                                       (dir / "cohort.sbatch").string();
   write_text(dir / "cohort.csv", sections_csv);
   write_text(dir / "cohort_cases.csv", cases_csv);
   const nlohmann::json summary = {
@@ -418,8 +437,7 @@ int run_gather(const CohortOptions& o) {
               << "\n";
     for (const auto& fcase : failed) {
       std::cout << "  not ok: case " << fcase["index"] << " (" << fcase["case"].get<std::string>()
-                << ", task " << fcase["task"] << "): " << fcase["error"].get<std::string>()
-                << "\n";
+                << ", task " << fcase["task"] << "): " << fcase["error"].get<std::string>() << "\n";
     }
     if (!rerun.empty()) std::cout << "rerun them: " << rerun << "\n";
   }
@@ -488,9 +506,9 @@ int run_phantoms(const CohortOptions& o) {
                      .dump(2)
               << "\n";
   } else {
-    std::cout << "wrote " << o.count << " vessel phantoms to " << (dir / "scans").string()
-              << ", " << (dir / "manifest.csv").string() << ", " << (dir / "truth.csv").string()
-              << ", " << (dir / "plan.toml").string() << "\n";
+    std::cout << "wrote " << o.count << " vessel phantoms to " << (dir / "scans").string() << ", "
+              << (dir / "manifest.csv").string() << ", " << (dir / "truth.csv").string() << ", "
+              << (dir / "plan.toml").string() << "\n";
   }
   return 0;
 }
@@ -521,8 +539,9 @@ void add_cohort_command(CLI::App& app, CohortOptions& options, int (*&run)(const
   });
 
   CLI::App* gather = cohort->add_subcommand(
-      "gather", "collect every case's result.json into one table (CSV, JSON); list the cases "
-                "that are not ok with the command that reruns exactly them (exit 3 if any)");
+      "gather",
+      "collect every case's result.json into one table (CSV, JSON); list the cases "
+      "that are not ok with the command that reruns exactly them (exit 3 if any)");
   gather->add_option("DIR", options.out, "the cohort's folder (from `cohort plan`)")
       ->required()
       ->check(CLI::ExistingDirectory);
@@ -535,16 +554,19 @@ void add_cohort_command(CLI::App& app, CohortOptions& options, int (*&run)(const
   CLI::App* phantoms = cohort->add_subcommand(
       "phantoms", "write a small cohort of vessel phantoms with their truth (examples, tests)");
   phantoms->add_option("--out", options.out, "folder (created)")->required();
-  phantoms->add_option("--count", options.count, "cases (shapes cycle: straight, curved, "
-                                                 "tapering, bifurcating)")
+  phantoms
+      ->add_option("--count", options.count,
+                   "cases (shapes cycle: straight, curved, "
+                   "tapering, bifurcating)")
       ->check(CLI::Range(1, 1000));
   phantoms->add_option("--spacing", options.spacing_mm, "voxel size (mm)")
       ->check(CLI::Range(0.1, 5.0));
   phantoms->add_option("--noise", options.noise_hu, "Gaussian noise (HU; lumen 300, background 0)")
       ->check(CLI::Range(0.0, 200.0));
-  phantoms->add_option("--fov", options.field_of_view_mm,
-                       "each scan's extent X Y Z (mm) at least, the vessel in its middle (a CT's "
-                       "field of view; default: the vessel's box)")
+  phantoms
+      ->add_option("--fov", options.field_of_view_mm,
+                   "each scan's extent X Y Z (mm) at least, the vessel in its middle (a CT's "
+                   "field of view; default: the vessel's box)")
       ->expected(3)
       ->check(CLI::Range(0.0, 2000.0));
   phantoms->add_flag("--json", options.json, "write a JSON summary on stdout");

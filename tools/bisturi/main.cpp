@@ -16,6 +16,7 @@
 #include "render_command.h"
 #include "run_command.h"
 #include "segment_command.h"
+#include "tissue_command.h"
 #include "trace_command.h"
 #include "volume_command.h"
 
@@ -84,6 +85,9 @@ int run(int argc, char** argv) {
   bisturi::cli::CohortOptions cohort;
   int (*run_cohort)(const bisturi::cli::CohortOptions&) = nullptr;
   bisturi::cli::add_cohort_command(app, cohort, run_cohort);
+  bisturi::cli::TissueIndentOptions tissue;
+  int (*run_tissue)(const bisturi::cli::TissueIndentOptions&) = nullptr;
+  bisturi::cli::add_tissue_command(app, tissue, run_tissue);
 
   CLI11_PARSE(app, argc, argv);
   if (version) {
@@ -103,6 +107,7 @@ int run(int argc, char** argv) {
   if (run_replay != nullptr) return run_replay(replay);
   if (run_pipeline != nullptr) return run_pipeline(pipeline);
   if (run_cohort != nullptr) return run_cohort(cohort);
+  if (run_tissue != nullptr) return run_tissue(tissue);
   std::cout << app.help();
   return 0;
 }

@@ -2,8 +2,8 @@
 
 #include <CLI/CLI.hpp>
 #include <algorithm>
-#include <cstdio>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -34,7 +34,9 @@ namespace {
 
 constexpr const char* kResultFormat = "bisturi-pipeline-result/1";
 
-nlohmann::json vec(const glm::dvec3& v) { return nlohmann::json::array({v.x, v.y, v.z}); }
+nlohmann::json vec(const glm::dvec3& v) {
+  return nlohmann::json::array({v.x, v.y, v.z});
+}
 
 std::string default_case_name(const fs::path& scan) {
   std::string name = scan.filename().string();
@@ -154,8 +156,7 @@ std::string centreline_csv(const Centreline& c) {
   for (const CentrelineBranch& b : c.branches) {
     for (std::size_t k = 0; k < b.points.size(); ++k) {
       std::snprintf(line, sizeof line, "%d,%d,%.4f,%.4f,%.4f,%.4f,%.4f\n", b.id, b.parent,
-                    b.distance_mm[k], b.points[k].x, b.points[k].y, b.points[k].z,
-                    b.radius_mm[k]);
+                    b.distance_mm[k], b.points[k].x, b.points[k].y, b.points[k].z, b.radius_mm[k]);
       out += line;
     }
   }
@@ -164,9 +165,12 @@ std::string centreline_csv(const Centreline& c) {
 
 std::string scene_solid_toml(const std::string& case_name) {
   return "# A [[solids]] entry for a bisturi scene file: the vessel of case " + case_name +
-         ",\n# already smoothed and decimated by `bisturi pipeline` (world LPS mm). Copy it into a\n"
+         ",\n# already smoothed and decimated by `bisturi pipeline` (world LPS mm). Copy it into "
+         "a\n"
          "# scene next to vessel.obj, or give the path to vessel.obj from the scene's folder.\n"
-         "[[solids]]\nname = \"" + case_name + "\"\nmesh = \"vessel.obj\"\ndecimate = 1.0\n"
+         "[[solids]]\nname = \"" +
+         case_name +
+         "\"\nmesh = \"vessel.obj\"\ndecimate = 1.0\n"
          "smooth = 0\n\n[solids.material]\nstiffness_N_per_m = 900.0\n"
          "damping_N_s_per_m = 1.0\ndensity_kg_per_m3 = 1060.0\ncolour = [0.70, 0.12, 0.15]\n";
 }
@@ -192,12 +196,12 @@ bool up_to_date(const fs::path& result_file, const std::string& key, nlohmann::j
 void print_summary(const nlohmann::json& r) {
   const auto& f = r["figures"];
   const auto num = [](const nlohmann::json& v) { return v.is_number() ? v.get<double>() : 0.0; };
-  std::printf("%s: %d branch(es), %d bifurcation(s), centreline %.1f mm, %d sections, mean "
-              "diameter %.2f .. %.2f mm (median %.2f)\n  times (ms):",
-              r["case"].get<std::string>().c_str(), f["branches"].get<int>(),
-              f["bifurcations"].get<int>(), num(f["centreline_length_mm"]),
-              f["sections"].get<int>(), num(f["diameter_min_mm"]), num(f["diameter_max_mm"]),
-              num(f["diameter_median_mm"]));
+  std::printf(
+      "%s: %d branch(es), %d bifurcation(s), centreline %.1f mm, %d sections, mean "
+      "diameter %.2f .. %.2f mm (median %.2f)\n  times (ms):",
+      r["case"].get<std::string>().c_str(), f["branches"].get<int>(), f["bifurcations"].get<int>(),
+      num(f["centreline_length_mm"]), f["sections"].get<int>(), num(f["diameter_min_mm"]),
+      num(f["diameter_max_mm"]), num(f["diameter_median_mm"]));
   for (const char* stage : {"checksums", "read", "segment", "surface", "centreline", "sections",
                             "solid", "write", "total"}) {
     if (r["timings_ms"].contains(stage))

@@ -30,8 +30,7 @@ class PlanReader {
         fail(t->get("range"), *t, "segmentation.range", "expected [lo, hi] with lo <= hi");
       }
       if (p.method == "window" && !(p.range[1] >= 0.0)) {
-        fail(t->get("range"), *t, "segmentation.range",
-             "expected [centre, width] with width >= 0");
+        fail(t->get("range"), *t, "segmentation.range", "expected [centre, width] with width >= 0");
       }
       p.label = integer(*t, "segmentation.label", "label", p.label, 1, 0xffffff);
       if (p.method == "label" && t->contains("range")) {
@@ -56,16 +55,16 @@ class PlanReader {
       only_keys(*t, "centreline",
                 {"section_step_mm", "min_branch_mm", "start_mm", "end_margin_radii",
                  "junction_margin_radii", "orthogonal"});
-      p.section_step_mm = number(*t, "centreline.section_step_mm", "section_step_mm",
-                                 p.section_step_mm);
+      p.section_step_mm =
+          number(*t, "centreline.section_step_mm", "section_step_mm", p.section_step_mm);
       if (!(p.section_step_mm >= 0.05)) {
         fail(t->get("section_step_mm"), *t, "centreline.section_step_mm", "must be >= 0.05 mm");
       }
-      p.min_branch_mm = non_negative(*t, "centreline.min_branch_mm", "min_branch_mm",
-                                     p.min_branch_mm);
+      p.min_branch_mm =
+          non_negative(*t, "centreline.min_branch_mm", "min_branch_mm", p.min_branch_mm);
       p.start_mm = numbers<3>(*t, "centreline.start_mm", "start_mm");
-      p.end_margin_radii = non_negative(*t, "centreline.end_margin_radii", "end_margin_radii",
-                                        p.end_margin_radii);
+      p.end_margin_radii =
+          non_negative(*t, "centreline.end_margin_radii", "end_margin_radii", p.end_margin_radii);
       p.junction_margin_radii = non_negative(*t, "centreline.junction_margin_radii",
                                              "junction_margin_radii", p.junction_margin_radii);
       if (const toml::node* n = t->get("orthogonal")) {
@@ -74,9 +73,9 @@ class PlanReader {
       }
     }
     if (const toml::table* t = table(root, "cluster")) {
-      only_keys(*t, "cluster",
-                {"cases_per_task", "max_running", "cpus_per_task", "mem_mb", "time_limit",
-                 "partition"});
+      only_keys(
+          *t, "cluster",
+          {"cases_per_task", "max_running", "cpus_per_task", "mem_mb", "time_limit", "partition"});
       p.cases_per_task = static_cast<int>(
           integer(*t, "cluster.cases_per_task", "cases_per_task", p.cases_per_task, 1, 100000));
       p.max_running = static_cast<int>(
@@ -119,7 +118,8 @@ class PlanReader {
         list += (list.empty() ? "" : ", ") + std::string(a);
       }
       if (!ok) {
-        const std::string full = path.empty() ? std::string(key.str()) : path + "." + std::string(key.str());
+        const std::string full =
+            path.empty() ? std::string(key.str()) : path + "." + std::string(key.str());
         fail(&value, t, full, "unknown key (expected one of: " + list + ")");
       }
     }
@@ -128,7 +128,8 @@ class PlanReader {
   const toml::table* table(const toml::table& t, std::string_view key) const {
     const toml::node* n = t.get(key);
     if (n == nullptr) return nullptr;
-    if (!n->is_table()) fail(n, t, std::string(key), "expected a table ([" + std::string(key) + "])");
+    if (!n->is_table())
+      fail(n, t, std::string(key), "expected a table ([" + std::string(key) + "])");
     return n->as_table();
   }
 
@@ -156,7 +157,8 @@ class PlanReader {
     if (!n->is_integer()) fail(n, t, full, "expected an integer");
     const long long v = n->value<long long>().value_or(fallback);
     if (v < lo || v > hi) {
-      fail(n, t, full, "expected an integer from " + std::to_string(lo) + " to " + std::to_string(hi));
+      fail(n, t, full,
+           "expected an integer from " + std::to_string(lo) + " to " + std::to_string(hi));
     }
     return v;
   }

@@ -69,10 +69,9 @@ VesselMask segment_vessel(const Volume& volume, const PipelinePlan& plan) {
                                " is outside the volume");
     }
     if (in_range.at(seed[0], seed[1], seed[2]) == 0) {
-      throw std::runtime_error("segmentation: the voxel at seed_mm " + point_text(*plan.seed_mm) +
-                               " has the value " +
-                               std::to_string(volume.at(seed[0], seed[1], seed[2])) +
-                               ", outside the plan's range");
+      throw std::runtime_error(
+          "segmentation: the voxel at seed_mm " + point_text(*plan.seed_mm) + " has the value " +
+          std::to_string(volume.at(seed[0], seed[1], seed[2])) + ", outside the plan's range");
     }
     const Components c = label_components(in_range, connectivity);
     const std::uint32_t label = c.labels.at(seed[0], seed[1], seed[2]);
@@ -92,9 +91,10 @@ VesselMask segment_vessel(const Volume& volume, const PipelinePlan& plan) {
                                        " is not in the volume"
                                  : "segmentation: no voxel has a value in the plan's range");
   }
-  const auto largest = std::max_element(
-      c.stats.begin(), c.stats.end(),
-      [](const ComponentStats& a, const ComponentStats& b) { return a.voxel_count < b.voxel_count; });
+  const auto largest = std::max_element(c.stats.begin(), c.stats.end(),
+                                        [](const ComponentStats& a, const ComponentStats& b) {
+                                          return a.voxel_count < b.voxel_count;
+                                        });
   out.objects_in_range = c.stats.size();
   out.mask.geometry = volume.geometry;
   out.mask.values.resize(volume.values.size());
@@ -158,8 +158,8 @@ SurfaceField surface_field(const Volume& volume, const VesselMask& vessel,
   for (const float v : values.values)
     if (std::isfinite(v)) floor_value = std::min(floor_value, v);
   for (std::size_t i = 0; i < values.values.size(); ++i)
-    s.field.values[i] = near.values[i] != 0 && std::isfinite(values.values[i]) ? values.values[i]
-                                                                                : floor_value;
+    s.field.values[i] =
+        near.values[i] != 0 && std::isfinite(values.values[i]) ? values.values[i] : floor_value;
   // Inside is value > iso; the range includes its low end, so the surface sits just below it.
   s.iso.iso = std::nextafter(low, -std::numeric_limits<float>::infinity());
   s.iso.placement = VertexPlacement::Cubic;
@@ -193,9 +193,8 @@ void write_profile_png(const std::filesystem::path& file, const std::string& tit
     series[static_cast<std::size_t>(s.branch)].y[slot[std::llround(s.distance_mm / step_mm)]] =
         s.measures.mean_diameter;
   }
-  runtime::write_series_png(file, title, "distance along the centreline (mm)",
-                            "mean diameter (mm)", x, series,
-                            std::numeric_limits<double>::quiet_NaN());
+  runtime::write_series_png(file, title, "distance along the centreline (mm)", "mean diameter (mm)",
+                            x, series, std::numeric_limits<double>::quiet_NaN());
 }
 
 }  // namespace bisturi::cli

@@ -109,8 +109,11 @@ VoxelGraph build_graph(const Grid<std::uint8_t>& mask) {
   for (std::size_t v = 0; v < graph.box.size(); ++v) {
     const float d = depth.values[static_cast<std::size_t>(graph.box[v])];
     // No outside voxel at all (a mask filling the volume): the box's half-size bounds the depth.
-    graph.depth[v] = std::isfinite(d) ? d : static_cast<float>(glm::length(
-                                                 glm::dvec3(graph.dims[0], graph.dims[1], graph.dims[2]) * g.spacing));
+    graph.depth[v] =
+        std::isfinite(d)
+            ? d
+            : static_cast<float>(
+                  glm::length(glm::dvec3(graph.dims[0], graph.dims[1], graph.dims[2]) * g.spacing));
   }
   for (int dz = -1; dz <= 1; ++dz)
     for (int dy = -1; dy <= 1; ++dy)
@@ -199,8 +202,8 @@ Skeleton trace_skeleton(const VoxelGraph& g, std::int32_t root, const std::vecto
   covered[static_cast<std::size_t>(root)] = 1;
 
   const auto cover_ball = [&](std::int32_t node) {
-    const double radius = options.ball_scale * g.depth[static_cast<std::size_t>(node)] +
-                          options.ball_voxels * hmax;
+    const double radius =
+        options.ball_scale * g.depth[static_cast<std::size_t>(node)] + options.ball_voxels * hmax;
     const auto c = g.coords(node);
     std::array<std::int64_t, 3> r{};
     for (int a = 0; a < 3; ++a) {
@@ -213,7 +216,8 @@ Skeleton trace_skeleton(const VoxelGraph& g, std::int32_t root, const std::vecto
            y <= std::min(g.dims[1] - 1, c[1] + r[1]); ++y)
         for (std::int64_t x = std::max<std::int64_t>(0, c[0] - r[0]);
              x <= std::min(g.dims[0] - 1, c[0] + r[0]); ++x) {
-          const std::int32_t m = g.id[static_cast<std::size_t>(x + g.dims[0] * (y + g.dims[1] * z))];
+          const std::int32_t m =
+              g.id[static_cast<std::size_t>(x + g.dims[0] * (y + g.dims[1] * z))];
           if (m < 0 || covered[static_cast<std::size_t>(m)]) continue;
           const glm::dvec3 d = glm::dvec3(x - c[0], y - c[1], z - c[2]) * g.geometry.spacing;
           if (glm::dot(d, d) <= radius * radius) covered[static_cast<std::size_t>(m)] = 1;
@@ -223,7 +227,8 @@ Skeleton trace_skeleton(const VoxelGraph& g, std::int32_t root, const std::vecto
   std::size_t next = 0;
   std::vector<std::int32_t> path;
   while (true) {
-    while (next < order.size() && covered[static_cast<std::size_t>(order[next])]) ++next;
+    while (next < order.size() && covered[static_cast<std::size_t>(order[next])])
+      ++next;
     if (next == order.size()) break;
     const std::int32_t tip = order[next];
     path.clear();
@@ -413,7 +418,8 @@ Centreline extract_centreline(const Grid<std::uint8_t>& mask, const CentrelineOp
       b.radius_mm.push_back(g.depth[static_cast<std::size_t>(n)]);
     }
     b.points = smooth_path(raw, sigma);
-    double d = vb.parent < 0 ? 0.0 : out.branches[static_cast<std::size_t>(vb.parent)].distance_mm.back();
+    double d =
+        vb.parent < 0 ? 0.0 : out.branches[static_cast<std::size_t>(vb.parent)].distance_mm.back();
     b.distance_mm.push_back(d);
     for (std::size_t k = 1; k < b.points.size(); ++k) {
       d += glm::distance(b.points[k - 1], b.points[k]);

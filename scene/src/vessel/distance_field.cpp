@@ -48,7 +48,8 @@ void envelope_pass(const std::vector<double>& f, double h, std::vector<double>& 
   }
   std::size_t k = 0;
   for (std::int64_t p = 0; p < n; ++p) {
-    while (k + 1 < v.size() && z[k + 1] < static_cast<double>(p)) ++k;
+    while (k + 1 < v.size() && z[k + 1] < static_cast<double>(p))
+      ++k;
     const double d = h * static_cast<double>(p - v[k]);
     out[static_cast<std::size_t>(p)] = f[static_cast<std::size_t>(v[k])] + d * d;
   }
@@ -79,10 +80,12 @@ Grid<float> distance_to_outside(const Grid<std::uint8_t>& mask) {
       for (std::int64_t ja = 0; ja < n[a]; ++ja) {
         const std::int64_t base = ja * stride[a] + jb * stride[b];
         for (std::int64_t p = 0; p < n[axis]; ++p)
-          line[static_cast<std::size_t>(p)] = squared[static_cast<std::size_t>(base + p * stride[axis])];
+          line[static_cast<std::size_t>(p)] =
+              squared[static_cast<std::size_t>(base + p * stride[axis])];
         envelope_pass(line, h[axis], out, v, z);
         for (std::int64_t p = 0; p < n[axis]; ++p)
-          squared[static_cast<std::size_t>(base + p * stride[axis])] = out[static_cast<std::size_t>(p)];
+          squared[static_cast<std::size_t>(base + p * stride[axis])] =
+              out[static_cast<std::size_t>(p)];
       }
     }
   }

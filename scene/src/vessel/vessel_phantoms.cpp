@@ -65,9 +65,9 @@ VesselPhantom make_vessel_phantom(const VesselPhantomOptions& o) {
   check_positive(o.length_mm, "the length");
   for (int a = 0; a < 3; ++a)
     check_positive(o.spacing[a], "the spacing");
-  const double end_radius =
-      o.end_radius_mm > 0.0 ? o.end_radius_mm : (o.shape == VesselShape::Tapering ? 0.5 : 0.7) *
-                                                    o.radius_mm;
+  const double end_radius = o.end_radius_mm > 0.0
+                                ? o.end_radius_mm
+                                : (o.shape == VesselShape::Tapering ? 0.5 : 0.7) * o.radius_mm;
   VesselPhantom ph;
   std::vector<AxisPiece> local;
   switch (o.shape) {
@@ -96,10 +96,10 @@ VesselPhantom make_vessel_phantom(const VesselPhantomOptions& o) {
       const double s = o.spread_degrees * kPi / 180.0;
       local.push_back({{0, 0, 0}, j, o.radius_mm, o.radius_mm});
       ph.branch_first_piece = {0, 1, 2};
-      local.push_back({j, j + half * glm::dvec3(std::sin(s), 0, std::cos(s)), end_radius,
-                       end_radius});
-      local.push_back({j, j + half * glm::dvec3(-std::sin(s), 0, std::cos(s)), end_radius,
-                       end_radius});
+      local.push_back(
+          {j, j + half * glm::dvec3(std::sin(s), 0, std::cos(s)), end_radius, end_radius});
+      local.push_back(
+          {j, j + half * glm::dvec3(-std::sin(s), 0, std::cos(s)), end_radius, end_radius});
       break;
     }
   }
@@ -157,8 +157,8 @@ VesselPhantom make_vessel_phantom(const VesselPhantomOptions& o) {
           const Nearest q = nearest_on(s, p);
           d = std::max(d, (1.0 - q.t) * s.radius_a + q.t * s.radius_b - q.distance);
         }
-        double value = o.background_hu +
-                       (o.lumen_hu - o.background_hu) * 0.5 * (1.0 + std::tanh(d / edge));
+        double value =
+            o.background_hu + (o.lumen_hu - o.background_hu) * 0.5 * (1.0 + std::tanh(d / edge));
         if (o.noise_hu > 0.0) value += o.noise_hu * gauss(rng);
         v.values[n] = static_cast<float>(value);
       }

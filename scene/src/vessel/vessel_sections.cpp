@@ -59,8 +59,8 @@ std::optional<LoopCentroid> loop_around(const PlaneCut& cut, const glm::dvec3& p
 
 void recompute_distances(Centreline& c) {
   for (CentrelineBranch& b : c.branches) {
-    double d = b.parent < 0 ? 0.0
-                            : c.branches[static_cast<std::size_t>(b.parent)].distance_mm.back();
+    double d =
+        b.parent < 0 ? 0.0 : c.branches[static_cast<std::size_t>(b.parent)].distance_mm.back();
     b.distance_mm.assign(b.points.size(), d);
     for (std::size_t k = 1; k < b.points.size(); ++k) {
       d += glm::distance(b.points[k - 1], b.points[k]);
@@ -143,12 +143,12 @@ SectionsResult measure_sections(const CutIndex& index, const Centreline& centrel
   for (const CentrelineBranch& b : centreline.branches) {
     if (b.points.size() < 2) continue;
     const double r = median_radius(b);
-    const double lo = b.distance_mm.front() + (b.parent < 0 ? options.end_margin_radii * r
-                                                            : options.junction_margin_radii *
-                                                                  b.radius_mm.front());
-    const double hi = b.distance_mm.back() - (b.ends_at_tip ? options.end_margin_radii * r
-                                                            : options.junction_margin_radii *
-                                                                  b.radius_mm.back());
+    const double lo = b.distance_mm.front() +
+                      (b.parent < 0 ? options.end_margin_radii * r
+                                    : options.junction_margin_radii * b.radius_mm.front());
+    const double hi =
+        b.distance_mm.back() - (b.ends_at_tip ? options.end_margin_radii * r
+                                              : options.junction_margin_radii * b.radius_mm.back());
     for (auto k = static_cast<long long>(std::ceil(lo / options.step_mm - 1e-9));
          static_cast<double>(k) * options.step_mm <= hi + 1e-9; ++k) {
       const double d = static_cast<double>(k) * options.step_mm;

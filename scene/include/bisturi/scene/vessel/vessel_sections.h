@@ -12,8 +12,9 @@
 // distances on every branch, counted from the start, so daughters line up), with the plane
 // through the centreline point that gives the smallest section (find_orthogonal_section, started
 // from the tangent). Sections closer to a tip than end_margin_radii radii (the
-// centreline runs a radius into the end's cap, and a plane within a radius of the cap tilts into it), or to a bifurcation
-// than junction_margin_radii radii (where the section is not the vessel's), are left out.
+// centreline runs a radius into the end's cap, and a plane within a radius of the cap tilts into
+// it), or to a bifurcation than junction_margin_radii radii (where the section is not the
+// vessel's), are left out.
 
 #include <cstddef>
 #include <vector>
