@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <iostream>
 #include <string>
 
 #include "bisturi/scene/io/mesh_file.h"
@@ -50,6 +51,8 @@ Dlfl build_solid(const SolidDescription& solid, const std::string& scene_name,
     ReadOptions read;
     read.progress = report("read");
     const MeshFile file = read_mesh(solid.path, read);
+    for (const std::string& w : file.warnings)
+      std::cerr << "bisturi: warning: " << where << ": " << w << "\n";
     ImportOptions import;
     import.progress = [&](std::string_view stage, std::size_t done, std::size_t total) {
       if (progress) progress(solid.name, stage, done, total);

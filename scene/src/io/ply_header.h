@@ -43,6 +43,7 @@ struct PlyHeader {
   std::uint64_t vertex_count = 0;
   std::size_t x = 0, y = 0, z = 0;  ///< vertex property positions
   std::size_t face_list = 0;        ///< face property position of vertex_indices
+  std::vector<std::string> warnings;  ///< header lines skipped, each with the file and line
 };
 
 PlyHeader parse_ply_header(std::string_view file, const ErrorSite& err);
