@@ -11,32 +11,12 @@
 #include "bisturi/scene/lod/decimate.h"
 #include "bisturi/scene/lod/smooth.h"
 #include "bisturi/scene/polygon_import.h"
+#include "bisturi/scene/volume/label_surface.h"
 #include "bisturi/scene/volume/marching_cubes.h"
 #include "bisturi/scene/volume/phantoms.h"
 #include "bisturi/scene/volume/volume_io.h"
 
 namespace bisturi::runtime {
-
-namespace {
-
-/// 1 inside the label, 0 outside: its isosurface at 0.5 is the label's surface.
-Grid<float> label_field(const Volume& volume, std::uint32_t label, const std::string& where) {
-  Grid<float> field;
-  field.geometry = volume.geometry;
-  field.values.resize(volume.values.size());
-  const auto wanted = static_cast<float>(label);
-  std::size_t inside = 0;
-  for (std::size_t i = 0; i < volume.values.size(); ++i) {
-    const bool in = volume.values[i] == wanted;
-    field.values[i] = in ? 1.0f : 0.0f;
-    inside += in ? 1 : 0;
-  }
-  if (inside == 0)
-    throw SceneFileError(where + ": label " + std::to_string(label) + " is not in the volume");
-  return field;
-}
-
-}  // namespace
 
 Dlfl build_solid(const SolidDescription& solid, const std::string& scene_name,
                  const BuildProgress& progress) {
@@ -76,8 +56,16 @@ else {
   iso.progress = report("surface");
   iso.build_progress = report("build");
   if (solid.label) {
-    iso.iso = 0.5f;
-    mesh = extract_isosurface(label_field(volume, *solid.label, where), iso);
+    const auto wanted = static_cast<float>(*solid.label);
+    if (label_voxel_count(volume, wanted) == 0)
+      throw SceneFileError(where + ": label " + std::to_string(*solid.label) +
+                           " is not in the volume");
+    // Smooth, not terraced: constrained windowed-sinc smoothing (label_surface.h).
+    LabelSurfaceOptions label;
+    label.progress = iso.progress;
+    label.build_progress = iso.build_progress;
+    label.smooth_progress = report("smooth label");
+    mesh = extract_label_surface(volume, wanted, label);
   } else {
     iso.iso = static_cast<float>(solid.iso);
     mesh = extract_isosurface(volume, iso);

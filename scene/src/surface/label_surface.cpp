@@ -1,0 +1,281 @@
+// Constrained windowed-sinc smoothing of marching-cubes label surfaces (see label_surface.h).
+
+#include "bisturi/scene/volume/label_surface.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "bisturi/scene/errors.h"
+
+namespace bisturi {
+
+namespace {
+
+using Vec3 = Dlfl::Vec3;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+void check_options(const LabelSurfaceOptions& o) {
+  if (o.iterations == 1 || !(o.pass_band > 0.0 && o.pass_band < 2.0)) {
+    throw InputError("label surface: need iterations 0 or >= 2 and a pass band in (0, 2) (got " +
+                     std::to_string(o.iterations) + ", " + std::to_string(o.pass_band) + ")");
+  }
+}
+
+Grid<float> indicator(const Grid<float>& labels, float label, std::size_t& inside) {
+  Grid<float> field;
+  field.geometry = labels.geometry;
+  const std::size_t n = labels.values.size();
+  field.values.resize(n);
+  const float* in = labels.values.data();
+  float* out = field.values.data();
+  std::size_t count = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const bool is = in[i] == label;
+    out[i] = is ? 1.0F : 0.0F;
+    count += is ? 1 : 0;
+  }
+  inside = count;
+  return field;
+}
+
+/// Each vertex's neighbours (CSR): the far ends of its edges.
+struct Neighbours {
+  std::vector<std::uint32_t> offsets;
+  std::vector<std::uint32_t> adjacency;
+};
+
+// In a triangle the corner after v names one neighbour; around a closed manifold vertex these
+// are all of them, once each. At an open border one is missing, which only weights the average.
+Neighbours neighbours_of(const PolygonMesh& mesh) {
+  Neighbours nb;
+  const std::size_t n = mesh.positions.size();
+  nb.offsets.assign(n + 1, 0);
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+    for (const std::uint32_t v : mesh.face(f))
+      ++nb.offsets[v + 1];
+  }
+  for (std::size_t v = 0; v < n; ++v)
+    nb.offsets[v + 1] += nb.offsets[v];
+  nb.adjacency.resize(nb.offsets[n]);
+  std::vector<std::uint32_t> fill(nb.offsets.begin(), nb.offsets.end() - 1);
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+    const auto face = mesh.face(f);
+    for (std::size_t c = 0; c < face.size(); ++c)
+      nb.adjacency[fill[face[c]]++] = face[(c + 1) % face.size()];
+  }
+  return nb;
+}
+
+Neighbours neighbours_of(const Dlfl& mesh) {
+  Neighbours nb;
+  const std::size_t n = mesh.vertex_capacity();
+  nb.offsets.reserve(n + 1);
+  nb.offsets.push_back(0);
+  nb.adjacency.reserve(6 * n);
+  for (std::uint32_t v = 0; v < n; ++v) {
+    const VertexId x(v);
+    if (mesh.alive(x)) {
+      for (RotationId r = mesh.first_rotation(x); r.valid(); r = mesh.next_rotation(r)) {
+        const CornerId start = mesh.rotation_corner(r);
+        CornerId c = start;
+        do {
+          if (!mesh.is_point_sphere(c)) nb.adjacency.push_back(mesh.vertex(mesh.next(c)).idx);
+          c = mesh.rot_next(c);
+        } while (c != start);
+      }
+    }
+    nb.offsets.push_back(static_cast<std::uint32_t>(nb.adjacency.size()));
+  }
+  return nb;
+}
+
+/// The windowed-sinc low-pass filter of Taubin, Zhang and Golub ("Optimal surface smoothing as
+/// filter design", 1996) as weights a_i of the Chebyshev terms T_i(1 - k/2), k a frequency of the
+/// umbrella Laplacian (0..2): a sinc cut at angle theta + sigma, Hamming-windowed. A filter of
+/// low order cannot be as sharp as a small pass band asks, so the cut is moved out by sigma
+/// until the gain at the pass band is 1, as the paper does: the shape's own low frequencies then
+/// pass unchanged (no shrinkage) and the staircase's high ones do not.
+std::vector<double> sinc_weights(std::size_t order, double pass_band) {
+  constexpr double kPi = 3.14159265358979323846;
+  const double theta = std::acos(1.0 - 0.5 * pass_band);
+  std::vector<double> a(order + 1);
+  const auto make = [&](double cut) {
+    for (std::size_t i = 0; i <= order; ++i) {
+      const double d = static_cast<double>(i);
+      const double window = 0.54 + 0.46 * std::cos(d * kPi / static_cast<double>(order + 1));
+      a[i] = window * (i == 0 ? cut / kPi : 2.0 * std::sin(d * cut) / (d * kPi));
+    }
+  };
+  const auto gain_at_pass_band = [&] {
+    double f = 0.0;
+    for (std::size_t i = 0; i <= order; ++i)
+      f += a[i] * std::cos(static_cast<double>(i) * theta);
+    return f;
+  };
+  // The smallest such sigma: above it the gain at theta ripples about 1 and a larger root would
+  // let far more through. Bracketed by steps, then bisected.
+  double lo = 0.0, hi = 0.0;
+  for (make(theta); gain_at_pass_band() < 1.0 && hi < kPi / 2.0 - theta; make(theta + hi)) {
+    lo = hi;
+    hi += 0.01;
+  }
+  for (int it = 0; it < 40; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    make(theta + mid);
+    (gain_at_pass_band() < 1.0 ? lo : hi) = mid;
+  }
+  make(theta + hi);
+  return a;
+}
+
+/// Whether a point lies in a cell whose corners are neither all inside nor all outside: the
+/// band of cells the label's true boundary passes through, where marching cubes put its
+/// vertices. Outside the grid counts as outside the band.
+class BandTest {
+ public:
+  explicit BandTest(const Grid<float>& field) : f_(field) {}
+  bool operator()(const Vec3& world) const {
+    const Vec3 ijk = f_.geometry.world_to_index(world);
+    const auto& d = f_.geometry.dims;
+    const Vec3 c = glm::floor(ijk);
+    if (c.x < 0 || c.y < 0 || c.z < 0 || c.x >= static_cast<double>(d[0] - 1) ||
+        c.y >= static_cast<double>(d[1] - 1) || c.z >= static_cast<double>(d[2] - 1))
+      return false;
+    const auto i = static_cast<std::int64_t>(c.x), j = static_cast<std::int64_t>(c.y),
+               k = static_cast<std::int64_t>(c.z);
+    float lo = 1.0F, hi = 0.0F;
+    for (int corner = 0; corner < 8; ++corner) {
+      const float v = f_.at(i + (corner & 1), j + ((corner >> 1) & 1), k + (corner >> 2));
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
+    }
+    return lo != hi;
+  }
+
+ private:
+  const Grid<float>& f_;
+};
+
+void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>& field,
+                    const LabelSurfaceOptions& o, LabelSurfaceStats& stats) {
+  const auto start = Clock::now();
+  const std::size_t n = pos.size();
+  const std::vector<Vec3> home(pos.begin(), pos.end());
+  const std::vector<double> a = sinc_weights(o.iterations, o.pass_band);
+  // x_{i+1} = 2 (I - K/2) x_i - x_{i-1} = x_i + avg(x_i) - x_{i-1}, with x_1 = (x_0 + avg(x_0))/2.
+  std::vector<Vec3> prev(n), cur(n), next(n);
+  const auto average = [&](const std::vector<Vec3>& x, std::size_t v) {
+    const std::uint32_t b = nb.offsets[v], e = nb.offsets[v + 1];
+    if (b == e) return x[v];
+    Vec3 sum(0.0);
+    for (std::uint32_t k = b; k < e; ++k)
+      sum += x[nb.adjacency[k]];
+    return sum / static_cast<double>(e - b);
+  };
+  const BandTest in_band(field);
+  std::size_t clamped = 0;
+  std::vector<Vec3> input(n);
+  // out = F(input), F the filter: sum of a_i x_i.
+  const auto filter = [&](std::vector<Vec3>& out) {
+    std::copy(input.begin(), input.end(), prev.begin());
+    for (std::size_t v = 0; v < n; ++v) {
+      cur[v] = 0.5 * (prev[v] + average(prev, v));
+      out[v] = a[0] * prev[v] + a[1] * cur[v];
+    }
+    for (std::size_t i = 2; i <= o.iterations; ++i) {
+      for (std::size_t v = 0; v < n; ++v) {
+        next[v] = cur[v] + average(cur, v) - prev[v];
+        out[v] += a[i] * next[v];
+      }
+      std::swap(prev, cur);
+      std::swap(cur, next);
+    }
+  };
+  std::vector<Vec3> smoothed(n);
+  for (std::size_t round = 0; round < o.rounds; ++round) {
+    // Round 0 filters the positions; each later one filters what is left between them and the
+    // marching-cubes ones and adds it back (Tukey's twicing: gain 2F - F^2 after two), which
+    // flattens the pass band, so curved parts shrink less while the staircase stays filtered.
+    for (std::size_t v = 0; v < n; ++v)
+      input[v] = round == 0 ? Vec3(home[v]) : home[v] - pos[v];
+    filter(smoothed);
+    for (std::size_t v = 0; v < n; ++v)
+      pos[v] = round == 0 ? smoothed[v] : pos[v] + smoothed[v];
+    // Back into the band the voxels allow: along the way from its marching-cubes position (a
+    // point of the band), as far as the band goes.
+    clamped = 0;
+    for (std::size_t v = 0; v < n; ++v) {
+      if (in_band(pos[v])) continue;
+      ++clamped;
+      double lo = 0.0, hi = 1.0;
+      for (int it = 0; it < 12; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (in_band(home[v] + mid * (pos[v] - home[v])) ? lo : hi) = mid;
+      }
+      pos[v] = home[v] + lo * (pos[v] - home[v]);
+    }
+    if (o.smooth_progress) o.smooth_progress(round + 1, o.rounds);
+  }
+  stats.clamped_last = clamped;
+  stats.smooth_seconds = seconds_since(start);
+}
+
+IsoSurfaceOptions iso_options(const LabelSurfaceOptions& o) {
+  IsoSurfaceOptions iso;
+  iso.iso = 0.5F;
+  iso.placement = VertexPlacement::Linear;  // the edge midpoints the box is centred on
+  iso.progress = o.progress;
+  iso.build_progress = o.build_progress;
+  return iso;
+}
+
+}  // namespace
+
+std::size_t label_voxel_count(const Grid<float>& labels, float label) {
+  return static_cast<std::size_t>(
+      std::count(labels.values.data(), labels.values.data() + labels.values.size(), label));
+}
+
+PolygonMesh extract_label_surface_mesh(const Grid<float>& labels, float label,
+                                       const LabelSurfaceOptions& options,
+                                       LabelSurfaceStats* stats) {
+  check_options(options);
+  LabelSurfaceStats local;
+  LabelSurfaceStats& s = stats ? *stats : local;
+  auto t = Clock::now();
+  const Grid<float> field = indicator(labels, label, s.label_voxels);
+  s.indicator_seconds = seconds_since(t);
+  PolygonMesh mesh = extract_isosurface_mesh(field, iso_options(options), &s.extraction);
+  if (options.iterations > 0 && options.rounds > 0 && !mesh.positions.empty()) {
+    smooth_in_band({mesh.positions.data(), mesh.positions.size()}, neighbours_of(mesh), field,
+                   options, s);
+  }
+  return mesh;
+}
+
+Dlfl extract_label_surface(const Grid<float>& labels, float label,
+                           const LabelSurfaceOptions& options, LabelSurfaceStats* stats) {
+  check_options(options);
+  LabelSurfaceStats local;
+  LabelSurfaceStats& s = stats ? *stats : local;
+  auto t = Clock::now();
+  const Grid<float> field = indicator(labels, label, s.label_voxels);
+  s.indicator_seconds = seconds_since(t);
+  Dlfl mesh = extract_isosurface(field, iso_options(options), &s.extraction);
+  if (options.iterations > 0 && options.rounds > 0 && mesh.vertex_capacity() > 0) {
+    auto& pos = mesh.positions();
+    smooth_in_band({pos.data(), mesh.vertex_capacity()}, neighbours_of(mesh), field, options, s);
+  }
+  return mesh;
+}
+
+}  // namespace bisturi
