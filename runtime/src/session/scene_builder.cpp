@@ -15,6 +15,7 @@
 #include "bisturi/scene/volume/marching_cubes.h"
 #include "bisturi/scene/volume/phantoms.h"
 #include "bisturi/scene/volume/volume_io.h"
+#include "embedded_data.h"
 
 namespace bisturi::runtime {
 
@@ -49,6 +50,10 @@ else {
     p.a = solid.a_mm;
     p.b = solid.b_mm;
     volume = make_phantom(p);
+  } else if (solid.embedded) {
+    const auto bytes = embedded_file(solid.path.generic_string());
+    if (!bytes) throw SceneFileError(where + ": no embedded file " + solid.path.string());
+    volume = read_nrrd_from_memory(*bytes, solid.path.string() + " (embedded)");
   } else {
     volume = read_volume(solid.path);
   }
@@ -65,7 +70,12 @@ else {
     label.progress = iso.progress;
     label.build_progress = iso.build_progress;
     label.smooth_progress = report("smooth label");
-    mesh = extract_label_surface(volume, wanted, label);
+    if (solid.downsample != std::array<int, 3>{1, 1, 1}) {
+      const Grid<float> coarse = downsample_label(volume, wanted, solid.downsample);
+      mesh = extract_label_surface(coarse, wanted, label);
+    } else {
+      mesh = extract_label_surface(volume, wanted, label);
+    }
   } else {
     iso.iso = static_cast<float>(solid.iso);
     mesh = extract_isosurface(volume, iso);
@@ -100,6 +110,7 @@ std::vector<BuiltSolid> build_solids(const SceneDescription& scene, const BuildP
     const auto start = std::chrono::steady_clock::now();
     BuiltSolid b;
     b.description = &s;
+    b.scene = &scene;
     b.mesh = build_solid(s, name, progress);
     b.build_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();

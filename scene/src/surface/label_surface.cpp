@@ -240,6 +240,40 @@ IsoSurfaceOptions iso_options(const LabelSurfaceOptions& o) {
 
 }  // namespace
 
+Grid<float> downsample_label(const Grid<float>& labels, float label,
+                             const std::array<int, 3>& factors) {
+  if (factors[0] < 1 || factors[1] < 1 || factors[2] < 1 || label == 0.0F) {
+    throw InputError("downsample_label: factors must be at least 1 and the label not 0");
+  }
+  const VolumeGeometry& g = labels.geometry;
+  Grid<float> out;
+  VolumeGeometry& c = out.geometry;
+  c.direction = g.direction;
+  glm::dvec3 shift(0.0);
+  for (int a = 0; a < 3; ++a) {
+    c.dims[a] = (g.dims[a] + factors[a] - 1) / factors[a] + 2;  // and a background border
+    c.spacing[a] = g.spacing[a] * factors[a];
+    shift[a] = 0.5 * g.spacing[a] * (factors[a] - 1) - c.spacing[a];
+  }
+  c.origin = g.origin + g.direction * shift;
+  out.values.resize(c.voxel_count());
+  std::vector<std::uint32_t> inside(c.voxel_count(), 0), total(c.voxel_count(), 0);
+  for (std::int64_t k = 0; k < g.dims[2]; ++k) {
+    for (std::int64_t j = 0; j < g.dims[1]; ++j) {
+      const float* row = labels.values.data() + g.linear_index(0, j, k);
+      const std::size_t base = c.linear_index(1, 1 + j / factors[1], 1 + k / factors[2]);
+      for (std::int64_t i = 0; i < g.dims[0]; ++i) {
+        const std::size_t b = base + static_cast<std::size_t>(i / factors[0]);
+        inside[b] += row[i] == label ? 1U : 0U;
+        ++total[b];
+      }
+    }
+  }
+  for (std::size_t b = 0; b < inside.size(); ++b)
+    out.values[b] = inside[b] > 0 && 2 * inside[b] >= total[b] ? label : 0.0F;
+  return out;
+}
+
 std::size_t label_voxel_count(const Grid<float>& labels, float label) {
   return static_cast<std::size_t>(
       std::count(labels.values.data(), labels.values.data() + labels.values.size(), label));

@@ -15,6 +15,7 @@
 // against VTK's 3D Slicer pipeline (vtkDiscreteFlyingEdges3D + vtkWindowedSincPolyDataFilter):
 // tools/bench/label_surface_bench.cpp, table in docs/scene/label-surfaces.md.
 
+#include <array>
 #include <cstddef>
 #include <functional>
 
@@ -49,6 +50,15 @@ struct LabelSurfaceStats {
   double indicator_seconds = 0.0;
   double smooth_seconds = 0.0;
 };
+
+/// A coarser label map for a coarser surface (a tissue model of a few hundred vertices from a
+/// CT label map, without decimating a surface of hundreds of thousands): blocks of
+/// factors[0] x factors[1] x factors[2] samples become one sample, `label` when at least half of
+/// the block's samples are, 0 otherwise, at the block's centre. Blocks at the far ends hold what
+/// samples are left; one sample of background (0) goes around the result, so the surface is
+/// closed even where the label reaches the map's edge. Throws InputError for a factor below 1 or a `label` of 0.
+Grid<float> downsample_label(const Grid<float>& labels, float label,
+                             const std::array<int, 3>& factors);
 
 /// Samples whose value equals `label`.
 std::size_t label_voxel_count(const Grid<float>& labels, float label);
