@@ -99,7 +99,6 @@ TEST(HidDescriptor, MalformedDescriptorsGiveProtocolErrors) {
       {{0xC0}, 0, "end collection without"},
       {{0xB4}, 0, "pop without push"},
       {{0x85, 0x00}, 0, "report id 0"},
-      {{0x75, 0x40, 0x95, 0x01, 0x81, 0x02}, 4, "64 bits"},
       {{0x15, 0x0A, 0x25, 0x05, 0x75, 0x08, 0x95, 0x01, 0x81, 0x02}, 8, "below minimum"},
       {{0x81, 0x02}, 0, "before a report size"},
       {{0x0C}, 0, "reserved item type"},
@@ -117,6 +116,19 @@ TEST(HidDescriptor, MalformedDescriptorsGiveProtocolErrors) {
       EXPECT_NE(std::string(e.what()).find("bad glove"), std::string::npos);
     }
   }
+  // A 64-bit field and a zero-size one are what shipping firmware does: warnings, not errors.
+  const auto wide = hid::parse_report_descriptor(
+      bd::Bytes{0x75, 0x40, 0x95, 0x01, 0x81, 0x02, 0x75, 0x00, 0x81, 0x02, 0x75, 0x08, 0x81, 0x02},
+      "odd glove");
+  ASSERT_EQ(wide.warnings.size(), 2u);
+  EXPECT_NE(wide.warnings[0].find("byte 4: Input: 1 field(s) of 64 bits"), std::string::npos)
+      << wide.warnings[0];
+  EXPECT_NE(wide.warnings[1].find("byte 6: Report Size: report size 0"), std::string::npos)
+      << wide.warnings[1];
+  ASSERT_EQ(wide.reports.size(), 1u);
+  EXPECT_EQ(wide.reports[0].bits, 72u);  // 64 + 0 + 8
+  ASSERT_EQ(wide.fields.size(), 1u);     // only the 8-bit one is read
+  EXPECT_EQ(wide.fields[0].bit_offset, 64u);
   // Every truncation of the real descriptor either parses or gives a ProtocolError.
   const auto full = bd::SimulatedGlove::report_descriptor();
   for (std::size_t n = 0; n < full.size(); ++n) {

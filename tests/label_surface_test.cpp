@@ -77,11 +77,18 @@ TEST(LabelSurface, TorusAtThickSlicesIsSmoothClosedAndKeepsItsGenus) {
   for (const dvec3 spacing : {dvec3(0.6, 0.6, 1.3), dvec3(1.0, 1.0, 3.0)}) {
     SCOPED_TRACE(spacing.z);
     const Grid<float> labels = voxelise(torus, spacing, 24.0);
-    LabelSurfaceOptions plain;
-    plain.iterations = 0;
-    const PolygonMesh terraced = extract_label_surface_mesh(labels, kLabel, plain);
+    // The terraced surface: marching cubes on the 0/1 indicator.
+    Grid<float> indicator;
+    indicator.geometry = labels.geometry;
+    indicator.values.resize(labels.values.size());
+    for (std::size_t i = 0; i < labels.values.size(); ++i)
+      indicator.values[i] = labels.values[i] == kLabel ? 1.0F : 0.0F;
+    IsoSurfaceOptions half;
+    half.iso = 0.5F;
+    const PolygonMesh terraced = extract_isosurface_mesh(indicator, half);
     LabelSurfaceStats stats;
     const PolygonMesh smooth = extract_label_surface_mesh(labels, kLabel, {}, &stats);
+    // The same crossed edges, so the same vertices and triangles, only placed better.
     ASSERT_EQ(smooth.positions.size(), terraced.positions.size());
     ASSERT_EQ(smooth.indices.size(), terraced.indices.size());
     EXPECT_GT(stats.label_voxels, 0u);
@@ -141,6 +148,47 @@ TEST(LabelSurface, ThinPartsStayInTheBandAndDoNotVanish) {
     }
     ASSERT_NE(lo, hi) << "vertex " << v << " left the band";
   }
+}
+
+// A label map resampled from thick slices by repeating each (as CGAL's liver repeats every third
+// slice): the repeats are interpolated, so the surface has no terraces two slices high.
+TEST(LabelSurface, RepeatedSlicesAreInterpolatedNotTerraced) {
+  const Distance ball = [](const dvec3& p) { return glm::length(p - dvec3(0.2, -0.3, 0.4)) - 15.0; };
+  const Grid<float> thick = voxelise(ball, {1.0, 1.0, 2.0}, 20.0);
+  Grid<float> repeated;
+  repeated.geometry = thick.geometry;
+  repeated.geometry.spacing.z = 1.0;
+  repeated.geometry.dims[2] = 2 * thick.geometry.dims[2];
+  repeated.geometry.origin.z -= 0.5;
+  repeated.values.resize(repeated.geometry.voxel_count());
+  for (std::int64_t k = 0; k < repeated.geometry.dims[2]; ++k)
+    for (std::int64_t j = 0; j < repeated.geometry.dims[1]; ++j)
+      for (std::int64_t i = 0; i < repeated.geometry.dims[0]; ++i)
+        repeated.at(i, j, k) = thick.at(i, j, k / 2);
+  const Fit thick_fit = fit(extract_label_surface_mesh(thick, kLabel), ball);
+  const Fit repeated_fit = fit(extract_label_surface_mesh(repeated, kLabel), ball);
+  // Nearly as good as the thick slices themselves give (4.2 against 3.1 degrees when written).
+  EXPECT_LT(repeated_fit.normal_rms_deg, 1.5 * thick_fit.normal_rms_deg);
+  EXPECT_LT(repeated_fit.normal_rms_deg, 6.0);
+  const Dlfl solid = extract_label_surface(repeated, kLabel);
+  const MeshStatistics s = mesh_statistics(solid);
+  ASSERT_EQ(s.parts.size(), 1u);
+  EXPECT_EQ(s.parts[0].rings, 0u);
+  EXPECT_EQ(s.parts[0].genus, 0);
+}
+
+TEST(LabelSurface, DownsampledLabelMapsGiveAClosedCoarseSurface) {
+  // The label reaches the map's edge: the background border closes it.
+  const Distance slab = [](const dvec3& p) { return std::abs(p.z) - 6.0; };
+  const Grid<float> labels = voxelise(slab, {1.0, 1.0, 2.0}, 12.0);
+  const Grid<float> coarse = downsample_label(labels, kLabel, {4, 4, 2});
+  EXPECT_EQ(coarse.geometry.dims[0], (labels.geometry.dims[0] + 3) / 4 + 2);
+  EXPECT_DOUBLE_EQ(coarse.geometry.spacing.x, 4.0);
+  EXPECT_DOUBLE_EQ(coarse.geometry.spacing.z, 4.0);
+  const MeshStatistics s = mesh_statistics(extract_label_surface(coarse, kLabel));
+  ASSERT_EQ(s.parts.size(), 1u);
+  EXPECT_EQ(s.parts[0].rings, 0u);
+  EXPECT_THROW(downsample_label(labels, kLabel, {0, 1, 1}), InputError);
 }
 
 TEST(LabelSurface, OptionsAreChecked) {

@@ -185,6 +185,39 @@ TEST_F(RenderTest, SphereCoversExpectedPixelsInEachEyeWithExpectedDisparity) {
             0.02 * static_cast<double>(eye[0].lit));
 }
 
+TEST_F(RenderTest, LocatedEyesAreDrawnWithTheirOwnPosesAndFieldsOfView) {
+  auto r = make();
+  REQUIRE_RENDERER(r);
+  const glm::dvec3 centre(0.0, 10.0, -200.0);
+  const double radius = 40.0;
+  r->add_solid(sphere_solid(centre, radius));
+  CaptureSink sink;
+  r->set_sink(&sink);
+  // As a runtime locates them: each eye its own asymmetric frustum (the renderer's headset
+  // description says +-45 degrees), at +-32 mm, looking down -z.
+  HeadsetDescription located = r->options().headset;
+  located.fov[0] = {-0.70f, 0.55f, 0.60f, -0.75f};
+  located.fov[1] = {-0.55f, 0.70f, 0.60f, -0.75f};
+  std::array<EyePose, 2> eyes;
+  for (std::size_t e = 0; e < 2; ++e) {
+    eyes[e].position_mm = {(e == 0 ? -0.5 : 0.5) * located.ipd_mm, 0.0, 0.0};
+    eyes[e].fov = located.fov[e];
+  }
+  r->render(origin_pose(), eyes);
+  r->flush();
+  ASSERT_EQ(sink.frames, 1u);
+  for (int e = 0; e < 2; ++e) {
+    const MaskStats s = compare(sink, e, expected_mask(located, e, centre, radius));
+    ASSERT_GT(s.expected, 1000u);
+    EXPECT_LT(static_cast<double>(s.mismatched), 0.04 * static_cast<double>(s.expected))
+        << "eye " << e << ": " << s.lit << " lit, " << s.expected << " expected";
+    EXPECT_NEAR(s.centroid_x, s.expected_centroid_x, 0.5) << "eye " << e;
+    // The headset description's symmetric frustum would put it elsewhere.
+    const MaskStats wrong = compare(sink, e, expected_mask(r->options().headset, e, centre, radius));
+    EXPECT_GT(std::abs(wrong.expected_centroid_x - s.centroid_x), 5.0) << "eye " << e;
+  }
+}
+
 TEST_F(RenderTest, BackFacesAreCulled) {
   auto r = make();
   REQUIRE_RENDERER(r);

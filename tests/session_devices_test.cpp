@@ -158,5 +158,74 @@ role = "head-tracker"
   d.close();
 }
 
+/// The template driver in devices/sample/ plugs in through its registry entry alone: a scene that
+/// names it with simulated = true opens its registered twin through its driver, with the channel
+/// layout the driver registered; for hardware it is looked for with libusb, its registered bus.
+TEST(SessionDevices, TheSampleDriverOpensFromASceneThroughItsRegistryEntry) {
+  const SceneDescription scene = parse_scene(R"(
+[[devices]]
+name = "pinch"
+driver = "sample-pinch"
+role = "haptic"
+serial = "PINCH-7"
+
+[[devices]]
+name = "head"
+driver = "hid-tracker"
+role = "head-tracker"
+)",
+                                             "scene.toml");
+  Procedure procedure;
+  devices::MotionKey closed;
+  closed.joints_rad = {0.4, 0.7};
+  procedure.glove.motion.push_back(closed);
+  procedure.head.motion.push_back({devices::Nanoseconds{0}, devices::Pose{}, {}});
+  devices::VirtualClock clock(devices::Nanoseconds{0});
+  const devices::Registry registry = devices::builtin_registry();
+  SessionDevices d(scene, procedure, registry, clock, nullptr);
+  EXPECT_EQ(d.haptic().driver_name(), "sample-pinch");
+  EXPECT_EQ(d.haptic().descriptor().serial, "PINCH-7");  // the scene's serial reaches the twin
+  EXPECT_EQ(d.summary().at(0), "pinch: sample-pinch (simulated)");
+  ASSERT_EQ(d.haptic_channels().size(), 2u);
+  EXPECT_EQ(d.haptic_channels()[0], (devices::ChannelRole{devices::ChannelUse::Finger, 0}));
+  EXPECT_EQ(d.haptic_channels()[1], (devices::ChannelRole{devices::ChannelUse::Finger, 1}));
+  d.step_twins(devices::Nanoseconds{1'000'000});
+  ASSERT_EQ(d.haptic().poll(std::chrono::microseconds(0)), 1u);
+  EXPECT_NEAR(d.haptic().state().finger_joint_angles_rad[1], 0.7, 1e-4);
+  d.close();
+}
+
+TEST(SessionDevices, ChannelRolesComeFromTheDriversLayout) {
+  Procedure procedure;
+  procedure.glove.motion.push_back({devices::Nanoseconds{0}, devices::Pose{}, {}});
+  devices::VirtualClock clock(devices::Nanoseconds{0});
+  const devices::Registry registry = devices::builtin_registry();
+  const auto roles_of = [&](const std::string& driver) {
+    const SceneDescription scene = parse_scene(R"(
+[[devices]]
+name = "hand"
+driver = ")" + driver + R"("
+role = "haptic"
+
+[[devices]]
+name = "head"
+driver = "hid-tracker"
+role = "head-tracker"
+)",
+                                               "scene.toml");
+    SessionDevices d(scene, procedure, registry, clock, nullptr);
+    return d.haptic_channels();
+  };
+  const auto arm = roles_of("vendor-arm");
+  ASSERT_EQ(arm.size(), 1u);
+  EXPECT_EQ(arm[0].use, devices::ChannelUse::Vector);
+  // The glove's five PID actuators take the fingers in order; its vibration channel stays unused.
+  const auto glove = roles_of("hid-glove");
+  ASSERT_EQ(glove.size(), 6u);
+  for (std::uint8_t f = 0; f < 5; ++f)
+    EXPECT_EQ(glove[f], (devices::ChannelRole{devices::ChannelUse::Finger, f}));
+  EXPECT_EQ(glove[5].use, devices::ChannelUse::Unused);
+}
+
 }  // namespace
 }  // namespace bisturi::runtime

@@ -277,25 +277,29 @@ TEST(DefaultScene, TheLiverIsBuiltAndTheProcedureFollowsTheScene) {
     nearest = std::min(nearest, glm::length(liver.positions()[v] - palpate));
   EXPECT_LT(nearest, 12.0);
 
-  // During the cut the blade passes from one side of the vessel to the other, inside its
-  // front-to-back extent.
+  // During the cut the blade (15 mm from the tip along the cut's normal) passes from one side of
+  // the vessel to the other and through its extent.
   glm::dvec3 vlo(1e9), vhi(-1e9);
   for (std::size_t v = 0; v < solids[1].mesh.vertex_capacity(); ++v) {
     vlo = glm::min(vlo, solids[1].mesh.positions()[v]);
     vhi = glm::max(vhi, solids[1].mesh.positions()[v]);
   }
+  const glm::dvec3 cn(d.cut_normal[0], d.cut_normal[1], d.cut_normal[2]);
   const ProcedurePhase* cut = nullptr;
   for (const ProcedurePhase& phase : p.phases)
     if (phase.name == "cut") cut = &phase;
   ASSERT_NE(cut, nullptr);
   bool left = false, right = false, through = false;
   for (auto t = cut->begin; t <= cut->end; t += devices::Nanoseconds(5'000'000)) {
-    const glm::dvec3 tip = mm_of(p.glove.pose_at(t));
     if (p.glove.buttons_at(t) == 0) continue;  // the blade is live while the button is held
+    const glm::dvec3 tip = mm_of(p.glove.pose_at(t));
     left = left || tip.x < vlo.x;
     right = right || tip.x > vhi.x;
-    through = through || (tip.x > vlo.x && tip.x < vhi.x && tip.y > vlo.y && tip.y < vhi.y &&
-                          tip.z > vlo.z && tip.z < vhi.z);
+    for (double along = 0.0; along <= 15.0; along += 0.5) {
+      const glm::dvec3 b = tip + along * cn;
+      through = through || (b.x > vlo.x && b.x < vhi.x && b.y > vlo.y && b.y < vhi.y &&
+                            b.z > vlo.z && b.z < vhi.z);
+    }
   }
   EXPECT_TRUE(left);
   EXPECT_TRUE(right);

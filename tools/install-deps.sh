@@ -22,6 +22,7 @@ packages=(
   vulkan-validationlayers            # the renderer's tests run with validation
   libopenxr-dev libpng-dev           # frame sinks: headset (OpenXR), headless (PNG)
   libtomlplusplus-dev libcairo2-dev  # scene files (TOML), session report plots
+  slurm-wlm munge                    # the cohort test: a local Slurm cluster (tests/slurm)
 )
 if [[ "${1:-}" == "--bench-peers" ]]; then
   packages+=(libopenmesh-dev libcgal-dev libvtk9-dev)

@@ -1,5 +1,7 @@
 #include "bisturi/devices/device.h"
 
+#include <algorithm>
+
 namespace bisturi::devices {
 
 const char* to_string(DeviceClass device_class) {
@@ -60,8 +62,10 @@ void Device::close() {
 }
 
 std::size_t Device::poll_transport(std::chrono::microseconds timeout) {
+  // Only the first read may wait, and only when the caller asked: poll(0) never waits, and after
+  // the first report the rest are taken only if they are already there.
   std::size_t handled = 0;
-  auto wait = timeout;
+  auto wait = std::max(timeout, std::chrono::microseconds(0));
   for (;;) {
     std::optional<Bytes> report;
     try {

@@ -29,6 +29,7 @@ struct Globals {
   std::int8_t unit_exponent = 0;
   std::uint32_t unit = 0;
   std::uint32_t report_size = 0;
+  bool report_size_set = false;
   std::uint32_t report_count = 0;
   std::uint8_t report_id = 0;
 };
@@ -57,6 +58,49 @@ std::int64_t interpret_max(std::int32_t min, std::uint32_t raw, std::uint8_t siz
   return raw;
 }
 
+// The item's name as the HID specification (6.2.2.4-6.2.2.8) gives it.
+std::string item_name(std::uint8_t type, std::uint8_t tag) {
+  static const char* const kMain[16] = {
+      nullptr, nullptr,  nullptr,      nullptr,   nullptr,          nullptr, nullptr, nullptr,
+      "Input", "Output", "Collection", "Feature", "End Collection", nullptr, nullptr, nullptr};
+  static const char* const kGlobal[16] = {"Usage Page",
+                                          "Logical Minimum",
+                                          "Logical Maximum",
+                                          "Physical Minimum",
+                                          "Physical Maximum",
+                                          "Unit Exponent",
+                                          "Unit",
+                                          "Report Size",
+                                          "Report ID",
+                                          "Report Count",
+                                          "Push",
+                                          "Pop",
+                                          nullptr,
+                                          nullptr,
+                                          nullptr,
+                                          nullptr};
+  static const char* const kLocal[16] = {"Usage",
+                                         "Usage Minimum",
+                                         "Usage Maximum",
+                                         "Designator Index",
+                                         "Designator Minimum",
+                                         "Designator Maximum",
+                                         nullptr,
+                                         "String Index",
+                                         "String Minimum",
+                                         "String Maximum",
+                                         "Delimiter",
+                                         nullptr,
+                                         nullptr,
+                                         nullptr,
+                                         nullptr,
+                                         nullptr};
+  const char* const* table = type == 0 ? kMain : type == 1 ? kGlobal : type == 2 ? kLocal : nullptr;
+  if (table && table[tag]) return table[tag];
+  static const char* const kTypes[4] = {"main", "global", "local", "reserved"};
+  return std::string(kTypes[type & 3]) + " item tag " + std::to_string(tag);
+}
+
 class Parser {
  public:
   Parser(std::span<const std::uint8_t> bytes, const std::string& device)
@@ -78,6 +122,7 @@ class Parser {
       const std::uint8_t size = kSizes[prefix & 0x03];
       const std::uint8_t type = (prefix >> 2) & 0x03;
       const std::uint8_t tag = prefix >> 4;
+      item_name_ = item_name(type, tag);
       if (pos + 1 + size > bytes_.size()) {
         fail("item needs " + std::to_string(size) + " data bytes, " +
              std::to_string(bytes_.size() - pos - 1) + " left");
@@ -101,6 +146,7 @@ class Parser {
       }
     }
     item_offset_ = bytes_.size();
+    item_name_ = "end of descriptor";
     if (!open_.empty()) fail(std::to_string(open_.size()) + " collection(s) not closed");
     if (out_.fields.empty()) fail("no input, output or feature items");
     return std::move(out_);
@@ -108,7 +154,12 @@ class Parser {
 
  private:
   [[noreturn]] void fail(const std::string& reason) const {
-    throw ProtocolError(device_, item_offset_, reason);
+    throw ProtocolError(device_, item_offset_,
+                        item_name_.empty() ? reason : item_name_ + ": " + reason);
+  }
+  void warn(const std::string& reason) {
+    out_.warnings.push_back("byte " + std::to_string(item_offset_) + ": " + item_name_ + ": " +
+                            reason);
   }
 
   std::uint32_t extend_usage(std::uint32_t data, std::uint8_t size) const {
@@ -147,8 +198,11 @@ class Parser {
         g_.unit = data;
         break;
       case 7:
-        if (data == 0 || data > kMaxReportBits) fail("report size " + std::to_string(data));
+        if (data > kMaxReportBits) fail("report size " + std::to_string(data));
+        // Shipping firmware declares zero-size fields: they take no bits.
+        if (data == 0) warn("report size 0: the main items that follow take no bits");
         g_.report_size = data;
+        g_.report_size_set = true;
         break;
       case 8:
         if (data == 0 || data > 0xFF) fail("report id " + std::to_string(data) + " (1-255)");
@@ -245,7 +299,7 @@ class Parser {
   }
 
   void add_field(ReportType type, std::uint32_t flags) {
-    if (g_.report_size == 0) fail(std::string(to_string(type)) + " item before a report size");
+    if (!g_.report_size_set) fail(std::string(to_string(type)) + " item before a report size");
     const std::uint64_t bits = std::uint64_t{g_.report_size} * g_.report_count;
     ReportInfo* report = nullptr;
     for (auto& info : out_.reports) {
@@ -263,10 +317,17 @@ class Parser {
     const std::uint32_t offset = report->bits;
     report->bits += static_cast<std::uint32_t>(bits);
     const bool constant = flags & 0x01;
-    if (g_.report_count == 0) return;
+    if (g_.report_count == 0 || g_.report_size == 0) return;
     if (constant) return;  // padding: counted in the report length, no field
     if (g_.report_size > kMaxFieldBits) {
-      fail("data field of " + std::to_string(g_.report_size) + " bits (at most 32)");
+      // Counted in the report's length (so the report's size stays right), but not read.
+      warn(std::to_string(g_.report_count) + " field(s) of " + std::to_string(g_.report_size) +
+           " bits at bit " + std::to_string(offset) + " of " + to_string(type) + " report " +
+           std::to_string(g_.report_id) + ": wider than 32 bits, not read");
+      out_.wide_fields.push_back(WideField{type, g_.report_id, offset, g_.report_size,
+                                           g_.report_count,
+                                           l_.usages.empty() ? 0 : l_.usages.front()});
+      return;
     }
     if (out_.fields.size() >= kMaxFields) fail("too many fields");
 
@@ -320,6 +381,7 @@ class Parser {
   std::span<const std::uint8_t> bytes_;
   const std::string& device_;
   std::size_t item_offset_ = 0;
+  std::string item_name_;
   Globals g_;
   Locals l_;
   std::vector<Globals> stack_;

@@ -1,7 +1,9 @@
 #include "bisturi/devices/hid_drivers.h"
 
+#include <cstdio>
 #include <stdexcept>
 
+#include "bisturi/devices/simulated.h"
 #include "hid_mapping.h"
 
 namespace bisturi::devices {
@@ -18,8 +20,10 @@ class HidGlove final : public HapticDevice {
   HidGlove(std::unique_ptr<Transport> transport, Clock& clock, HidGloveOptions options)
       : HapticDevice(std::move(transport), clock),
         descriptor_(with_driver(Device::transport().descriptor(), kHidGloveDriver)),
-        mapping_(descriptor_, options.max_force_rate_N_per_s) {
-    const auto& caps = mapping_.capabilities();
+        mapping_(descriptor_, options.max_force_rate_N_per_s),
+        caps_(mapping_.capabilities()) {
+    caps_.spec.max_stiffness_N_per_m = options.max_stiffness_N_per_m;
+    const auto& caps = caps_;
     if (caps.finger_joints.empty() && !mapping_.has_pose() && caps.buttons == 0) {
       throw ProtocolError(describe(descriptor_), 0,
                           "the report descriptor describes no finger joints, pose or buttons");
@@ -32,7 +36,7 @@ class HidGlove final : public HapticDevice {
 
   const std::string& driver_name() const override { return name_; }
   const DeviceDescriptor& descriptor() const override { return descriptor_; }
-  const Capabilities& capabilities() const override { return mapping_.capabilities(); }
+  const Capabilities& capabilities() const override { return caps_; }
   const HapticState& state() const override { return state_; }
 
   std::size_t poll(std::chrono::microseconds timeout) override { return poll_transport(timeout); }
@@ -64,6 +68,7 @@ class HidGlove final : public HapticDevice {
   std::string name_ = kHidGloveDriver;
   DeviceDescriptor descriptor_;
   detail::HidMapping mapping_;
+  Capabilities caps_;
   HapticState state_;
   std::vector<double> zeros_;
   std::vector<Bytes> reports_;
@@ -83,6 +88,7 @@ class HidTracker final : public Tracker {
     caps_.head_pose = true;
     caps_.end_effectors = 0;
     caps_.force_channels.clear();
+    caps_.spec.max_stiffness_N_per_m = 0.0;  // renders no force
   }
   ~HidTracker() override { close(); }
 
@@ -139,6 +145,53 @@ bool describes_hid_tracker(const DeviceDescriptor& device) {
   return usage == hid::kUsageHeadTracker || usage == hid::kUsageHeadMountedDisplay;
 }
 
+GenericHidFit assess_generic_hid(std::span<const std::uint8_t> report_descriptor) {
+  DeviceDescriptor device;
+  device.kind = TransportKind::Hid;
+  device.product = "HID descriptor";
+  device.report_descriptor.assign(report_descriptor.begin(), report_descriptor.end());
+  const detail::HidMapping mapping(device, HidGloveOptions{}.max_force_rate_N_per_s);
+  const Capabilities& caps = mapping.capabilities();
+  GenericHidFit fit;
+  if (!caps.finger_joints.empty())
+    fit.found.push_back(std::to_string(caps.finger_joints.size()) +
+                        " finger joints (VR Controls:Flexor, rotation unit)");
+  if (mapping.has_pose()) fit.found.push_back("a pose (X/Y/Z with a length unit, or orientation)");
+  if (caps.buttons > 0) fit.found.push_back(std::to_string(caps.buttons) + " buttons");
+  std::size_t newtons = 0, unitless = 0;
+  for (const ForceChannel& c : caps.force_channels)
+    (c.unitless ? unitless : newtons) += 1;
+  if (newtons > 0)
+    fit.found.push_back(std::to_string(newtons) + " force channels in newtons (PID Magnitude)");
+  if (unitless > 0)
+    fit.found.push_back(std::to_string(unitless) + " unitless force channels (fraction of 1)");
+
+  char usage_text[24];
+  std::snprintf(usage_text, sizeof usage_text, "0x%04X:0x%04X", mapping.application_usage() >> 16,
+                mapping.application_usage() & 0xFFFF);
+  const std::string application = mapping.application_usage() == 0
+                                      ? std::string("no application collection")
+                                      : std::string("its application collection is ") + usage_text;
+  if (mapping.application_usage() != hid::kUsageGlove) {
+    fit.glove_why = application + ", not VR Controls:Glove (0x0003:0x0004)";
+  } else if (caps.finger_joints.empty() && !mapping.has_pose() && caps.buttons == 0) {
+    fit.glove_why = "no finger joints, pose or buttons it can read";
+  } else {
+    fit.glove = true;
+  }
+  const auto app = mapping.application_usage();
+  if (app != hid::kUsageHeadTracker && app != hid::kUsageHeadMountedDisplay) {
+    fit.tracker_why = application +
+                      ", not VR Controls:Head Tracker (0x0003:0x0005) or Head Mounted Display "
+                      "(0x0003:0x0006)";
+  } else if (!mapping.has_pose()) {
+    fit.tracker_why = "no pose it can read (X/Y/Z with a length unit, or an orientation)";
+  } else {
+    fit.tracker = true;
+  }
+  return fit;
+}
+
 DriverInfo hid_glove_driver_info() {
   DriverInfo info;
   info.name = kHidGloveDriver;
@@ -148,6 +201,15 @@ DriverInfo hid_glove_driver_info() {
   info.create = [](std::unique_ptr<Transport> transport, Clock& clock) -> std::unique_ptr<Device> {
     return open_hid_glove(std::move(transport), clock);
   };
+  info.bus = TransportKind::Hid;
+  info.device_class = DeviceClass::HapticGlove;
+  info.make_twin = [](const DeviceScript& script, const std::string& serial,
+                      double haptic_hz) -> std::unique_ptr<SimulatedDevice> {
+    return std::make_unique<SimulatedGlove>(script, serial.empty() ? "GLOVE-0001" : serial,
+                                            haptic_hz);
+  };
+  // No list: the channels come from the descriptor; PID magnitudes (newtons) take the fingers in
+  // order, a unitless Haptics Intensity stays unused (ChannelLayout's defaults).
   return info;
 }
 
@@ -158,6 +220,12 @@ DriverInfo hid_tracker_driver_info() {
   info.matches = describes_hid_tracker;
   info.create = [](std::unique_ptr<Transport> transport, Clock& clock) -> std::unique_ptr<Device> {
     return open_hid_tracker(std::move(transport), clock);
+  };
+  info.bus = TransportKind::Hid;
+  info.device_class = DeviceClass::HeadTracker;
+  info.make_twin = [](const DeviceScript& script, const std::string& serial,
+                      double) -> std::unique_ptr<SimulatedDevice> {
+    return std::make_unique<SimulatedHeadTracker>(script, serial.empty() ? "HEAD-0001" : serial);
   };
   return info;
 }

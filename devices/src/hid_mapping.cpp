@@ -43,6 +43,7 @@ HidMapping::HidMapping(const DeviceDescriptor& device, double max_force_rate_N_p
   application_ = descriptor.application_usage();
   std::uint32_t button_count = 0;
   std::size_t joint_count = 0;
+  bool has_axis[3] = {false, false, false};
   for (std::uint32_t f = 0; f < descriptor.fields.size(); ++f) {
     const Field& field = descriptor.fields[f];
     const auto quantity = field.unit.quantity();
@@ -66,6 +67,19 @@ HidMapping::HidMapping(const DeviceDescriptor& device, double max_force_rate_N_p
             quantity == Unit::Quantity::Length) {
           const auto axis = u - hid::kUsageX;
           if (map.position[axis] < 0) map.position[axis] = bind(map, f, e);
+          if (!has_axis[axis]) {
+            // The box the device can report positions in: the workspace it states.
+            const double a = field.to_si(field.logical_min), b = field.to_si(field.logical_max);
+            double* lo[3] = {&capabilities_.spec.workspace_min_m.x,
+                             &capabilities_.spec.workspace_min_m.y,
+                             &capabilities_.spec.workspace_min_m.z};
+            double* hi[3] = {&capabilities_.spec.workspace_max_m.x,
+                             &capabilities_.spec.workspace_max_m.y,
+                             &capabilities_.spec.workspace_max_m.z};
+            *lo[axis] = std::min(a, b);
+            *hi[axis] = std::max(a, b);
+            has_axis[axis] = true;
+          }
           has_position_ = true;
         } else if (u == hid::kUsageOrientationQuaternion && e < 4) {
           if (map.quaternion[e] < 0) map.quaternion[e] = bind(map, f, e);

@@ -1,6 +1,7 @@
 // HID devices through hidapi (hidraw backend).
 #include <hidapi/hidapi.h>
 
+#include <algorithm>
 #include <atomic>
 #include <fstream>
 #include <iterator>
@@ -53,7 +54,16 @@ class HidTransport final : public Transport {
     } catch (const ProtocolError&) {
       prepend_zero_ = true;
     }
-    hid_set_nonblocking(handle_, 0);
+    // Non-blocking: a zero-timeout read is hid_read, which returns at once when nothing waits.
+    hid_set_nonblocking(handle_, 1);
+    std::size_t largest = 64;
+    try {
+      for (const auto& report : hid::parse_report_descriptor(descriptor_.report_descriptor).reports)
+        largest = std::max(largest, report.bytes());
+    } catch (const ProtocolError&) {
+      largest = 4096;
+    }
+    buffer_.resize(largest + 1);
   }
   ~HidTransport() override {
     hid_close(handle_);
@@ -62,15 +72,16 @@ class HidTransport final : public Transport {
   const DeviceDescriptor& descriptor() const override { return descriptor_; }
 
   std::optional<Bytes> read(std::chrono::microseconds timeout) override {
-    Bytes buffer(4096);
-    const auto ms = static_cast<int>((timeout.count() + 999) / 1000);
-    const int n = hid_read_timeout(handle_, buffer.data(), buffer.size(), ms);
+    // hidapi counts in milliseconds: a positive timeout below 1 ms waits 1 ms, zero never waits.
+    const int n = timeout.count() <= 0
+                      ? hid_read(handle_, buffer_.data(), buffer_.size())
+                      : hid_read_timeout(handle_, buffer_.data(), buffer_.size(),
+                                         static_cast<int>((timeout.count() + 999) / 1000));
     if (n < 0) {
       throw DeviceDisconnected(describe(descriptor_) + ": " + narrow(hid_error(handle_)));
     }
     if (n == 0) return std::nullopt;
-    buffer.resize(static_cast<std::size_t>(n));
-    return buffer;
+    return Bytes(buffer_.begin(), buffer_.begin() + n);
   }
 
   void write(std::span<const std::uint8_t> report) override {
@@ -92,6 +103,7 @@ class HidTransport final : public Transport {
   DeviceDescriptor descriptor_;
   bool prepend_zero_ = false;
   Bytes scratch_;
+  Bytes buffer_;  // the largest input report the descriptor declares, plus one
 };
 
 }  // namespace

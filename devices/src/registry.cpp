@@ -3,9 +3,46 @@
 #include <stdexcept>
 
 #include "bisturi/devices/hid_drivers.h"
+#include "bisturi/devices/sample/sample_pinch.h"
 #include "bisturi/devices/vendor_arm.h"
 
 namespace bisturi::devices {
+
+const char* to_string(ChannelUse use) {
+  switch (use) {
+    case ChannelUse::Vector:
+      return "vector";
+    case ChannelUse::Finger:
+      return "finger";
+    case ChannelUse::Unused:
+      return "unused";
+  }
+  return "unknown";
+}
+
+std::vector<ChannelRole> ChannelLayout::roles(const Capabilities& capabilities) const {
+  std::vector<ChannelRole> out;
+  std::uint8_t next_finger = 0;
+  for (std::size_t i = 0; i < capabilities.force_channels.size(); ++i) {
+    const ForceChannel& channel = capabilities.force_channels[i];
+    ChannelRole role;
+    if (i < channels.size()) {
+      role = channels[i];
+      const bool fits =
+          role.use == ChannelUse::Unused ||
+          (role.use == ChannelUse::Vector && channel.components == 3) ||
+          (role.use == ChannelUse::Finger && channel.components == 1 && role.finger < 5);
+      if (!fits) role = ChannelRole{};
+    } else if (channel.components == 3) {
+      role.use = ChannelUse::Vector;
+    } else if (channel.components == 1 && !channel.unitless && next_finger < 5) {
+      role = ChannelRole{ChannelUse::Finger, next_finger};
+    }
+    if (role.use == ChannelUse::Finger) next_finger = static_cast<std::uint8_t>(role.finger + 1);
+    out.push_back(role);
+  }
+  return out;
+}
 
 void Registry::add(DriverInfo driver) {
   if (driver.name.empty()) throw std::invalid_argument("registry: a driver needs a name");
@@ -59,6 +96,7 @@ void register_builtin_drivers(Registry& registry) {
   registry.add(vendor_arm_driver_info());
   registry.add(hid_glove_driver_info());
   registry.add(hid_tracker_driver_info());
+  registry.add(sample_pinch_driver_info());
 }
 
 Registry builtin_registry() {

@@ -3,8 +3,10 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <deque>
 
 #include "bisturi/devices/host_transports.h"
+#include "bisturi/devices/usb_async.h"
 
 namespace bisturi::devices {
 
@@ -69,48 +71,126 @@ std::string string_descriptor(libusb_device_handle* handle, std::uint8_t index) 
   return n > 0 ? std::string(reinterpret_cast<char*>(text), static_cast<std::size_t>(n)) : "";
 }
 
-class UsbTransport final : public Transport {
+UsbTransferStatus status_of(libusb_transfer_status status) {
+  switch (status) {
+    case LIBUSB_TRANSFER_COMPLETED:
+      return UsbTransferStatus::Completed;
+    case LIBUSB_TRANSFER_TIMED_OUT:
+      return UsbTransferStatus::TimedOut;
+    case LIBUSB_TRANSFER_CANCELLED:
+      return UsbTransferStatus::Cancelled;
+    case LIBUSB_TRANSFER_STALL:
+      return UsbTransferStatus::Stall;
+    case LIBUSB_TRANSFER_NO_DEVICE:
+      return UsbTransferStatus::NoDevice;
+    case LIBUSB_TRANSFER_OVERFLOW:
+      return UsbTransferStatus::Overflow;
+    case LIBUSB_TRANSFER_ERROR:
+      break;
+  }
+  return UsbTransferStatus::Error;
+}
+
+// libusb's asynchronous API under AsyncUsbTransport. Each opened device has a libusb context of
+// its own, so its completions run only on the thread that polls it (libusb runs callbacks inside
+// libusb_handle_events* on whichever thread handles the context's events).
+class LibusbIo final : public UsbIo {
  public:
-  UsbTransport(libusb_device_handle* handle, Endpoints endpoints, DeviceDescriptor descriptor)
-      : handle_(handle), endpoints_(endpoints), descriptor_(std::move(descriptor)) {}
-  ~UsbTransport() override {
+  LibusbIo(libusb_context* context, libusb_device_handle* handle, Endpoints endpoints)
+      : context_(context), handle_(handle), endpoints_(endpoints) {}
+  ~LibusbIo() override {
+    // AsyncUsbTransport waited for the cancellations; a transfer still in flight (a bus that did
+    // not answer within its close timeout) is leaked rather than freed under libusb's feet.
+    bool in_flight = false;
+    for (auto* list : {&in_, &out_}) {
+      for (Slot& slot : *list) {
+        if (slot.busy)
+          in_flight = true;
+        else
+          libusb_free_transfer(slot.transfer);
+      }
+    }
     libusb_release_interface(handle_, endpoints_.interface);
     libusb_close(handle_);
-  }
-  const DeviceDescriptor& descriptor() const override { return descriptor_; }
-
-  std::optional<Bytes> read(std::chrono::microseconds timeout) override {
-    Bytes buffer(std::max<std::uint16_t>(endpoints_.in_size, 64));
-    int transferred = 0;
-    const auto ms = static_cast<unsigned>(std::max<long long>(1, (timeout.count() + 999) / 1000));
-    const int rc = libusb_interrupt_transfer(handle_, endpoints_.in, buffer.data(),
-                                             static_cast<int>(buffer.size()), &transferred, ms);
-    if (rc == LIBUSB_ERROR_TIMEOUT && transferred == 0) return std::nullopt;
-    check(rc);
-    buffer.resize(static_cast<std::size_t>(transferred));
-    return buffer;
+    if (!in_flight) libusb_exit(context_);
   }
 
-  void write(std::span<const std::uint8_t> report) override {
-    Bytes copy(report.begin(), report.end());
-    int transferred = 0;
-    check(libusb_interrupt_transfer(handle_, endpoints_.out, copy.data(),
-                                    static_cast<int>(copy.size()), &transferred, 100));
+  void set_listener(UsbIoListener* listener) override { listener_ = listener; }
+
+  std::string submit_in(std::size_t slot, std::span<std::uint8_t> buffer) override {
+    // No timeout: an IN transfer waits on the bus (not on us) until the device sends.
+    return submit(in_, slot, endpoints_.in, buffer.data(), buffer.size(), 0);
+  }
+
+  std::string submit_out(std::size_t slot, std::span<const std::uint8_t> packet) override {
+    // libusb takes a non-const buffer for both directions; it only reads an OUT buffer.
+    return submit(out_, slot, endpoints_.out, const_cast<std::uint8_t*>(packet.data()),
+                  packet.size(), 100);
+  }
+
+  void cancel_all() override {
+    for (auto* list : {&in_, &out_}) {
+      for (Slot& slot : *list)
+        if (slot.busy) libusb_cancel_transfer(slot.transfer);
+    }
+  }
+
+  void handle_events(std::chrono::microseconds timeout) override {
+    // A zero timeval: handle what is pending and return at once (libusb's non-blocking mode).
+    timeval tv{};
+    tv.tv_sec = static_cast<decltype(tv.tv_sec)>(timeout.count() / 1000000);
+    tv.tv_usec = static_cast<decltype(tv.tv_usec)>(timeout.count() % 1000000);
+    libusb_handle_events_timeout_completed(context_, &tv, nullptr);
   }
 
  private:
-  void check(int rc) const {
-    if (rc == 0 || rc == LIBUSB_ERROR_TIMEOUT) return;
-    const std::string message = describe(descriptor_) + ": " + libusb_error_name(rc);
-    if (rc == LIBUSB_ERROR_NO_DEVICE || rc == LIBUSB_ERROR_IO || rc == LIBUSB_ERROR_PIPE) {
-      throw DeviceDisconnected(message);
+  struct Slot {
+    LibusbIo* io = nullptr;
+    std::size_t index = 0;
+    bool in = true;
+    bool busy = false;
+    libusb_transfer* transfer = nullptr;
+  };
+
+  std::string submit(std::deque<Slot>& list, std::size_t index, std::uint8_t endpoint,
+                     std::uint8_t* data, std::size_t length, unsigned timeout_ms) {
+    while (list.size() <= index) {
+      Slot slot;
+      slot.io = this;
+      slot.index = list.size();
+      slot.in = &list == &in_;
+      slot.transfer = libusb_alloc_transfer(0);
+      if (!slot.transfer) return "out of memory for a transfer";
+      list.push_back(slot);
     }
-    throw DeviceError(message);
+    // A deque keeps earlier slots in place as it grows: their user_data pointers stay valid.
+    Slot& slot = list[index];
+    libusb_fill_interrupt_transfer(slot.transfer, handle_, endpoint, data, static_cast<int>(length),
+                                   &LibusbIo::completed, &slot, timeout_ms);
+    const int rc = libusb_submit_transfer(slot.transfer);
+    if (rc != 0) return libusb_error_name(rc);
+    slot.busy = true;
+    return {};
   }
 
+  static void LIBUSB_CALL completed(libusb_transfer* transfer) {
+    auto* slot = static_cast<Slot*>(transfer->user_data);
+    slot->busy = false;
+    UsbIoListener* listener = slot->io->listener_;
+    if (!listener) return;
+    const UsbTransferStatus status = status_of(transfer->status);
+    if (slot->in) {
+      listener->in_done(slot->index, status, static_cast<std::size_t>(transfer->actual_length));
+    } else {
+      listener->out_done(slot->index, status);
+    }
+  }
+
+  libusb_context* context_;
   libusb_device_handle* handle_;
   Endpoints endpoints_;
-  DeviceDescriptor descriptor_;
+  UsbIoListener* listener_ = nullptr;
+  std::deque<Slot> in_, out_;
 };
 
 }  // namespace
@@ -157,31 +237,44 @@ std::vector<DeviceDescriptor> UsbSource::enumerate() {
 }
 
 std::unique_ptr<Transport> UsbSource::open(const DeviceDescriptor& wanted) {
+  // A context per opened device: its transfers complete only on the thread that polls it.
+  libusb_context* context = nullptr;
+  int rc = libusb_init(&context);
+  if (rc != 0) throw DeviceError(describe(wanted) + ": libusb: " + libusb_error_name(rc));
   libusb_device** list = nullptr;
-  const ssize_t n = libusb_get_device_list(context_->ctx, &list);
-  if (n < 0) throw DeviceError(std::string("libusb: ") + libusb_error_name(static_cast<int>(n)));
-  std::unique_ptr<Transport> transport;
+  const ssize_t n = libusb_get_device_list(context, &list);
+  if (n < 0) {
+    libusb_exit(context);
+    throw DeviceError(describe(wanted) + ": libusb: " + libusb_error_name(static_cast<int>(n)));
+  }
+  libusb_device_handle* handle = nullptr;
+  Endpoints endpoints;
   std::string failure = "not found";
-  for (ssize_t i = 0; i < n && !transport; ++i) {
+  for (ssize_t i = 0; i < n; ++i) {
     libusb_device* device = list[i];
     if (usb_path(device) != wanted.path) continue;
-    const Endpoints endpoints = find_endpoints(device);
-    libusb_device_handle* handle = nullptr;
-    int rc = endpoints.interface < 0 ? LIBUSB_ERROR_NOT_FOUND : libusb_open(device, &handle);
+    endpoints = find_endpoints(device);
+    rc = endpoints.interface < 0 ? LIBUSB_ERROR_NOT_FOUND : libusb_open(device, &handle);
     if (rc == 0) {
       libusb_set_auto_detach_kernel_driver(handle, 1);
       rc = libusb_claim_interface(handle, endpoints.interface);
-      if (rc != 0) libusb_close(handle);
+      if (rc != 0) {
+        libusb_close(handle);
+        handle = nullptr;
+      }
     }
-    if (rc != 0) {
-      failure = libusb_error_name(rc);
-      break;
-    }
-    transport = std::make_unique<UsbTransport>(handle, endpoints, wanted);
+    if (rc != 0) failure = libusb_error_name(rc);
+    break;
   }
   libusb_free_device_list(list, 1);
-  if (!transport) throw DeviceError(describe(wanted) + ": cannot open: " + failure);
-  return transport;
+  if (!handle) {
+    libusb_exit(context);
+    throw DeviceError(describe(wanted) + ": cannot open: " + failure);
+  }
+  AsyncUsbOptions options;
+  options.in_packet_size = std::max<std::uint16_t>(endpoints.in_size, 1);
+  return std::make_unique<AsyncUsbTransport>(std::make_unique<LibusbIo>(context, handle, endpoints),
+                                             wanted, options);
 }
 
 std::vector<UsbId> usb_ids(const Registry& registry) {

@@ -4,6 +4,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "bisturi/devices/simulated.h"
+
 namespace bisturi::devices {
 
 namespace arm_protocol {
@@ -99,6 +101,18 @@ class VendorArm final : public HapticDevice {
       caps_.end_effectors = 1;
       caps_.buttons = std::min<std::size_t>(p[6], 16);
       caps_.force_channels.push_back(ForceChannel{"end_effector", 3, max_force_N, max_rate, false});
+      // Bytes 7-20: stiffness and workspace; zeros from firmware that does not state them.
+      caps_.spec.max_stiffness_N_per_m = le16u(p, 7);
+      const double lo[3] = {le16(p, 9) * 1e-3, le16(p, 11) * 1e-3, le16(p, 13) * 1e-3};
+      const double hi[3] = {le16(p, 15) * 1e-3, le16(p, 17) * 1e-3, le16(p, 19) * 1e-3};
+      for (std::size_t i = 0; i < 3; ++i) {
+        if (lo[i] > hi[i]) {
+          throw ProtocolError(device, 9 + 2 * i,
+                              "info packet with a workspace minimum above its maximum");
+        }
+      }
+      caps_.spec.workspace_min_m = {lo[0], lo[1], lo[2]};
+      caps_.spec.workspace_max_m = {hi[0], hi[1], hi[2]};
       have_info_ = true;
       return;
     }
@@ -169,6 +183,13 @@ DriverInfo vendor_arm_driver_info() {
   info.create = [](std::unique_ptr<Transport> transport, Clock& clock) -> std::unique_ptr<Device> {
     return open_vendor_arm(std::move(transport), clock);
   };
+  info.bus = TransportKind::Usb;
+  info.device_class = DeviceClass::HapticArm;
+  info.make_twin = [](const DeviceScript& script, const std::string& serial,
+                      double haptic_hz) -> std::unique_ptr<SimulatedDevice> {
+    return std::make_unique<SimulatedArm>(script, serial.empty() ? "ARM-0001" : serial, haptic_hz);
+  };
+  info.layout.channels = {ChannelRole{ChannelUse::Vector, 0}};  // the end effector's force
   return info;
 }
 

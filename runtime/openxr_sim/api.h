@@ -38,7 +38,23 @@
   _(ReleaseSwapchainImage) \
   _(WaitFrame) \
   _(BeginFrame) \
-  _(EndFrame)
+  _(EndFrame) \
+  _(LocateViews) \
+  _(LocateSpace) \
+  _(StringToPath) \
+  _(PathToString) \
+  _(CreateActionSet) \
+  _(DestroyActionSet) \
+  _(CreateAction) \
+  _(DestroyAction) \
+  _(SuggestInteractionProfileBindings) \
+  _(AttachSessionActionSets) \
+  _(CreateActionSpace) \
+  _(SyncActions) \
+  _(GetActionStateFloat) \
+  _(GetActionStatePose) \
+  _(ApplyHapticFeedback) \
+  _(StopHapticFeedback)
 
 // XR_KHR_vulkan_enable2, the one extension offered.
 #define BISTURI_XRSIM_VULKAN(_) \
@@ -47,33 +63,22 @@
   _(GetVulkanGraphicsDevice2KHR) \
   _(CreateVulkanDeviceKHR)
 
+// XR_KHR_convert_timespec_time (XrTime is CLOCK_MONOTONIC nanoseconds here).
+#define BISTURI_XRSIM_TIMESPEC(_) \
+  _(ConvertTimespecTimeToTimeKHR) \
+  _(ConvertTimeToTimespecTimeKHR)
+
 // Core functions not implemented: the loader fills its dispatch table with every core function,
 // so these answer XR_ERROR_FUNCTION_UNSUPPORTED when called instead of being null.
 #define BISTURI_XRSIM_UNSUPPORTED(_) \
-  _(ApplyHapticFeedback) \
-  _(AttachSessionActionSets) \
-  _(CreateAction) \
-  _(CreateActionSet) \
-  _(CreateActionSpace) \
-  _(DestroyAction) \
-  _(DestroyActionSet) \
   _(EnumerateApiLayerProperties) \
   _(EnumerateBoundSourcesForAction) \
   _(GetActionStateBoolean) \
-  _(GetActionStateFloat) \
-  _(GetActionStatePose) \
   _(GetActionStateVector2f) \
   _(GetCurrentInteractionProfile) \
   _(GetInputSourceLocalizedName) \
   _(GetReferenceSpaceBoundsRect) \
-  _(GetViewConfigurationProperties) \
-  _(LocateSpace) \
-  _(LocateViews) \
-  _(PathToString) \
-  _(StopHapticFeedback) \
-  _(StringToPath) \
-  _(SuggestInteractionProfileBindings) \
-  _(SyncActions)
+  _(GetViewConfigurationProperties)
 // clang-format on
 
 namespace bisturi::xrsim {
@@ -81,6 +86,7 @@ namespace bisturi::xrsim {
 #define BISTURI_XRSIM_DECLARE(name) extern std::remove_pointer_t<PFN_xr##name> name;
 BISTURI_XRSIM_CORE(BISTURI_XRSIM_DECLARE)
 BISTURI_XRSIM_VULKAN(BISTURI_XRSIM_DECLARE)
+BISTURI_XRSIM_TIMESPEC(BISTURI_XRSIM_DECLARE)
 #undef BISTURI_XRSIM_DECLARE
 
 }  // namespace bisturi::xrsim

@@ -57,24 +57,31 @@ struct Unsupported<XrResult(XRAPI_PTR*)(A...)> {
   static XrResult XRAPI_CALL call(A...) { return XR_ERROR_FUNCTION_UNSUPPORTED; }
 };
 
+/// The extension an entry point belongs to: it is found only once the instance enabled it.
+enum class Needs : std::uint8_t { Core, Vulkan2, Timespec };
+
 struct Entry {
   std::string_view name;
   PFN_xrVoidFunction function;
-  bool vulkan2;  ///< only once XR_KHR_vulkan_enable2 is enabled on the instance
+  Needs needs;
 };
 
 #define BISTURI_XRSIM_ENTRY(name) \
-  Entry{"xr" #name, reinterpret_cast<PFN_xrVoidFunction>(&name), false},
+  Entry{"xr" #name, reinterpret_cast<PFN_xrVoidFunction>(&name), Needs::Core},
 #define BISTURI_XRSIM_ENTRY_VK(name) \
-  Entry{"xr" #name, reinterpret_cast<PFN_xrVoidFunction>(&name), true},
-#define BISTURI_XRSIM_ENTRY_UNSUPPORTED(name) \
-  Entry{"xr" #name, reinterpret_cast<PFN_xrVoidFunction>(&Unsupported<PFN_xr##name>::call), false},
+  Entry{"xr" #name, reinterpret_cast<PFN_xrVoidFunction>(&name), Needs::Vulkan2},
+#define BISTURI_XRSIM_ENTRY_TS(name) \
+  Entry{"xr" #name, reinterpret_cast<PFN_xrVoidFunction>(&name), Needs::Timespec},
+#define BISTURI_XRSIM_ENTRY_UNSUPPORTED(name)                                               \
+  Entry{"xr" #name, reinterpret_cast<PFN_xrVoidFunction>(&Unsupported<PFN_xr##name>::call), \
+        Needs::Core},
 
-const Entry kEntries[] = {Entry{"xrGetInstanceProcAddr",
-                                reinterpret_cast<PFN_xrVoidFunction>(&GetInstanceProcAddr), false},
-                          BISTURI_XRSIM_CORE(BISTURI_XRSIM_ENTRY)
-                              BISTURI_XRSIM_VULKAN(BISTURI_XRSIM_ENTRY_VK)
-                                  BISTURI_XRSIM_UNSUPPORTED(BISTURI_XRSIM_ENTRY_UNSUPPORTED)};
+const Entry kEntries[] = {
+    Entry{"xrGetInstanceProcAddr", reinterpret_cast<PFN_xrVoidFunction>(&GetInstanceProcAddr),
+          Needs::Core},
+    BISTURI_XRSIM_CORE(BISTURI_XRSIM_ENTRY) BISTURI_XRSIM_VULKAN(BISTURI_XRSIM_ENTRY_VK)
+        BISTURI_XRSIM_TIMESPEC(BISTURI_XRSIM_ENTRY_TS)
+            BISTURI_XRSIM_UNSUPPORTED(BISTURI_XRSIM_ENTRY_UNSUPPORTED)};
 
 std::mutex registry_mutex;
 std::unordered_set<const void*>& registry() {
@@ -98,9 +105,10 @@ void untrack(const void* object) {
 }
 
 std::int64_t now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
+  // XrTime here is CLOCK_MONOTONIC (what XR_KHR_convert_timespec_time converts from).
+  timespec t{};
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return static_cast<std::int64_t>(t.tv_sec) * 1'000'000'000 + t.tv_nsec;
 }
 
 const char* state_name(XrSessionState state) {
@@ -151,7 +159,10 @@ XrResult XRAPI_CALL bisturi::xrsim::GetInstanceProcAddr(XrInstance instance, con
   if (instance != XR_NULL_HANDLE && owner == nullptr) return XR_ERROR_HANDLE_INVALID;
   for (const Entry& e : kEntries) {
     if (e.name == wanted) {
-      if (e.vulkan2 && (owner == nullptr || !owner->vulkan2)) return XR_ERROR_FUNCTION_UNSUPPORTED;
+      const bool enabled = e.needs == Needs::Core ||
+                           (owner != nullptr &&
+                            (e.needs == Needs::Vulkan2 ? owner->vulkan2 : owner->convert_timespec));
+      if (!enabled) return XR_ERROR_FUNCTION_UNSUPPORTED;
       *function = e.function;
       return XR_SUCCESS;
     }

@@ -4,7 +4,9 @@
 #include <array>
 #include <chrono>
 #include <cinttypes>
+#include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <thread>
 
 #include "api.h"
@@ -82,6 +84,27 @@ std::string view_json(int eye, const XrCompositionLayerProjectionView& v, const 
   return out + "}";
 }
 
+bool finite(float v) {
+  return std::isfinite(v);
+}
+
+/// A pose a compositor can use: finite, with a unit quaternion.
+bool valid_pose(const XrPosef& p) {
+  const XrQuaternionf& q = p.orientation;
+  const float norm = q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w;
+  return finite(p.position.x) && finite(p.position.y) && finite(p.position.z) && finite(norm) &&
+         std::abs(norm - 1.0f) < 1e-3f;
+}
+
+/// A field of view a compositor can project: finite, left of right, below up, under 90 degrees.
+bool valid_fov(const XrFovf& f) {
+  const float limit = 1.5707f;
+  return finite(f.angleLeft) && finite(f.angleRight) && finite(f.angleUp) && finite(f.angleDown) &&
+         f.angleLeft < f.angleRight && f.angleDown < f.angleUp && std::abs(f.angleLeft) < limit &&
+         std::abs(f.angleRight) < limit && std::abs(f.angleUp) < limit &&
+         std::abs(f.angleDown) < limit;
+}
+
 /// Checks one projection layer; XR_SUCCESS when the compositor could show it.
 XrResult check_layer(const Session& s, const XrCompositionLayerProjection& layer) {
   const Space* space = object<Space>(layer.space);
@@ -90,6 +113,8 @@ XrResult check_layer(const Session& s, const XrCompositionLayerProjection& layer
   for (std::uint32_t i = 0; i < 2; ++i) {
     const XrCompositionLayerProjectionView& v = layer.views[i];
     if (v.type != XR_TYPE_COMPOSITION_LAYER_PROJECTION_VIEW) return XR_ERROR_VALIDATION_FAILURE;
+    if (!valid_pose(v.pose)) return XR_ERROR_POSE_INVALID;
+    if (!valid_fov(v.fov)) return XR_ERROR_VALIDATION_FAILURE;
     const Swapchain* chain = object<Swapchain>(v.subImage.swapchain);
     if (chain == nullptr || chain->session != &s) return XR_ERROR_HANDLE_INVALID;
     if (chain->released < 0) return XR_ERROR_LAYER_INVALID;  // nothing released yet
@@ -99,7 +124,7 @@ XrResult check_layer(const Session& s, const XrCompositionLayerProjection& layer
         static_cast<std::uint32_t>(r.offset.y + r.extent.height) > chain->height) {
       return XR_ERROR_SWAPCHAIN_RECT_INVALID;
     }
-    if (v.subImage.imageArrayIndex != 0) return XR_ERROR_VALIDATION_FAILURE;
+    if (v.subImage.imageArrayIndex >= chain->array_size) return XR_ERROR_VALIDATION_FAILURE;
   }
   return XR_SUCCESS;
 }
@@ -109,20 +134,20 @@ XrResult check_layer(const Session& s, const XrCompositionLayerProjection& layer
 XrResult WaitFrame(XrSession handle_, const XrFrameWaitInfo* /*info*/, XrFrameState* state) {
   Session* s = object<Session>(handle_);
   if (s == nullptr) return XR_ERROR_HANDLE_INVALID;
+  if (instance_lost(s->instance)) return XR_ERROR_INSTANCE_LOST;
+  if (s->loss_pending) return XR_ERROR_SESSION_LOST;
   if (state == nullptr || state->type != XR_TYPE_FRAME_STATE) return XR_ERROR_VALIDATION_FAILURE;
   if (!s->running) return XR_ERROR_SESSION_NOT_RUNNING;
-  // Pacing: at most one frame per display period; a late application skips the missed slots.
+  // Pacing: at most one frame per display period. A late application gets the next display
+  // time still ahead (the refreshes it missed are gone), as a compositor predicts.
   std::int64_t now = now_ns();
   if (s->next_display_ns == 0) s->next_display_ns = now + s->period_ns;
-  const std::int64_t slot_start = s->next_display_ns - s->period_ns;
-  if (slot_start > now) {
-    std::this_thread::sleep_for(std::chrono::nanoseconds(slot_start - now));
-    now = now_ns();
-  }
-  s->predicted_display_ns = s->next_display_ns;
-  s->next_display_ns += s->period_ns;
   while (s->next_display_ns <= now)
     s->next_display_ns += s->period_ns;
+  const std::int64_t slot_start = s->next_display_ns - s->period_ns;
+  if (slot_start > now) std::this_thread::sleep_for(std::chrono::nanoseconds(slot_start - now));
+  s->predicted_display_ns = s->next_display_ns;
+  s->next_display_ns += s->period_ns;
   // The frame loop is synchronized once the application waits its first frame.
   if (s->state == XR_SESSION_STATE_READY) set_state(*s, XR_SESSION_STATE_SYNCHRONIZED);
   s->should_render = s->state == XR_SESSION_STATE_VISIBLE || s->state == XR_SESSION_STATE_FOCUSED;
@@ -130,12 +155,15 @@ XrResult WaitFrame(XrSession handle_, const XrFrameWaitInfo* /*info*/, XrFrameSt
   state->predictedDisplayPeriod = s->period_ns;
   state->shouldRender = s->should_render ? XR_TRUE : XR_FALSE;
   s->frame_waited = true;
+  ++s->frames_waited;
   return XR_SUCCESS;
 }
 
 XrResult BeginFrame(XrSession handle_, const XrFrameBeginInfo* /*info*/) {
   Session* s = object<Session>(handle_);
   if (s == nullptr) return XR_ERROR_HANDLE_INVALID;
+  if (instance_lost(s->instance)) return XR_ERROR_INSTANCE_LOST;
+  if (s->loss_pending) return XR_ERROR_SESSION_LOST;
   if (!s->running) return XR_ERROR_SESSION_NOT_RUNNING;
   if (!s->frame_waited) return XR_ERROR_CALL_ORDER_INVALID;
   s->frame_waited = false;
@@ -147,10 +175,15 @@ XrResult BeginFrame(XrSession handle_, const XrFrameBeginInfo* /*info*/) {
 XrResult EndFrame(XrSession handle_, const XrFrameEndInfo* info) {
   Session* s = object<Session>(handle_);
   if (s == nullptr) return XR_ERROR_HANDLE_INVALID;
+  if (instance_lost(s->instance)) return XR_ERROR_INSTANCE_LOST;
+  if (s->loss_pending) return XR_ERROR_SESSION_LOST;
   if (info == nullptr || info->type != XR_TYPE_FRAME_END_INFO) return XR_ERROR_VALIDATION_FAILURE;
   if (!s->running) return XR_ERROR_SESSION_NOT_RUNNING;
   if (!s->frame_begun) return XR_ERROR_CALL_ORDER_INVALID;
-  if (info->displayTime <= 0) return XR_ERROR_TIME_INVALID;
+  // Strict: the frame is shown at the time xrWaitFrame predicted for it, nothing else.
+  if (info->displayTime <= 0 || info->displayTime != s->predicted_display_ns) {
+    return XR_ERROR_TIME_INVALID;
+  }
   if (info->environmentBlendMode != XR_ENVIRONMENT_BLEND_MODE_OPAQUE) {
     return XR_ERROR_ENVIRONMENT_BLEND_MODE_UNSUPPORTED;
   }
@@ -171,7 +204,8 @@ XrResult EndFrame(XrSession handle_, const XrFrameEndInfo* info) {
     for (int eye = 0; eye < 2; ++eye) {
       const XrCompositionLayerProjectionView& v = layer->views[eye];
       auto* chain = object<Swapchain>(v.subImage.swapchain);
-      if (!read_back(*chain, static_cast<std::uint32_t>(chain->released))) {
+      if (!read_back(*chain, static_cast<std::uint32_t>(chain->released),
+                     v.subImage.imageArrayIndex)) {
         return XR_ERROR_RUNTIME_FAILURE;
       }
       const bool bytes = chain->format != VK_FORMAT_R16G16B16A16_SFLOAT;
@@ -194,12 +228,36 @@ XrResult EndFrame(XrSession handle_, const XrFrameEndInfo* info) {
                    ",\"display_time_ns\":" + std::to_string(info->displayTime) +
                    ",\"predicted_display_time_ns\":" + std::to_string(s->predicted_display_ns) +
                    ",\"should_render\":" + (s->should_render ? "true" : "false") +
-                   ",\"layers\":" + std::to_string(info->layerCount) + ",\"views\":" + views + "]");
+                   ",\"layers\":" + std::to_string(info->layerCount) + ",\"space\":" +
+                   std::to_string(layer != nullptr ? object<Space>(layer->space)->type : 0) +
+                   ",\"views\":" + views + "]");
   s->frame_begun = false;
   ++s->frames_ended;
   if (s->state == XR_SESSION_STATE_SYNCHRONIZED && !s->exit_requested) {
     set_state(*s, XR_SESSION_STATE_VISIBLE);
     set_state(*s, XR_SESSION_STATE_FOCUSED);
+  }
+  if (config.lose_after_frames >= 0 && s->instance->sessions_created == 1 &&
+      s->frames_ended == static_cast<std::uint64_t>(config.lose_after_frames)) {
+    // The headset is unplugged: the session is lost; it is back config.lost_ms later.
+    s->loss_pending = true;
+    s->instance->headset_back_ns = now_ns() + static_cast<std::int64_t>(config.lost_ms * 1e6);
+    s->instance->log.write("session_lost");
+    set_state(*s, XR_SESSION_STATE_LOSS_PENDING);
+    return XR_SUCCESS;
+  }
+  if (config.lose_instance_after_frames >= 0 &&
+      s->frames_ended == static_cast<std::uint64_t>(config.lose_instance_after_frames)) {
+    // The runtime goes away for good.
+    XrEventDataBuffer buffer{};
+    XrEventDataInstanceLossPending event{};
+    event.type = XR_TYPE_EVENT_DATA_INSTANCE_LOSS_PENDING;
+    event.lossTime = now_ns();
+    std::memcpy(&buffer, &event, sizeof event);
+    s->instance->events.push_back(buffer);
+    s->instance->lost = true;
+    s->instance->log.write("instance_lost");
+    return XR_SUCCESS;
   }
   if (config.exit_after_frames >= 0 && !s->exit_requested &&
       s->frames_ended >= static_cast<std::uint64_t>(config.exit_after_frames)) {

@@ -60,6 +60,29 @@ Config Config::from_environment() {
       c.eye_height = h;
     }
   }
+  c.still_head = env("BISTURI_XR_SIM_STILL") == "1";
+  {
+    std::stringstream list(env("BISTURI_XR_SIM_INVALID_VIEWS"));
+    for (std::string item; std::getline(list, item, ',');) {
+      if (!item.empty()) c.invalid_view_frames.push_back(std::strtoull(item.c_str(), nullptr, 10));
+    }
+  }
+  if (const std::string n = env("BISTURI_XR_SIM_LOSE_AFTER"); !n.empty()) {
+    c.lose_after_frames = std::atoll(n.c_str());
+  }
+  if (const std::string ms = env("BISTURI_XR_SIM_LOST_MS"); !ms.empty()) {
+    c.lost_ms = std::atof(ms.c_str());
+  }
+  if (const std::string n = env("BISTURI_XR_SIM_LOSE_INSTANCE_AFTER"); !n.empty()) {
+    c.lose_instance_after_frames = std::atoll(n.c_str());
+  }
+  if (const std::string range = env("BISTURI_XR_SIM_TRIGGER_FRAMES"); !range.empty()) {
+    long long a = -1, b = -1;
+    if (std::sscanf(range.c_str(), "%lld-%lld", &a, &b) == 2 && a >= 0 && b >= a) {
+      c.trigger_from = a;
+      c.trigger_to = b;
+    }
+  }
   c.log_path = env("BISTURI_XR_SIM_LOG");
   c.png_dir = env("BISTURI_XR_SIM_PNG_DIR");
   if (const std::string n = env("BISTURI_XR_SIM_EXIT_AFTER"); !n.empty()) {
@@ -98,8 +121,16 @@ XrResult EnumerateInstanceExtensionProperties(const char* layer, std::uint32_t c
   std::strncpy(vulkan.extensionName, XR_KHR_VULKAN_ENABLE2_EXTENSION_NAME,
                XR_MAX_EXTENSION_NAME_SIZE - 1);
   vulkan.extensionVersion = XR_KHR_vulkan_enable2_SPEC_VERSION;
-  if (capacity > 0 && out != nullptr) vulkan.next = out[0].next;
-  return two_call<XrExtensionProperties>(capacity, count, out, {vulkan});
+  XrExtensionProperties timespec{};
+  timespec.type = XR_TYPE_EXTENSION_PROPERTIES;
+  std::strncpy(timespec.extensionName, XR_KHR_CONVERT_TIMESPEC_TIME_EXTENSION_NAME,
+               XR_MAX_EXTENSION_NAME_SIZE - 1);
+  timespec.extensionVersion = XR_KHR_convert_timespec_time_SPEC_VERSION;
+  if (capacity >= 2 && out != nullptr) {
+    vulkan.next = out[0].next;
+    timespec.next = out[1].next;
+  }
+  return two_call<XrExtensionProperties>(capacity, count, out, {vulkan, timespec});
 }
 
 XrResult CreateInstance(const XrInstanceCreateInfo* info, XrInstance* instance) {
@@ -110,26 +141,33 @@ XrResult CreateInstance(const XrInstanceCreateInfo* info, XrInstance* instance) 
     return XR_ERROR_API_VERSION_UNSUPPORTED;
   }
   if (info->enabledApiLayerCount > 0) return XR_ERROR_API_LAYER_NOT_PRESENT;
-  bool vulkan2 = false;
+  bool vulkan2 = false, timespec = false;
   for (std::uint32_t i = 0; i < info->enabledExtensionCount; ++i) {
-    if (std::strcmp(info->enabledExtensionNames[i], XR_KHR_VULKAN_ENABLE2_EXTENSION_NAME) != 0) {
+    const char* name = info->enabledExtensionNames[i];
+    if (std::strcmp(name, XR_KHR_VULKAN_ENABLE2_EXTENSION_NAME) == 0) {
+      vulkan2 = true;
+    } else if (std::strcmp(name, XR_KHR_CONVERT_TIMESPEC_TIME_EXTENSION_NAME) == 0) {
+      timespec = true;
+    } else {
       return XR_ERROR_EXTENSION_NOT_PRESENT;
     }
-    vulkan2 = true;
   }
   auto* created = new Instance();
   created->config = Config::from_environment();
   created->application = info->applicationInfo.applicationName;
   created->vulkan2 = vulkan2;
+  created->convert_timespec = timespec;
+  created->start_ns = now_ns();
   created->log.open(created->config.log_path);
   std::string formats = "[";
   for (const VkFormat f : created->config.formats) {
     if (formats.size() > 1) formats += ",";
     formats += json_string(format_name(f));
   }
-  created->log.write(
-      "instance", "\"application\":" + json_string(created->application) + ",\"display_hz\":" +
-                      std::to_string(created->config.display_hz) + ",\"formats\":" + formats + "]");
+  created->log.write("instance",
+                     "\"application\":" + json_string(created->application) + ",\"display_hz\":" +
+                         std::to_string(created->config.display_hz) + ",\"formats\":" + formats +
+                         "],\"convert_timespec\":" + (timespec ? "true" : "false"));
   track(created);
   *instance = handle<XrInstance>(created);
   return XR_SUCCESS;
@@ -139,6 +177,7 @@ XrResult DestroyInstance(XrInstance handle_) {
   Instance* instance = checked(handle_);
   if (instance == nullptr) return XR_ERROR_HANDLE_INVALID;
   if (instance->session != nullptr) DestroySession(handle<XrSession>(instance->session));
+  destroy_action_sets(*instance);
   instance->log.write("instance_destroyed");
   untrack(instance);
   delete instance;
@@ -196,13 +235,17 @@ XrResult StructureTypeToString(XrInstance handle_, XrStructureType value,
 }
 
 XrResult GetSystem(XrInstance handle_, const XrSystemGetInfo* info, XrSystemId* system) {
-  if (checked(handle_) == nullptr) return XR_ERROR_HANDLE_INVALID;
+  Instance* instance = checked(handle_);
+  if (instance == nullptr) return XR_ERROR_HANDLE_INVALID;
+  if (instance_lost(instance)) return XR_ERROR_INSTANCE_LOST;
   if (info == nullptr || system == nullptr || info->type != XR_TYPE_SYSTEM_GET_INFO) {
     return XR_ERROR_VALIDATION_FAILURE;
   }
   if (info->formFactor != XR_FORM_FACTOR_HEAD_MOUNTED_DISPLAY) {
     return XR_ERROR_FORM_FACTOR_UNSUPPORTED;
   }
+  // After a session loss the headset is away (unplugged) for a while.
+  if (now_ns() < instance->headset_back_ns) return XR_ERROR_FORM_FACTOR_UNAVAILABLE;
   *system = kSystem;
   return XR_SUCCESS;
 }
@@ -350,7 +393,33 @@ XrResult CreateVulkanDeviceKHR(XrInstance handle_, const XrVulkanDeviceCreateInf
   if (create == nullptr) return XR_ERROR_RUNTIME_FAILURE;
   *vk_result =
       create(info->vulkanPhysicalDevice, info->vulkanCreateInfo, info->vulkanAllocator, vk_device);
-  return *vk_result == VK_SUCCESS ? XR_SUCCESS : XR_ERROR_RUNTIME_FAILURE;
+  if (*vk_result != VK_SUCCESS) return XR_ERROR_RUNTIME_FAILURE;
+  instance->devices.push_back(*vk_device);
+  return XR_SUCCESS;
+}
+
+// --- XR_KHR_convert_timespec_time: XrTime is CLOCK_MONOTONIC in nanoseconds ---
+
+XrResult ConvertTimespecTimeToTimeKHR(XrInstance handle_, const struct timespec* timespec_time,
+                                      XrTime* time) {
+  Instance* instance = checked(handle_);
+  if (instance == nullptr) return XR_ERROR_HANDLE_INVALID;
+  if (instance_lost(instance)) return XR_ERROR_INSTANCE_LOST;
+  if (timespec_time == nullptr || time == nullptr) return XR_ERROR_VALIDATION_FAILURE;
+  *time = static_cast<XrTime>(timespec_time->tv_sec) * 1'000'000'000 + timespec_time->tv_nsec;
+  return XR_SUCCESS;
+}
+
+XrResult ConvertTimeToTimespecTimeKHR(XrInstance handle_, XrTime time,
+                                      struct timespec* timespec_time) {
+  Instance* instance = checked(handle_);
+  if (instance == nullptr) return XR_ERROR_HANDLE_INVALID;
+  if (instance_lost(instance)) return XR_ERROR_INSTANCE_LOST;
+  if (timespec_time == nullptr) return XR_ERROR_VALIDATION_FAILURE;
+  if (time <= 0) return XR_ERROR_TIME_INVALID;
+  timespec_time->tv_sec = static_cast<time_t>(time / 1'000'000'000);
+  timespec_time->tv_nsec = static_cast<long>(time % 1'000'000'000);
+  return XR_SUCCESS;
 }
 
 }  // namespace bisturi::xrsim

@@ -48,7 +48,8 @@ void set_state(Session& session, XrSessionState state) {
   std::memcpy(&buffer, &event, sizeof event);
   session.instance->events.push_back(buffer);
   session.instance->log.write("state", "\"state\":" + json_string(state_name(state)) +
-                                           ",\"frame\":" + std::to_string(session.frames_ended));
+                                           ",\"frame\":" + std::to_string(session.frames_ended) +
+                                           ",\"time_ns\":" + std::to_string(event.time));
 }
 
 /// From wherever the session is (running), down to STOPPING, one state at a time as the
@@ -97,11 +98,16 @@ XrResult CreateSession(XrInstance instance_handle, const XrSessionCreateInfo* in
   if (info == nullptr || session_out == nullptr || info->type != XR_TYPE_SESSION_CREATE_INFO) {
     return XR_ERROR_VALIDATION_FAILURE;
   }
+  if (instance_lost(instance)) return XR_ERROR_INSTANCE_LOST;
   if (info->systemId != 1) return XR_ERROR_SYSTEM_INVALID;
+  if (now_ns() < instance->headset_back_ns) return XR_ERROR_FORM_FACTOR_UNAVAILABLE;
   if (!instance->requirements_queried) return XR_ERROR_GRAPHICS_REQUIREMENTS_CALL_MISSING;
   const XrGraphicsBindingVulkan2KHR* binding = vulkan_binding(info->next);
+  // XR_KHR_vulkan_enable2: the device must be one made through xrCreateVulkanDeviceKHR.
   if (binding == nullptr || binding->device == VK_NULL_HANDLE ||
-      binding->physicalDevice != instance->physical) {
+      binding->physicalDevice != instance->physical ||
+      std::find(instance->devices.begin(), instance->devices.end(), binding->device) ==
+          instance->devices.end()) {
     return XR_ERROR_GRAPHICS_DEVICE_INVALID;
   }
   if (instance->session != nullptr) return XR_ERROR_LIMIT_REACHED;
@@ -131,8 +137,10 @@ XrResult CreateSession(XrInstance instance_handle, const XrSessionCreateInfo* in
   }
   s->period_ns = static_cast<std::int64_t>(std::llround(1e9 / instance->config.display_hz));
   instance->session = s;
+  ++instance->sessions_created;
   track(s);
-  instance->log.write("session_created");
+  instance->log.write("session_created",
+                      "\"number\":" + std::to_string(instance->sessions_created));
   set_state(*s, XR_SESSION_STATE_IDLE);
   set_state(*s, XR_SESSION_STATE_READY);  // the headset is worn and ready at once
   *session_out = handle<XrSession>(s);
@@ -162,6 +170,9 @@ XrResult DestroySession(XrSession handle_) {
                                        c.session == handle_;
                               }),
                events.end());
+  for (ActionSet* set : s->instance->action_sets) {
+    if (set->attached_to == s) set->attached_to = nullptr;  // free to attach to a new session
+  }
   s->instance->session = nullptr;
   untrack(s);
   delete s;
@@ -174,6 +185,8 @@ XrResult BeginSession(XrSession handle_, const XrSessionBeginInfo* info) {
   if (info == nullptr || info->type != XR_TYPE_SESSION_BEGIN_INFO) {
     return XR_ERROR_VALIDATION_FAILURE;
   }
+  if (instance_lost(s->instance)) return XR_ERROR_INSTANCE_LOST;
+  if (s->loss_pending) return XR_ERROR_SESSION_LOST;
   if (info->primaryViewConfigurationType != XR_VIEW_CONFIGURATION_TYPE_PRIMARY_STEREO) {
     return XR_ERROR_VIEW_CONFIGURATION_TYPE_UNSUPPORTED;
   }
@@ -189,6 +202,8 @@ XrResult BeginSession(XrSession handle_, const XrSessionBeginInfo* info) {
 XrResult EndSession(XrSession handle_) {
   Session* s = checked(handle_);
   if (s == nullptr) return XR_ERROR_HANDLE_INVALID;
+  if (instance_lost(s->instance)) return XR_ERROR_INSTANCE_LOST;
+  if (s->loss_pending) return XR_ERROR_SESSION_LOST;
   if (!s->running) return XR_ERROR_SESSION_NOT_RUNNING;
   if (s->state != XR_SESSION_STATE_STOPPING) return XR_ERROR_SESSION_NOT_STOPPING;
   s->running = false;
@@ -201,6 +216,8 @@ XrResult EndSession(XrSession handle_) {
 XrResult RequestExitSession(XrSession handle_) {
   Session* s = checked(handle_);
   if (s == nullptr) return XR_ERROR_HANDLE_INVALID;
+  if (instance_lost(s->instance)) return XR_ERROR_INSTANCE_LOST;
+  if (s->loss_pending) return XR_ERROR_SESSION_LOST;
   if (!s->running) return XR_ERROR_SESSION_NOT_RUNNING;
   s->instance->log.write("request_exit", "\"by\":\"application\"");
   if (!s->exit_requested) {
@@ -216,7 +233,8 @@ XrResult PollEvent(XrInstance instance_handle, XrEventDataBuffer* event) {
   if (event == nullptr || event->type != XR_TYPE_EVENT_DATA_BUFFER) {
     return XR_ERROR_VALIDATION_FAILURE;
   }
-  if (instance->events.empty()) return XR_EVENT_UNAVAILABLE;
+  if (instance->events.empty())
+    return instance->lost ? XR_ERROR_INSTANCE_LOST : XR_EVENT_UNAVAILABLE;
   *event = instance->events.front();
   instance->events.pop_front();
   return XR_SUCCESS;

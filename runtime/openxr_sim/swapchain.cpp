@@ -36,33 +36,53 @@ VkImageUsageFlags vulkan_usage(XrSwapchainUsageFlags usage) {
 void record_initial_layouts(VkCommandBuffer commands, void* user) {
   const auto& chain = *static_cast<const Swapchain*>(user);
   for (const VkImage image : chain.images) {
-    colour_image_barrier(commands, image, VK_IMAGE_LAYOUT_UNDEFINED,
-                         VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, 0,
-                         VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
-                         VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT);
+    colour_image_barrier(
+        commands, image, VK_IMAGE_LAYOUT_UNDEFINED, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, 0,
+        VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
+        VK_PIPELINE_STAGE_TOP_OF_PIPE_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT, chain.array_size);
   }
 }
 
 struct ReadBack {
   Swapchain* chain;
   VkImage image;
+  std::uint32_t layer;
 };
+
+std::string usage_names(XrSwapchainUsageFlags usage) {
+  std::string out = "[";
+  const auto add = [&](XrSwapchainUsageFlags bit, const char* name) {
+    if ((usage & bit) == 0) return;
+    if (out.size() > 1) out += ",";
+    out += json_string(name);
+  };
+  add(XR_SWAPCHAIN_USAGE_COLOR_ATTACHMENT_BIT, "color_attachment");
+  add(XR_SWAPCHAIN_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT, "depth_stencil_attachment");
+  add(XR_SWAPCHAIN_USAGE_UNORDERED_ACCESS_BIT, "unordered_access");
+  add(XR_SWAPCHAIN_USAGE_TRANSFER_SRC_BIT, "transfer_src");
+  add(XR_SWAPCHAIN_USAGE_TRANSFER_DST_BIT, "transfer_dst");
+  add(XR_SWAPCHAIN_USAGE_SAMPLED_BIT, "sampled");
+  add(XR_SWAPCHAIN_USAGE_MUTABLE_FORMAT_BIT, "mutable_format");
+  return out + "]";
+}
 
 void record_read_back(VkCommandBuffer commands, void* user) {
   const auto& r = *static_cast<const ReadBack*>(user);
+  const std::uint32_t layers = r.chain->array_size;
   colour_image_barrier(commands, r.image, VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL,
                        VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                        VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT | VK_ACCESS_TRANSFER_WRITE_BIT,
                        VK_ACCESS_TRANSFER_READ_BIT, VK_PIPELINE_STAGE_ALL_COMMANDS_BIT,
-                       VK_PIPELINE_STAGE_TRANSFER_BIT);
+                       VK_PIPELINE_STAGE_TRANSFER_BIT, layers);
   VkBufferImageCopy region{};
-  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, 0, 1};
+  region.imageSubresource = {VK_IMAGE_ASPECT_COLOR_BIT, 0, r.layer, 1};
   region.imageExtent = {r.chain->width, r.chain->height, 1};
   vkCmdCopyImageToBuffer(commands, r.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL, r.chain->readback,
                          1, &region);
   colour_image_barrier(commands, r.image, VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL,
                        VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL, VK_ACCESS_TRANSFER_READ_BIT, 0,
-                       VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT);
+                       VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT,
+                       layers);
   VkBufferMemoryBarrier host{};
   host.sType = VK_STRUCTURE_TYPE_BUFFER_MEMORY_BARRIER;
   host.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
@@ -86,7 +106,7 @@ bool create_vulkan(Swapchain& chain, const XrSwapchainCreateInfo& info) {
     image.format = chain.format;
     image.extent = {chain.width, chain.height, 1};
     image.mipLevels = 1;
-    image.arrayLayers = 1;
+    image.arrayLayers = chain.array_size;
     image.samples = VK_SAMPLE_COUNT_1_BIT;
     image.tiling = VK_IMAGE_TILING_OPTIMAL;
     image.usage = vulkan_usage(info.usageFlags);
@@ -138,8 +158,8 @@ bool create_vulkan(Swapchain& chain, const XrSwapchainCreateInfo& info) {
 
 }  // namespace
 
-bool read_back(Swapchain& swapchain, std::uint32_t image) {
-  ReadBack r{&swapchain, swapchain.images[image]};
+bool read_back(Swapchain& swapchain, std::uint32_t image, std::uint32_t layer) {
+  ReadBack r{&swapchain, swapchain.images[image], layer};
   return run_commands(*swapchain.session, record_read_back, &r);
 }
 
@@ -184,6 +204,8 @@ XrResult CreateSwapchain(XrSession handle_, const XrSwapchainCreateInfo* info,
                          XrSwapchain* swapchain) {
   Session* s = object<Session>(handle_);
   if (s == nullptr) return XR_ERROR_HANDLE_INVALID;
+  if (instance_lost(s->instance)) return XR_ERROR_INSTANCE_LOST;
+  if (s->loss_pending) return XR_ERROR_SESSION_LOST;
   if (info == nullptr || swapchain == nullptr || info->type != XR_TYPE_SWAPCHAIN_CREATE_INFO) {
     return XR_ERROR_VALIDATION_FAILURE;
   }
@@ -191,9 +213,9 @@ XrResult CreateSwapchain(XrSession handle_, const XrSwapchainCreateInfo* info,
   for (const VkFormat f : s->instance->config.formats)
     offered = offered || f == info->format;
   if (!offered) return XR_ERROR_SWAPCHAIN_FORMAT_UNSUPPORTED;
-  // Only what the sink needs: one 2D image per eye.
-  if (info->sampleCount != 1 || info->faceCount != 1 || info->arraySize != 1 ||
-      info->mipCount != 1) {
+  // 2D images of one layer (one swapchain per eye) or two (one layer per eye).
+  if (info->sampleCount != 1 || info->faceCount != 1 || info->arraySize < 1 ||
+      info->arraySize > 2 || info->mipCount != 1) {
     return XR_ERROR_FEATURE_UNSUPPORTED;
   }
   const std::uint32_t max = s->instance->config.max_eye_size;
@@ -205,6 +227,8 @@ XrResult CreateSwapchain(XrSession handle_, const XrSwapchainCreateInfo* info,
   chain->format = static_cast<VkFormat>(info->format);
   chain->width = info->width;
   chain->height = info->height;
+  chain->array_size = info->arraySize;
+  chain->usage = info->usageFlags;
   s->swapchains.push_back(chain);
   track(chain);
   if (!create_vulkan(*chain, *info)) {
@@ -214,7 +238,9 @@ XrResult CreateSwapchain(XrSession handle_, const XrSwapchainCreateInfo* info,
   s->instance->log.write("swapchain", "\"width\":" + std::to_string(chain->width) +
                                           ",\"height\":" + std::to_string(chain->height) +
                                           ",\"format\":" + json_string(format_name(chain->format)) +
-                                          ",\"images\":" + std::to_string(kImages));
+                                          ",\"images\":" + std::to_string(kImages) +
+                                          ",\"array_size\":" + std::to_string(chain->array_size) +
+                                          ",\"usage\":" + usage_names(chain->usage));
   *swapchain = handle<XrSwapchain>(chain);
   return XR_SUCCESS;
 }

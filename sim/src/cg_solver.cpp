@@ -26,17 +26,21 @@ struct Lanes<double> {
 };
 typedef double D4 __attribute__((vector_size(32)));
 
-/// out = A in; returns in . out. A = S + L with S the diagonal part that is not a free
-/// neighbour's weight and L the weighted Laplacian over the free neighbours, applied as
-/// sum w (in_i - in_j): differences of neighbours instead of the diagonal minus a sum of
-/// neighbours, so that float keeps its precision where the two nearly cancel (smooth vectors).
+/// out = A in; returns in . out. A = S + sum over the springs between free rows of their
+/// blocks B = a I + s s^T (the clamped true spring Hessian and damping, spring_kernels.h),
+/// applied as sum B (in_i - in_j): differences of neighbours instead of the diagonal minus a
+/// sum of neighbours, so that float keeps its precision where the two nearly cancel (smooth
+/// vectors). S is the rows' mass part; the blocks of springs to held vertices and contacts are
+/// added after (product()).
 template <class T>
 BISTURI_INLINE void product_rows(const CgData<T>& d, const T* in, T* out, std::size_t first,
                                  std::size_t last, D4& acc_out) {
   using V = typename Lanes<T>::V;
+  typedef float F4 __attribute__((vector_size(16)));
   D4 acc = {0.0, 0.0, 0.0, 0.0};  // in a register: the members' outputs share a cache line
   const std::uint32_t* row = d.row;
   const std::uint32_t* col = d.col;
+  const float* blk = d.blk;
   for (std::size_t i = first; i < last; ++i) {
     V pi, s;
     std::memcpy(&pi, in + 4 * i, sizeof(V));
@@ -47,8 +51,23 @@ BISTURI_INLINE void product_rows(const CgData<T>& d, const T* in, T* out, std::s
       V n0, n1;
       std::memcpy(&n0, in + 4 * std::size_t(c0 & kIndexMask), sizeof(V));
       std::memcpy(&n1, in + 4 * std::size_t(c1 & kIndexMask), sizeof(V));
-      s += (pi - n0) * d.w[c0 >> 30] + (pi - n1) * d.w[c1 >> 30];
+      F4 f0, f1;
+      std::memcpy(&f0, blk + 4 * std::size_t(e), sizeof(F4));
+      std::memcpy(&f1, blk + 4 * std::size_t(e + 1), sizeof(F4));
+      V b0, b1;
+      if constexpr (sizeof(T) == sizeof(float)) {
+        b0 = f0;
+        b1 = f1;
+      } else {
+        b0 = __builtin_convertvector(f0, V);
+        b1 = __builtin_convertvector(f1, V);
+      }
+      const V d0 = pi - n0, d1 = pi - n1;
+      const T s0 = d0[0] * b0[0] + d0[1] * b0[1] + d0[2] * b0[2];
+      const T s1 = d1[0] * b1[0] + d1[1] * b1[1] + d1[2] * b1[2];
+      s += (d0 * b0[3] + b0 * s0) + (d1 * b1[3] + b1 * s1);
     }
+    s[3] = T(0);  // the blocks' a rode in lane 3
     std::memcpy(out + 4 * i, &s, sizeof(V));
     acc += __builtin_convertvector(pi * s, D4);
   }
@@ -77,6 +96,17 @@ BISTURI_INLINE double product(const CgData<T>& d, const T* in, T* out) {
     d.team->run([&job](unsigned t) { job(t); });
     for (unsigned t = 0; t < d.team->size(); ++t)
       in_out += (parts[t][0] + parts[t][1]) + (parts[t][2] + parts[t][3]);
+  }
+  for (std::size_t c = 0; c < d.held; ++c) {
+    const double* hb = d.held_blocks + 5 * c;
+    const std::size_t ci = static_cast<std::size_t>(hb[0]);
+    const T* pi = in + 4 * ci;
+    const double sp = hb[1] * double(pi[0]) + hb[2] * double(pi[1]) + hb[3] * double(pi[2]);
+    for (std::size_t l = 0; l < 3; ++l) {
+      const double add = hb[4] * double(pi[l]) + sp * hb[1 + l];
+      out[4 * ci + l] = static_cast<T>(double(out[4 * ci + l]) + add);
+      in_out += add * double(pi[l]);
+    }
   }
   for (std::size_t c = 0; c < d.contacts; ++c) {
     const double* ct = d.contact + 5 * c;
@@ -157,6 +187,15 @@ struct CgRows {
   const CgData<T>& d;
   bool two_level;
 
+  /// z = B r with B row i's symmetric 3 x 3 block-Jacobi inverse (three 4-lane rows, pads 0).
+  /// (Through a reference: a returned AVX vector changes the baseline clone's ABI.)
+  BISTURI_INLINE void precondition(std::size_t i, const V& ri, V& z) const {
+    V b0, b1, b2;
+    std::memcpy(&b0, d.inv + 12 * i, kV);
+    std::memcpy(&b1, d.inv + 12 * i + 4, kV);
+    std::memcpy(&b2, d.inv + 12 * i + 8, kV);
+    z = b0 * ri[0] + b1 * ri[1] + b2 * ri[2];
+  }
   BISTURI_INLINE void restrict_to(T* rc, std::size_t i, const V& ri) const {
     V c;
     std::memcpy(&c, rc + 4 * d.agg[i], kV);
@@ -168,11 +207,12 @@ struct CgRows {
                                      D4& r24_out) const {
     D4 rz4 = {}, r24 = {};  // in registers: the members' outputs share cache lines
     for (std::size_t i = first; i < last; ++i) {
-      V bi, api, invi;
+      V bi, api;
       std::memcpy(&bi, d.b + 4 * i, kV);
       std::memcpy(&api, d.ap + 4 * i, kV);
-      std::memcpy(&invi, d.inv + 4 * i, kV);
-      const V ri = bi - api, zi = ri * invi;
+      const V ri = bi - api;
+      V zi;
+      precondition(i, ri, zi);
       std::memcpy(d.r + 4 * i, &ri, kV);
       std::memcpy(d.p + 4 * i, &zi, kV);
       rz4 += __builtin_convertvector(ri * zi, D4);
@@ -197,17 +237,18 @@ struct CgRows {
                              D4& r24_out) const {
     D4 rz4 = {}, r24 = {};
     for (std::size_t i = first; i < last; ++i) {
-      V dvi, ri, pi, api, invi;
+      V dvi, ri, pi, api;
       std::memcpy(&dvi, d.dv + 4 * i, kV);
       std::memcpy(&ri, d.r + 4 * i, kV);
       std::memcpy(&pi, d.p + 4 * i, kV);
       std::memcpy(&api, d.ap + 4 * i, kV);
-      std::memcpy(&invi, d.inv + 4 * i, kV);
       dvi += pi * alpha;
       ri -= api * alpha;
       std::memcpy(d.dv + 4 * i, &dvi, kV);
       std::memcpy(d.r + 4 * i, &ri, kV);
-      rz4 += __builtin_convertvector(ri * ri * invi, D4);
+      V zi;
+      precondition(i, ri, zi);
+      rz4 += __builtin_convertvector(ri * zi, D4);
       r24 += __builtin_convertvector(ri * ri, D4);
       if (two_level) restrict_to(rc, i, ri);
     }
@@ -217,11 +258,12 @@ struct CgRows {
   /// p = inv r + P xc + beta p.
   BISTURI_INLINE void direction(std::size_t first, std::size_t last, T beta) const {
     for (std::size_t i = first; i < last; ++i) {
-      V ri, pi, invi;
+      V ri, pi;
       std::memcpy(&ri, d.r + 4 * i, kV);
       std::memcpy(&pi, d.p + 4 * i, kV);
-      std::memcpy(&invi, d.inv + 4 * i, kV);
-      pi = ri * invi + pi * beta;
+      V zi;
+      precondition(i, ri, zi);
+      pi = zi + pi * beta;
       if (two_level) {
         V xi;
         std::memcpy(&xi, d.xc + 4 * d.agg[i], kV);
@@ -258,7 +300,7 @@ BISTURI_INLINE void restricting_pass(const CgData<T>& d, bool two_level, const P
   r2 = (r24[0][0] + r24[0][1]) + (r24[0][2] + r24[0][3]);
 }
 
-/// Jacobi-preconditioned CG from the start value in d.dv; returns the iterations, r2 the last
+/// Block-Jacobi-preconditioned CG from the start value in d.dv; returns the iterations, r2 the last
 /// squared residual. Three passes per iteration: A p (with p . A p), the update of dv and r (with
 /// r . z and r . r), the new direction. z = inv r + P xc is never stored: r . z is r . inv r plus
 /// rc . xc, and the direction pass adds P xc itself.

@@ -1,8 +1,8 @@
 #pragma once
-// The conjugate gradient of the implicit step (integrator.cpp builds its data): a weighted
-// graph Laplacian plus a diagonal and contact blocks, four lanes (x, y, z, zero pad) per free
-// vertex, Jacobi plus an optional coarse level (aggregates, packed Cholesky factor), optionally
-// split over the step's thread team.
+// The conjugate gradient of the implicit step (integrator.cpp builds its data): 3 x 3 spring
+// blocks between neighbours (a I + s s^T each) plus a diagonal, held springs' and contact blocks,
+// four lanes (x, y, z, zero pad) per free vertex, Jacobi plus an optional coarse level (aggregates,
+// packed Cholesky factor), optionally split over the step's thread team.
 
 #include <cstddef>
 #include <cstdint>
@@ -20,11 +20,17 @@ struct CgData {
   std::size_t nf = 0;
   const std::uint32_t* row = nullptr;  ///< nf + 1 offsets into col
   const std::uint32_t* col = nullptr;  ///< neighbour | class << 30, even count per row
-  const T* self = nullptr;             ///< per row: the diagonal less the free neighbours' weights
-  const T* inv = nullptr;              ///< Jacobi: inverse of the diagonal, contact blocks included
-  const T* b = nullptr;                ///< right-hand side
-  T w[4] = {};                         ///< class weights
-  const double* contact = nullptr;     ///< 5 per contact: compact index, nx, ny, nz, k
+  const T* self = nullptr;             ///< per row: its mass part of the diagonal
+  /// Per entry of col: the spring's block a I + s s^T as (s.x, s.y, s.z, a); zero for padding.
+  const float* blk = nullptr;
+  /// 5 per spring from a row to a held vertex: row, s.x, s.y, s.z, a (a diagonal block).
+  const double* held_blocks = nullptr;
+  std::size_t held = 0;
+  /// Block Jacobi: per row the inverse of its 3 x 3 diagonal block (contacts included) as three
+  /// 4-lane rows with zero pads (12 per row).
+  const T* inv = nullptr;
+  const T* b = nullptr;             ///< right-hand side
+  const double* contact = nullptr;  ///< 5 per contact: compact index, nx, ny, nz, k
   std::size_t contacts = 0;
   T *dv = nullptr, *r = nullptr, *p = nullptr, *ap = nullptr;
   // Coarse level (nc = 0: Jacobi alone): row -> aggregate, the Cholesky factor in skyline form

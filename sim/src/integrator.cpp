@@ -77,6 +77,7 @@ StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& opti
                                    std::uint64_t step_index) {
   StepStats stats;
   step_team_ = team(options);
+  bound_hessian_ = options.spring_hessian == SpringHessian::Bound;
   body.refresh_topology();
   if (body.frozen()) {
     body.clear_forces();
@@ -220,29 +221,21 @@ void ImplicitIntegrator::update_diagonal(System& st, const SoftBody& body, doubl
   dg.value.resize(nf);
   dg.self.resize(nf);
   dg.self_f.resize(nf);
-  dg.inv.resize(4 * nf);
-  dg.inv_f.resize(4 * nf);
-  // The matrix: diagonal m (1 + h a) + sum of the spring weights, weights h^2 k + h c per class.
+  // The bound matrix's diagonal m (1 + h a) + sum of the spring weights h^2 k + h c (the sleep
+  // test's stopping force); the solve's matrix has the mass part and the springs' blocks.
   // Per member the sum of the free vertices' squared masses, for the absolute tolerance.
   std::array<double, kMaxThreads> weight2_part{};
   run_parts(step_team_, nf, [&](std::size_t first, std::size_t last, unsigned t) {
     double weight2 = 0.0;
     for (std::size_t ci = first; ci < last; ++ci) {
       const std::uint32_t i = vertex[ci];
-      double self = m[i] * (1.0 + h * drag), nbr = 0.0;
-      for (std::size_t k = 0; k < 4; ++k) {
-        self += double(fixed[4 * ci + k]) * w[k];
-        nbr += double(free[4 * ci + k]) * w[k];
-      }
-      const double d = self + nbr;
-      dg.value[ci] = d;
+      const double self = m[i] * (1.0 + h * drag);
+      double springs = 0.0;
+      for (std::size_t k = 0; k < 4; ++k)
+        springs += double(fixed[4 * ci + k] + free[4 * ci + k]) * w[k];
+      dg.value[ci] = self + springs;
       dg.self[ci] = self;
       dg.self_f[ci] = static_cast<float>(self);
-      const double inv = d > 0.0 ? 1.0 / d : 1.0;
-      for (std::size_t l = 0; l < 4; ++l) {
-        dg.inv[4 * ci + l] = l < 3 ? inv : 1.0;
-        dg.inv_f[4 * ci + l] = static_cast<float>(dg.inv[4 * ci + l]);
-      }
       weight2 += m[i] * m[i];
     }
     weight2_part[t] = weight2;
@@ -256,17 +249,19 @@ void ImplicitIntegrator::update_diagonal(System& st, const SoftBody& body, doubl
 }
 
 template <class T>
-const T* ImplicitIntegrator::solve(System& st, const double (&w)[4],
-                                   const std::vector<glm::dvec3>& warm, int max_iterations,
-                                   double rel_tol2, double abs_tol2, StepStats& stats) {
+const T* ImplicitIntegrator::solve(System& st, const std::vector<glm::dvec3>& warm, bool warm_start,
+                                   int max_iterations, double rel_tol2, double abs_tol2,
+                                   StepStats& stats) {
   const std::size_t nf = st.vertex.size();
   const std::size_t n4 = 4 * nf;
+  block_rows(st);
   CgData<T> d;
   d.nf = nf;
   d.row = st.prow.data();
   d.col = st.pcol.data();
-  for (int k = 0; k < 4; ++k)
-    d.w[k] = static_cast<T>(w[k]);
+  d.blk = entry_blocks_.data();
+  d.held_blocks = held_blocks_.data();
+  d.held = held_blocks_.size() / 5;
   d.contact = contacts_.data();
   d.contacts = contacts_.size() / 5;
   if (step_team_ != nullptr) {
@@ -301,11 +296,11 @@ const T* ImplicitIntegrator::solve(System& st, const double (&w)[4],
   const double tol2 = std::max(rel_tol2 * b2, abs_tol2);
   d.stop2 = std::max(rel_tol2 * b2, 0.01 * abs_tol2);
   System::Diagonal& dg = st.diagonal;
-  T* inv = nullptr;
+  const T* inv = nullptr;
   if constexpr (std::is_same_v<T, double>) {
     dbuf_.resize(3 * n4);
     dv_.resize(n4);
-    inv = dg.inv.data();
+    inv = jinv_.data();
     d.self = dg.self.data();
     d.b = rhs_.data();
     d.dv = dv_.data();
@@ -323,29 +318,35 @@ const T* ImplicitIntegrator::solve(System& st, const double (&w)[4],
     float* b = f + 4 * n4;
     for (std::size_t e = 0; e < n4; ++e)
       b[e] = static_cast<float>(rhs_[e]);
-    inv = dg.inv_f.data();
+    inv = jinv_f_.data();
     d.self = dg.self_f.data();
     d.b = b;
   }
-  // The start: the warm start, except when dv = 0 already meets the absolute tolerance: then it
-  // is the answer (the warm start would meet it too, but applying it again step after step keeps
-  // a resting body moving at the tolerance's level).
+  // The start: zero, or with warm_start the last step's dv. When the right-hand side already
+  // meets the absolute tolerance, the answer is the block-Jacobi one, B^-1 b, with no iteration:
+  // not the warm start (applied again step after step it keeps a resting body moving at the
+  // tolerance's level), nor zero (the true Hessian has nearly no stiffness across a resting
+  // surface, so the velocity left there would never decay: a body at rest kept creeping at
+  // 5e-8 m/s and never slept).
   {
     const std::uint32_t* vertex = st.vertex.data();
-    const bool zero = b2 <= abs_tol2;
+    const bool small = b2 <= abs_tol2;
+    const bool zero = !warm_start;
+    const T* binv = inv;
     for (std::size_t i = 0; i < nf; ++i) {
-      const glm::dvec3 w0 = zero ? glm::dvec3(0.0) : warm[vertex[i]];
+      glm::dvec3 w0 = zero ? glm::dvec3(0.0) : warm[vertex[i]];
+      if (small) {
+        const T* bi = d.b + 4 * i;
+        const T* m = binv + 12 * i;
+        w0 = glm::dvec3(double(m[0] * bi[0] + m[4] * bi[1] + m[8] * bi[2]),
+                        double(m[1] * bi[0] + m[5] * bi[1] + m[9] * bi[2]),
+                        double(m[2] * bi[0] + m[6] * bi[1] + m[10] * bi[2]));
+      }
       d.dv[4 * i] = static_cast<T>(w0.x);
       d.dv[4 * i + 1] = static_cast<T>(w0.y);
       d.dv[4 * i + 2] = static_cast<T>(w0.z);
       d.dv[4 * i + 3] = T(0);
     }
-  }
-  // The contact rows' inverses, with their blocks, for this solve (restored below).
-  for (const ContactRow& row : contact_rows_) {
-    const bool ok = row.d[0] > 0.0 && row.d[1] > 0.0 && row.d[2] > 0.0;
-    for (std::size_t l = 0; l < 3; ++l)
-      inv[std::size_t{4} * row.row + l] = static_cast<T>(ok ? 1.0 / row.d[l] : 1.0);
   }
   d.inv = inv;
   if (!st.agg.empty() && st.coarse_h > 0.0) {
@@ -375,10 +376,6 @@ const T* ImplicitIntegrator::solve(System& st, const double (&w)[4],
   }
   double r2 = 0.0;
   const int it = run_cg(d, max_iterations, tol2, r2);
-  for (const ContactRow& row : contact_rows_) {
-    for (std::size_t l = 0; l < 3; ++l)
-      inv[std::size_t{4} * row.row + l] = static_cast<T>(dg.inv[std::size_t{4} * row.row + l]);
-  }
   stats.cg_iterations += it;
   stats.relative_residual = std::sqrt(r2 / std::max(b2, 1e-300));
   return d.dv;
@@ -403,6 +400,7 @@ double ImplicitIntegrator::spring_pass(System& sys, const SoftBody& body, double
   // arrays are added in member order, each member a run of vertices.
   const System::SpringSet& sa = sys.active;
   f_parts_.resize(array_members() - 1);
+  blocks_.resize(4 * sa.a.size());
   std::array<double, kMaxThreads> partial{};
   run_parts(
       step_team_, sa.a.size(),
@@ -410,13 +408,15 @@ double ImplicitIntegrator::spring_pass(System& sys, const SoftBody& body, double
         glm::dvec3* f = member_array(f_, f_parts_, t);
         const std::size_t real = sa.count > first ? std::min(sa.count, last) - first : 0;
         const std::size_t m = last - first;
+        float* blocks = blocks_.data() + 4 * first;
         if (energy) {
-          partial[t] =
-              spring_forces_energy(sa.a.data() + first, sa.b.data() + first, sa.rest.data() + first,
-                                   sa.k.data() + first, m, real, x.data(), v.data(), c, h, f);
+          partial[t] = spring_forces_energy(sa.a.data() + first, sa.b.data() + first,
+                                            sa.rest.data() + first, sa.k.data() + first, m, real,
+                                            x.data(), v.data(), c, h, f, blocks, bound_hessian_);
         } else {
           spring_forces(sa.a.data() + first, sa.b.data() + first, sa.rest.data() + first,
-                        sa.k.data() + first, m, real, x.data(), v.data(), c, h, f);
+                        sa.k.data() + first, m, real, x.data(), v.data(), c, h, f, blocks,
+                        bound_hessian_);
         }
       },
       kChunk);
@@ -431,7 +431,7 @@ double ImplicitIntegrator::spring_pass(System& sys, const SoftBody& body, double
   const System::SpringSet& sb = sys.halo;
   if (sb.count > 0) {
     spring_forces(sb.a.data(), sb.b.data(), sb.rest.data(), sb.k.data(), sb.a.size(), sb.count,
-                  x.data(), v.data(), c, h, f_.data());
+                  x.data(), v.data(), c, h, f_.data(), nullptr, bound_hessian_);
   }
   return elastic;
 }
@@ -486,6 +486,7 @@ double ImplicitIntegrator::end_pass(Structure& st, System& sys, const SoftBody& 
   ahead.members = members();
   f_.swap(ahead.f);
   grad_.swap(ahead.grad);
+  blocks_.swap(ahead.blocks);
   return elastic;
 }
 
@@ -513,11 +514,8 @@ void ImplicitIntegrator::gather_contacts(const System& sys, const SoftBody& body
                                          std::vector<double>* step_residual, const Structure& st) {
   // Contacts: k n n^T blocks on the diagonal, their h^2 H v term on the right-hand side.
   const auto& v = body.velocities();
-  const std::size_t n = v.size(), nf = sys.vertex.size();
-  const System::Diagonal& dg = sys.diagonal;
+  const std::size_t n = v.size();
   contacts_.clear();
-  contact_rows_.clear();
-  if (contact_slot_.size() < nf) contact_slot_.resize(nf, kNotFree);
   for (const SoftBody::ContactTerm& ct : body.contacts()) {
     const std::uint32_t i = ct.vertex;
     if (i >= n || !free_[i] || sys.compact[i] == kNotFree) continue;
@@ -530,19 +528,109 @@ void ImplicitIntegrator::gather_contacts(const System& sys, const SoftBody& body
     rhs_[4 * ci] -= nv * nn.x;
     rhs_[4 * ci + 1] -= nv * nn.y;
     rhs_[4 * ci + 2] -= nv * nn.z;
-    std::uint32_t& slot = contact_slot_[ci];
-    if (slot == kNotFree) {
-      slot = static_cast<std::uint32_t>(contact_rows_.size());
-      const double d = dg.value[ci];
-      contact_rows_.push_back({static_cast<std::uint32_t>(ci), {d, d, d}});
-    }
-    double* d = contact_rows_[slot].d;
-    d[0] += kc * nn.x * nn.x;
-    d[1] += kc * nn.y * nn.y;
-    d[2] += kc * nn.z * nn.z;
   }
-  for (const ContactRow& row : contact_rows_)
-    contact_slot_[row.row] = kNotFree;
+}
+
+namespace {
+
+/// A symmetric 3 x 3 block (xx, yy, zz, xy, xz, yz) plus a I + s s^T (s and a as block_rows'
+/// floats).
+void add_block(double (&m)[6], const float* b) {
+  const double sx = b[0], sy = b[1], sz = b[2], a = b[3];
+  m[0] += a + sx * sx;
+  m[1] += a + sy * sy;
+  m[2] += a + sz * sz;
+  m[3] += sx * sy;
+  m[4] += sx * sz;
+  m[5] += sy * sz;
+}
+
+/// The inverse of the symmetric block m as three 4-lane rows (pads 0) into out (12); the
+/// identity when m is singular (a row without mass or springs).
+template <class T>
+void invert_block(const double (&m)[6], T* out) {
+  const double xx = m[0], yy = m[1], zz = m[2], xy = m[3], xz = m[4], yz = m[5];
+  const double c00 = yy * zz - yz * yz, c01 = xz * yz - xy * zz, c02 = xy * yz - xz * yy;
+  const double det = xx * c00 + xy * c01 + xz * c02;
+  double inv[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+  if (det > 0.0 && std::isfinite(det)) {
+    const double r = 1.0 / det;
+    const double c11 = xx * zz - xz * xz, c12 = xy * xz - xx * yz, c22 = xx * yy - xy * xy;
+    const double e[9] = {c00, c01, c02, c01, c11, c12, c02, c12, c22};
+    for (std::size_t k = 0; k < 9; ++k)
+      inv[k] = e[k] * r;
+  }
+  for (std::size_t row = 0; row < 3; ++row) {
+    for (std::size_t l = 0; l < 3; ++l)
+      out[4 * row + l] = static_cast<T>(inv[3 * row + l]);
+    out[4 * row + 3] = T(0);
+  }
+}
+
+}  // namespace
+
+void ImplicitIntegrator::block_rows(System& sys) {
+  // Each entry's block copied from its spring's (so the products read them in order), the held
+  // springs' blocks listed for the diagonal, and per row the inverse of its 3 x 3 diagonal
+  // block for block Jacobi: the mass part, its springs' blocks and its contacts' h^2 k n n^T.
+  // The surface's soft direction is its normal, which is no axis: the block, not its diagonal,
+  // is what holds it apart from the stiff tangent ones.
+  const std::size_t nf = sys.vertex.size();
+  const std::uint32_t* prow = sys.prow.data();
+  const std::size_t entries = nf > 0 ? prow[nf] : 0;
+  entry_blocks_.resize(4 * entries);
+  diag_blocks_.assign(6 * nf, 0.0);
+  jinv_.resize(12 * nf);
+  jinv_f_.resize(12 * nf);
+  const float* blk = blocks_.data();
+  const std::uint32_t* spring = sys.entry_spring.data();
+  const double* self = sys.diagonal.self.data();
+  float* out = entry_blocks_.data();
+  double* diag = diag_blocks_.data();
+  run_parts(step_team_, nf, [&](std::size_t first, std::size_t last, unsigned) {
+    for (std::size_t ci = first; ci < last; ++ci) {
+      double m[6] = {self[ci], self[ci], self[ci], 0.0, 0.0, 0.0};
+      for (std::uint32_t e = prow[ci]; e < prow[ci + 1]; ++e) {
+        float* o = out + 4 * std::size_t{e};
+        if (spring[e] == kNotFree) {
+          o[0] = o[1] = o[2] = o[3] = 0.0f;
+          continue;
+        }
+        std::memcpy(o, blk + 4 * std::size_t{spring[e]}, 4 * sizeof(float));
+        add_block(m, o);
+      }
+      std::copy(std::begin(m), std::end(m), diag + 6 * ci);
+    }
+  });
+  held_blocks_.clear();
+  const std::vector<std::uint32_t>& held = sys.held_springs;
+  for (std::size_t k = 0; k < held.size(); k += 2) {
+    const std::uint32_t ci = held[k];
+    const float* b = blk + 4 * std::size_t{held[k + 1]};
+    held_blocks_.insert(held_blocks_.end(),
+                        {double(ci), double(b[0]), double(b[1]), double(b[2]), double(b[3])});
+    double(&m)[6] = *reinterpret_cast<double(*)[6]>(diag + 6 * std::size_t{ci});
+    add_block(m, b);
+  }
+  for (std::size_t c = 0; c < contacts_.size(); c += 5) {
+    const std::size_t ci = static_cast<std::size_t>(contacts_[c]);
+    const double kc = contacts_[c + 4], nx = contacts_[c + 1], ny = contacts_[c + 2],
+                 nz = contacts_[c + 3];
+    double* m = diag + 6 * ci;
+    m[0] += kc * nx * nx;
+    m[1] += kc * ny * ny;
+    m[2] += kc * nz * nz;
+    m[3] += kc * nx * ny;
+    m[4] += kc * nx * nz;
+    m[5] += kc * ny * nz;
+  }
+  run_parts(step_team_, nf, [&](std::size_t first, std::size_t last, unsigned) {
+    for (std::size_t ci = first; ci < last; ++ci) {
+      const double(&m)[6] = *reinterpret_cast<const double(*)[6]>(diag + 6 * ci);
+      invert_block(m, jinv_.data() + 12 * ci);
+      invert_block(m, jinv_f_.data() + 12 * ci);
+    }
+  });
 }
 
 ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structure& st,
@@ -589,14 +677,16 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
   if (st.asleep > 0) wake_loaded(st, body);
   System* sys = &system(st, body);
 
-  // Springs with a solved end: forces and the h^2 H v term of the right-hand side (H = k I per
-  // spring). The others only add their (constant) energy to the start state's. The last step's
-  // end_pass took them (and the volume pass) at this state already, if nothing changed since.
+  // Springs with a solved end: forces, the h^2 H v term of the right-hand side and their blocks
+  // of the solve's matrix (H each spring's clamped Hessian, spring_kernels.h). The others only add
+  // their (constant) energy to the start state's. The last step's end_pass took them (and the
+  // volume pass) at this state already, if nothing changed since.
   Structure::Ahead& ahead = st.ahead;
   const bool reuse = reuse_ahead && ahead.system == sys->id && ahead.h == h;
   double spring_energy = 0.0;
   if (reuse) {
     f_.swap(ahead.f);
+    blocks_.swap(ahead.blocks);
     spring_energy = ahead.elastic;
     stats.reused_end_pass = true;
   } else {
@@ -638,7 +728,7 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
 
   // The right-hand side and the diagonal over the free vertices, four lanes per vertex
   // (x, y, z and a zero pad: the loops below run on whole vectors the compiler vectorises).
-  // The matrix: diagonal m (1 + h a) + sum of the spring weights, weights h^2 k + h c per class.
+  // The bound weights h^2 k + h c per class: the coarse level and the sleep test use them.
   double w[4];
   for (int k = 0; k < 4; ++k)
     w[k] = h2 * st.k_class[k] + h * c;
@@ -695,15 +785,18 @@ ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structur
         const glm::dvec3 d{double(dvs[4 * ci]), double(dvs[4 * ci + 1]), double(dvs[4 * ci + 2])};
         warm[i] = d;
         v[i] += d;
-        const double stop = dg.value[ci] / h;
+        const double* block = diag_blocks_.data() + 6 * ci;
+        const double stop = (block[0] + block[1] + block[2]) / (3.0 * h);
         row_speed_[ci] = stop * stop * glm::dot(v[i], v[i]);
       }
     });
   };
   if (options.cg_relative_tolerance >= 1e-5) {
-    apply(solve<float>(*sys, w, warm, options.max_cg_iterations, tol.rel2, tol.abs2, stats));
+    apply(solve<float>(*sys, warm, options.cg_warm_start, options.max_cg_iterations, tol.rel2,
+                       tol.abs2, stats));
   } else {
-    apply(solve<double>(*sys, w, warm, options.max_cg_iterations, tol.rel2, tol.abs2, stats));
+    apply(solve<double>(*sys, warm, options.cg_warm_start, options.max_cg_iterations, tol.rel2,
+                        tol.abs2, stats));
   }
   // Vertices outside the solve keep no warm start.
   const std::uint32_t* compact = sys->compact.data();

@@ -289,13 +289,14 @@ void ImplicitIntegrator::region_substep(SoftBody& body, Structure& st, Structure
     held_v_[vertex[ci]] = v[vertex[ci]];
   const System::SpringSet& sa = sys.active;
   double elastic = 0.0;
+  blocks_.resize(4 * sa.a.size());
   if (energy_out != nullptr) {
-    elastic =
-        spring_forces_energy(sa.a.data(), sa.b.data(), sa.rest.data(), sa.k.data(), sa.a.size(),
-                             sa.count, x.data(), held_v_.data(), c, h, f_.data());
+    elastic = spring_forces_energy(sa.a.data(), sa.b.data(), sa.rest.data(), sa.k.data(),
+                                   sa.a.size(), sa.count, x.data(), held_v_.data(), c, h, f_.data(),
+                                   blocks_.data(), bound_hessian_);
   } else {
     spring_forces(sa.a.data(), sa.b.data(), sa.rest.data(), sa.k.data(), sa.a.size(), sa.count,
-                  x.data(), held_v_.data(), c, h, f_.data());
+                  x.data(), held_v_.data(), c, h, f_.data(), blocks_.data(), bound_hessian_);
   }
   for (std::size_t ci = 0; ci < nf; ++ci)
     held_v_[vertex[ci]] = glm::dvec3(0.0);
@@ -352,9 +353,11 @@ void ImplicitIntegrator::region_substep(SoftBody& body, Structure& st, Structure
     }
   };
   if (options.cg_relative_tolerance >= 1e-5) {
-    apply(solve<float>(sys, w, warm, options.max_cg_iterations, tol.rel2, tol.abs2, stats));
+    apply(solve<float>(sys, warm, options.cg_warm_start, options.max_cg_iterations, tol.rel2,
+                       tol.abs2, stats));
   } else {
-    apply(solve<double>(sys, w, warm, options.max_cg_iterations, tol.rel2, tol.abs2, stats));
+    apply(solve<double>(sys, warm, options.cg_warm_start, options.max_cg_iterations, tol.rel2,
+                        tol.abs2, stats));
   }
   groups.update(region.tris, region.groups, idx, x);
 }

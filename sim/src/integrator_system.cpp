@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <utility>
 
 #include "bisturi/sim/errors.h"
 #include "bisturi/sim/integrator.h"
@@ -261,6 +262,7 @@ void ImplicitIntegrator::build_system(Structure& st, System& sys,
   for (std::size_t k = 0; k < 4; ++k)
     st.k_class[k] = std::isnan(classes[k]) ? 0.0 : classes[k];
   pad_rows(free_count, nf, prow, sys.pcol.data());
+  map_entries(st, sys);
 }
 
 bool ImplicitIntegrator::update_system(Structure& st, System& sys,
@@ -346,6 +348,7 @@ bool ImplicitIntegrator::update_system(Structure& st, System& sys,
   reset_spring_set(sys.fixed, springs.size() - active);
   fill_entries<false>(springs, sys, classes, dirty.data());
   pad_rows(free, nf, prow, pcol);
+  map_entries(st, sys);
   start_build(sys);
   return true;
 }
@@ -374,6 +377,8 @@ std::string ImplicitIntegrator::check_free_system(const SoftBody& body) {
   };
   if (!same_set(a.active, b.active)) return "active springs";
   if (!same_set(a.fixed, b.fixed)) return "fixed springs";
+  if (!same(a.entry_spring, b.entry_spring) || !same(a.held_springs, b.held_springs))
+    return "entry springs";
   return {};
 }
 
@@ -437,6 +442,57 @@ void ImplicitIntegrator::fill_entries(const std::vector<Spring>& springs, System
       const std::uint32_t cls = class_of(classes, sp.k_N_per_m);
       if (dirty[sp.a]) pcol[fill[4 * ca + cls]++] = cb | (cls << 30);
       if (dirty[sp.b]) pcol[fill[4 * cb + cls]++] = ca | (cls << 30);
+    }
+  }
+}
+
+void ImplicitIntegrator::map_entries(const Structure& st, System& sys) {
+  // The entries of a row are grouped by class and in spring order within a class (fill_entries,
+  // update_system): walking the active springs in order with a cursor per row and class meets
+  // them in the same order. Each entry is checked against its neighbour; a row that does not
+  // match (which the build's order rules out) is searched instead.
+  const std::size_t nf = sys.vertex.size();
+  const std::uint32_t* prow = sys.prow.data();
+  const std::uint32_t* pcol = sys.pcol.data();
+  const std::uint32_t* free_count = sys.free_count.data();
+  const std::uint32_t* compact = sys.compact.data();
+  const std::size_t entries = nf > 0 ? prow[nf] : 0;
+  assign_for_growth(sys.entry_spring, entries, kNotFree);
+  sys.held_springs.clear();
+  resize_for_growth(sys.fill, 4 * nf);
+  std::uint32_t* fill = sys.fill.data();
+  for (std::size_t i = 0; i < nf; ++i) {
+    std::uint32_t at = prow[i];
+    for (std::size_t k = 0; k < 4; ++k) {
+      fill[4 * i + k] = at;
+      at += free_count[4 * i + k];
+    }
+  }
+  double classes[4];
+  for (std::size_t k = 0; k < 4; ++k)
+    classes[k] = st.k_class[k] > 0.0 ? st.k_class[k] : kNoClass;
+  std::uint32_t* spring = sys.entry_spring.data();
+  const System::SpringSet& sa = sys.active;
+  // The first entry of row r not yet taken whose neighbour is c (the search's fallback).
+  auto search = [&](std::uint32_t r, std::uint32_t c) {
+    for (std::uint32_t e = prow[r]; e < prow[r + 1]; ++e)
+      if ((pcol[e] & kIndexMask) == c && spring[e] == kNotFree) return e;
+    return kNotFree;
+  };
+  for (std::size_t s = 0; s < sa.count; ++s) {
+    const std::uint32_t ca = compact[sa.a[s]], cb = compact[sa.b[s]];
+    if (ca == kNotFree || cb == kNotFree) {
+      sys.held_springs.push_back(ca != kNotFree ? ca : cb);
+      sys.held_springs.push_back(static_cast<std::uint32_t>(s));
+      continue;
+    }
+    const std::uint32_t cls = class_of(classes, sa.k[s]);
+    for (const auto& [row, other] : {std::pair{ca, cb}, std::pair{cb, ca}}) {
+      std::uint32_t e = cls < 4 ? fill[4 * row + cls]++ : kNotFree;
+      if (e == kNotFree || e >= prow[row + 1] || (pcol[e] & kIndexMask) != other ||
+          spring[e] != kNotFree)
+        e = search(row, other);
+      if (e != kNotFree) spring[e] = static_cast<std::uint32_t>(s);
     }
   }
 }

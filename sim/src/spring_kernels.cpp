@@ -64,11 +64,18 @@ struct SpringGroup {
 /// multiple of 4 (null springs pad the arrays); only the first `real` are scattered. Four
 /// springs at a time in registers: gathered, computed as one vector each (sqrt and division
 /// four or two at a time), scattered in spring order.
+///
+/// H is the spring's Hessian with its transverse eigenvalue clamped at zero (the projection of
+/// the 3 x 3 block onto the positive semi-definite ones): k u u^T + w (I - u u^T), w = k max(0,
+/// 1 - L0 / L). With `blocks`, each spring's block of the solve's matrix, h c u u^T + h^2 H =
+/// a I + s s^T, is written as four floats (s, a): a = h^2 w, s = sqrt(h c + h^2 (k - w)) u.
+/// With `bound`, H is the bound k I and the damping's block c I (a = h^2 k + h c, s = 0).
 template <bool Energy>
 BISTURI_INLINE double spring_pass_impl(const std::uint32_t* a, const std::uint32_t* b,
                                        const double* rest, const double* k, std::size_t ns,
                                        std::size_t real, const glm::dvec3* x, const glm::dvec3* v,
-                                       double c, double h, glm::dvec3* f) {
+                                       double c, double h, glm::dvec3* f, float* blocks,
+                                       bool bound) {
   const V4 one = {1.0, 1.0, 1.0, 1.0}, zero = {0.0, 0.0, 0.0, 0.0};
   V4 e4 = zero;
   for (std::size_t s = 0; s < ns; s += 4) {
@@ -79,12 +86,32 @@ BISTURI_INLINE double spring_pass_impl(const std::uint32_t* a, const std::uint32
     // Branch-free 1 / len (0 for a null spring).
     const V4 ok = g.len > 1e-12 ? one : zero;
     const V4 inv = ok / (g.len + (one - ok));
-    // (k stretch + c u . vrel) u with u = d / len, written on d: one scale for all three.
-    const V4 along = (ks * stretch + c * (d[0] * dv[0] + d[1] * dv[1] + d[2] * dv[2]) * inv) * inv;
+    const V4 rel = (d[0] * dv[0] + d[1] * dv[1] + d[2] * dv[2]) * inv;  // u . vrel
+    // The clamped transverse stiffness k max(0, 1 - L0 / L) = k max(0, stretch / L).
+    const V4 ratio = stretch * inv;
+    // The bound k I instead: the transverse stiffness k as well.
+    const V4 wt = bound ? ks : ks * (ratio > 0.0 ? ratio : zero);
+    // (k stretch + c u . vrel + h (k - w) u . vrel) u, with u = d / len, written on d (one scale
+    // for all three), and h w vrel across: h f + h^2 H v, divided by h.
+    const V4 along = (ks * stretch + (c + h * (ks - wt)) * rel) * inv;
     if constexpr (Energy) e4 += 0.5 * ks * stretch * stretch;
-    const V4 hk = h * ks;  // h f + h^2 H v, divided by h below
-    const V4 fx = along * d[0] + hk * dv[0], fy = along * d[1] + hk * dv[1],
-             fz = along * d[2] + hk * dv[2];
+    const V4 hw = h * wt;
+    const V4 fx = along * d[0] + hw * dv[0], fy = along * d[1] + hw * dv[1],
+             fz = along * d[2] + hw * dv[2];
+    if (blocks != nullptr) {
+      // The bound's damping is c I as well: all of the block is a.
+      const V4 axial = bound ? zero : h * c + h * h * (ks - wt);
+      const V4 root = {std::sqrt(axial[0]), std::sqrt(axial[1]), std::sqrt(axial[2]),
+                       std::sqrt(axial[3])};
+      const V4 scale = root * inv, diag = h * h * wt + (bound ? h * c * ok : zero);
+      for (std::size_t l = 0; l < 4; ++l) {
+        float* out = blocks + 4 * (s + l);
+        out[0] = static_cast<float>(scale[l] * d[0][l]);
+        out[1] = static_cast<float>(scale[l] * d[1][l]);
+        out[2] = static_cast<float>(scale[l] * d[2][l]);
+        out[3] = static_cast<float>(diag[l]);
+      }
+    }
     const std::size_t m = s < real ? std::min<std::size_t>(4, real - s) : 0;
     for (std::size_t l = 0; l < m; ++l) {
       glm::dvec3& fa = f[a[s + l]];
@@ -105,15 +132,16 @@ BISTURI_INLINE double spring_pass_impl(const std::uint32_t* a, const std::uint32
 BISTURI_HOT double spring_forces(const std::uint32_t* a, const std::uint32_t* b, const double* rest,
                                  const double* k, std::size_t ns, std::size_t real,
                                  const glm::dvec3* x, const glm::dvec3* v, double c, double h,
-                                 glm::dvec3* f) {
-  return spring_pass_impl<false>(a, b, rest, k, ns, real, x, v, c, h, f);
+                                 glm::dvec3* f, float* blocks, bool bound) {
+  return spring_pass_impl<false>(a, b, rest, k, ns, real, x, v, c, h, f, blocks, bound);
 }
 
 BISTURI_HOT double spring_forces_energy(const std::uint32_t* a, const std::uint32_t* b,
                                         const double* rest, const double* k, std::size_t ns,
                                         std::size_t real, const glm::dvec3* x, const glm::dvec3* v,
-                                        double c, double h, glm::dvec3* f) {
-  return spring_pass_impl<true>(a, b, rest, k, ns, real, x, v, c, h, f);
+                                        double c, double h, glm::dvec3* f, float* blocks,
+                                        bool bound) {
+  return spring_pass_impl<true>(a, b, rest, k, ns, real, x, v, c, h, f, blocks, bound);
 }
 
 /// The springs' elastic energy at x (ns a multiple of 4, null springs add nothing).

@@ -1,5 +1,7 @@
-// Devices (issue 8): report parse + dispatch cost per report, and the end-to-end latency from an
-// input report arriving on the virtual transport to the force report leaving it, at 1 kHz.
+// Devices: report parse + dispatch cost per report; the haptic tick's device work (poll(0) and a
+// force send) on the virtual transport and on the asynchronous USB transport over the in-process
+// bus (the libusb path's own logic, without hardware); and the end-to-end latency from an input
+// report arriving on the virtual transport to the force report leaving it, at 1 kHz.
 //   build/bin/devices_bench
 #include <benchmark/benchmark.h>
 
@@ -11,6 +13,7 @@
 #include "bisturi/devices/force_guard.h"
 #include "bisturi/devices/hid_drivers.h"
 #include "bisturi/devices/simulated.h"
+#include "bisturi/devices/usb_async.h"
 #include "bisturi/devices/vendor_arm.h"
 #include "bisturi/devices/virtual_transport.h"
 
@@ -101,6 +104,65 @@ void BM_GloveForceEncodeGuard(benchmark::State& state) {
   state.SetItemsProcessed(state.iterations());
 }
 BENCHMARK(BM_GloveForceEncodeGuard);
+
+// The arm's transport for the tick benchmarks: the virtual link itself (Arg 0), or the
+// asynchronous USB transport over the in-process bus (Arg 1).
+std::unique_ptr<bd::Transport> arm_transport(bd::SimulatedArm& twin, bool usb) {
+  auto pair = bd::make_virtual_pair(twin.descriptor());
+  twin.attach(std::move(pair.device));
+  if (!usb) return std::move(pair.host);
+  bd::AsyncUsbOptions options;
+  options.in_packet_size = bd::arm_protocol::kPacketSize;
+  return std::make_unique<bd::AsyncUsbTransport>(
+      std::make_unique<bd::VirtualUsbIo>(std::move(pair.host)), twin.descriptor(), options);
+}
+
+const char* transport_label(const benchmark::State& state) {
+  return state.range(0) ? "async usb over the in-process bus" : "virtual transport";
+}
+
+// poll(0) with nothing waiting: what every tick between two device reports pays.
+void BM_ArmTickPollEmpty(benchmark::State& state) {
+  bd::SimulatedArm twin(moving_hand());
+  bd::VirtualClock clock;
+  auto arm = bd::open_vendor_arm(arm_transport(twin, state.range(0) != 0), clock);
+  for (auto _ : state)
+    benchmark::DoNotOptimize(arm->poll(0us));
+  state.SetLabel(transport_label(state));
+}
+BENCHMARK(BM_ArmTickPollEmpty)->Arg(0)->Arg(1);
+
+// One device report sent by the twin and taken by poll(0), as at 1 kHz (the twin's encoding is in
+// the figure, for both transports alike).
+void BM_ArmTickPollOneReport(benchmark::State& state) {
+  bd::SimulatedArm twin(moving_hand());
+  bd::VirtualClock clock;
+  auto arm = bd::open_vendor_arm(arm_transport(twin, state.range(0) != 0), clock);
+  std::int64_t t = 0;
+  for (auto _ : state) {
+    t += 1000000;
+    twin.step(bd::Nanoseconds(t));
+    benchmark::DoNotOptimize(arm->poll(0us));
+  }
+  state.SetLabel(transport_label(state));
+}
+BENCHMARK(BM_ArmTickPollOneReport)->Arg(0)->Arg(1);
+
+// One force packet encoded and sent, then the next tick's empty poll (on USB its event pass is what
+// returns the OUT slot); the twin decodes the packet when it lands, for both alike.
+void BM_ArmTickSend(benchmark::State& state) {
+  bd::SimulatedArm twin(moving_hand());
+  bd::VirtualClock clock;
+  auto arm = bd::open_vendor_arm(arm_transport(twin, state.range(0) != 0), clock);
+  double force[3] = {0.5, -0.25, 1.0};
+  for (auto _ : state) {
+    force[0] = -force[0];
+    arm->send_forces(force);
+    benchmark::DoNotOptimize(arm->poll(0us));
+  }
+  state.SetLabel(transport_label(state));
+}
+BENCHMARK(BM_ArmTickSend)->Arg(0)->Arg(1);
 
 // A device thread steps the twin at 1 kHz (SteadyClock); the haptic thread blocks in poll, reads
 // the pose, computes a spring force, guards it and sends it. Latency: from just before the twin

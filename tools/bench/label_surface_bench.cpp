@@ -3,7 +3,9 @@
 // 1 x 1 x 3 mm, a thick-slice one), their surfaces extracted by
 //   mc          marching cubes on the 0/1 indicator (what `bisturi extract --label` gave),
 //   mc+taubin10 the same with 10 unconstrained Taubin iterations (`--smooth 10`),
-//   constrained extract_label_surface_mesh (constrained Taubin smoothing, label_surface.h),
+//   shape-interp extract_label_surface_mesh without smoothing (shape-based interpolation only),
+//   constrained  extract_label_surface_mesh (shape-based interpolation, then constrained
+//                windowed-sinc smoothing; label_surface.h),
 //   vtk         vtkDiscreteFlyingEdges3D + vtkWindowedSincPolyDataFilter with 3D Slicer's
 //               defaults (with BISTURI_BENCH_VTK),
 // and measured in one run: RMS and maximum distance of the vertices to the true surface (mm),
@@ -221,7 +223,7 @@ int main(int argc, char** argv) {
   const std::vector<std::pair<std::string, dvec3>> spacings = {
       {"0.6x0.6x1.3", {0.6, 0.6, 1.3}}, {"1x1x3", {1.0, 1.0, 3.0}}};
   std::vector<Row> rows;
-  std::printf("%-20s %-12s %-12s %9s %9s %9s %9s %9s %8s\n", "shape", "spacing", "method",
+  std::printf("%-20s %-12s %-13s %9s %9s %9s %9s %9s %8s\n", "shape", "spacing", "method",
               "rms_mm", "max_mm", "n_rms_deg", "n_max_deg", "ms", "tris");
   for (const auto& [sname, spacing] : spacings) {
     for (const Shape& s : shapes) {
@@ -233,7 +235,7 @@ int main(int argc, char** argv) {
         for (int r = 0; r < repeats; ++r)
           ms.push_back(extract());
         Row row{s.name, sname, method, measure(s, pts, tris), median(ms)};
-        std::printf("%-20s %-12s %-12s %9.4f %9.4f %9.3f %9.3f %9.2f %8zu\n", row.shape.c_str(),
+        std::printf("%-20s %-12s %-13s %9.4f %9.4f %9.3f %9.3f %9.2f %8zu\n", row.shape.c_str(),
                     row.spacing.c_str(), row.method.c_str(), row.e.rms_mm, row.e.max_mm,
                     row.e.normal_rms_deg, row.e.normal_max_deg, row.ms, row.e.triangles);
         std::fflush(stdout);
@@ -251,12 +253,25 @@ int main(int argc, char** argv) {
           return ms;
         };
       };
-      bisturi::LabelSurfaceOptions plain;
-      plain.iterations = 0;
-      run("mc", ours(plain));
+      // The previous extraction: marching cubes on the 0/1 indicator, vertices at edge midpoints.
+      bisturi::Grid<float> indicator;
+      indicator.geometry = labels.geometry;
+      indicator.values.resize(labels.values.size());
+      for (std::size_t i = 0; i < labels.values.size(); ++i)
+        indicator.values[i] = labels.values[i] == kLabel ? 1.0F : 0.0F;
+      bisturi::IsoSurfaceOptions half;
+      half.iso = 0.5F;
+      run("mc", [&] {
+        const auto t = std::chrono::steady_clock::now();
+        const PolygonMesh m = bisturi::extract_isosurface_mesh(indicator, half);
+        const double ms =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t).count();
+        from_mesh(m, pts, tris);
+        return ms;
+      });
       run("mc+taubin10", [&] {  // `--smooth 10`: the DLFL path, its build timed too
         const auto t = std::chrono::steady_clock::now();
-        bisturi::Dlfl d = bisturi::extract_label_surface(labels, kLabel, plain);
+        bisturi::Dlfl d = bisturi::extract_isosurface(indicator, half);
         bisturi::lod::SmoothOptions taubin;
         taubin.iterations = 10;
         bisturi::lod::smooth_taubin(d, taubin);
@@ -265,6 +280,9 @@ int main(int argc, char** argv) {
         from_mesh(bisturi::export_polygons(d).polygons, pts, tris);
         return ms;
       });
+      bisturi::LabelSurfaceOptions interpolated_only;
+      interpolated_only.iterations = 0;
+      run("shape-interp", ours(interpolated_only));
       run("constrained", ours(constrained));
 #ifdef BISTURI_BENCH_VTK
       run("vtk", [&] {

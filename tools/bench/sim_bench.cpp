@@ -108,13 +108,18 @@ glm::dvec3 probe_tip(const Shape& shape, double t_ms, double lower_m = 0.0) {
 // Full step: the probe presses 0..3 mm into the top of the sphere and back (a 2 Hz sine), the
 // lower third is anchored, gravity on, default material and integrator options. The second
 // argument is the thread count (1: single thread; 0: every core for the integrator and Embree).
-void full_step(benchmark::State& state, std::int64_t vertices, bool all, int interval) {
+void full_step(benchmark::State& state, std::int64_t vertices, bool all, int interval,
+               bool bound = false) {
   const Shape& shape = sphere(radius_for(vertices));
   WorldOptions options;
   const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
   options.embree_threads = all ? 0 : 1;
   options.integrator.threads = all ? cores : 1;
   options.integrator.far_field_interval = interval;
+  if (bound) {
+    options.integrator.spring_hessian = SpringHessian::Bound;
+    options.integrator.cg_warm_start = true;
+  }
   SimWorld world(options);
   const std::uint32_t id = add_bench_sphere(world, shape);
   const SoftBody& body = world.body(id);
@@ -191,6 +196,20 @@ BENCHMARK(BM_Multirate)
     ->Args({20000, 16})
     ->Args({20000, 32})
     ->Args({100000, 16})
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond)
+    ->Iterations(3000);
+
+// The peer of BM_FullStep and BM_Multirate in the same run: the springs' bound Hessian k I with
+// the warm start (the solver before the clamped Hessian), single-rate (second argument 1) or
+// multirate with that interval.
+void BM_StepBound(benchmark::State& state) {
+  full_step(state, state.range(0), false, static_cast<int>(state.range(1)), true);
+}
+BENCHMARK(BM_StepBound)
+    ->Args({2000, 1})
+    ->Args({20000, 1})
+    ->Args({20000, 32})
     ->UseManualTime()
     ->Unit(benchmark::kMicrosecond)
     ->Iterations(3000);
@@ -288,13 +307,15 @@ BENCHMARK(BM_MultirateAccuracy)
 
 // How the haptic force depends on the step length: the bench scene's 2 Hz probing for 3.2 s,
 // its sine lowered by the second argument (um; 0 is BM_FullStep's, where the probe reaches
-// 2 mm below the rest top of a sphere that sags away from it under gravity), run single-rate
-// with dt = 1 ms / k for k = 1, 2, 4, 8, 16 (the device held over a millisecond's steps).
+// 2 mm below the rest top of a sphere that sags away from it under gravity), run
+// with dt = 1 ms / k for k = 1, 2, 4, 8, 16 (the device held over a millisecond's steps), single-rate
+// or multirate with the third argument as far_field_interval.
 // Counters per k: the RMS force (force_k_mN), the RMS difference from the k = 16 run against
 // that run's RMS force (diff_k), and the contact changes per second (flips_k).
 void BM_ForceConvergence(benchmark::State& state) {
   const Shape& shape = sphere(radius_for(state.range(0)));
   const double lower = double(state.range(1)) * 1e-6;
+  const int interval = static_cast<int>(state.range(2));
   constexpr int kRuns = 5;
   for (auto _ : state) {
     std::vector<std::unique_ptr<SimWorld>> worlds;
@@ -302,6 +323,7 @@ void BM_ForceConvergence(benchmark::State& state) {
       WorldOptions options;
       options.embree_threads = 1;
       options.integrator.dt_s = 1e-3 / double(1 << k);
+      options.integrator.far_field_interval = interval;
       worlds.push_back(std::make_unique<SimWorld>(options));
       add_bench_sphere(*worlds.back(), shape);
     }
@@ -333,8 +355,10 @@ void BM_ForceConvergence(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_ForceConvergence)
-    ->Args({2000, 0})
-    ->Args({2000, 2000})
+    ->Args({2000, 0, 1})
+    ->Args({2000, 2000, 1})
+    ->Args({2000, 0, 8})
+    ->Args({2000, 2000, 8})
     ->Iterations(1)
     ->Unit(benchmark::kMillisecond);
 

@@ -6,13 +6,17 @@
 #include <iostream>
 
 #include "bisturi/runtime/version.h"
+#include "device_command.h"
 #include "extract_command.h"
 #include "measure_command.h"
 #include "mesh_command.h"
 #include "mesh_demo.h"
+#include "pipeline_command.h"
+#include "cohort_command.h"
 #include "render_command.h"
 #include "run_command.h"
 #include "segment_command.h"
+#include "tissue_command.h"
 #include "trace_command.h"
 #include "volume_command.h"
 
@@ -58,6 +62,10 @@ int run(int argc, char** argv) {
   int (*run_trace)(const bisturi::cli::TraceOptions&) = nullptr;
   bisturi::cli::add_trace_command(app, trace, run_trace);
 
+  bisturi::cli::DeviceOptions device;
+  int (*run_device)(const bisturi::cli::DeviceOptions&) = nullptr;
+  bisturi::cli::add_device_command(app, device, run_device);
+
   bisturi::cli::RenderOptions render;
   int (*run_render)(const bisturi::cli::RenderOptions&) = nullptr;
   bisturi::cli::add_render_command(app, render, run_render);
@@ -69,6 +77,17 @@ int run(int argc, char** argv) {
   bisturi::cli::ReplayOptions replay;
   int (*run_replay)(const bisturi::cli::ReplayOptions&) = nullptr;
   bisturi::cli::add_replay_command(app, replay, run_replay);
+
+  bisturi::cli::PipelineOptions pipeline;
+  int (*run_pipeline)(const bisturi::cli::PipelineOptions&) = nullptr;
+  bisturi::cli::add_pipeline_command(app, pipeline, run_pipeline);
+
+  bisturi::cli::CohortOptions cohort;
+  int (*run_cohort)(const bisturi::cli::CohortOptions&) = nullptr;
+  bisturi::cli::add_cohort_command(app, cohort, run_cohort);
+  bisturi::cli::TissueIndentOptions tissue;
+  int (*run_tissue)(const bisturi::cli::TissueIndentOptions&) = nullptr;
+  bisturi::cli::add_tissue_command(app, tissue, run_tissue);
 
   CLI11_PARSE(app, argc, argv);
   if (version) {
@@ -82,9 +101,13 @@ int run(int argc, char** argv) {
   if (run_extract != nullptr) return run_extract(extract);
   if (run_measure != nullptr) return run_measure(measure);
   if (run_trace != nullptr) return run_trace(trace);
+  if (run_device != nullptr) return run_device(device);
   if (run_render != nullptr) return run_render(render);
   if (run_run != nullptr) return run_run(run_options);
   if (run_replay != nullptr) return run_replay(replay);
+  if (run_pipeline != nullptr) return run_pipeline(pipeline);
+  if (run_cohort != nullptr) return run_cohort(cohort);
+  if (run_tissue != nullptr) return run_tissue(tissue);
   std::cout << app.help();
   return 0;
 }

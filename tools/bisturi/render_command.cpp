@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <iostream>
+#include <limits>
 #include <nlohmann/json.hpp>
 #include <numbers>
 #include <vector>
@@ -17,6 +18,7 @@
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/scene/volume/marching_cubes.h"
 #include "bisturi/scene/volume/phantoms.h"
+#include "orbit_framing.h"
 #include "progress_line.h"
 
 namespace bisturi::cli {
@@ -91,6 +93,21 @@ int run_render(const RenderOptions& options) {
   render::RendererOptions ro;
   ro.headset.eye_width = options.eye_width;
   ro.headset.eye_height = options.eye_height;
+  // The orbit: around the solid's vertical (y) axis, slightly from above, framed for its size.
+  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+  for (std::size_t i = 0; i < solid.vertex_capacity(); ++i) {
+    const VertexId v{static_cast<std::uint32_t>(i)};
+    if (!solid.alive(v)) continue;
+    lo = glm::min(lo, glm::dvec3(solid.position(v)));
+    hi = glm::max(hi, glm::dvec3(solid.position(v)));
+  }
+  if (!(lo.x <= hi.x)) throw std::invalid_argument("the solid has no vertices to render");
+  const OrbitFraming framing = frame_orbit(lo, hi, ro.headset.fov[0], ro.headset.ipd_mm);
+  const glm::dvec3 centre = framing.centre;
+  const double distance = framing.distance_mm;
+  ro.headset.near_mm = framing.near_mm;
+  ro.headset.far_mm = framing.far_mm;
+  ro.headset.ipd_mm = framing.ipd_mm;
   ro.frustum_culling = !options.no_culling;
   ro.level_of_detail = !options.no_lod;
   ro.validation = options.validation;
@@ -107,16 +124,10 @@ int run_render(const RenderOptions& options) {
       {options.per_eye ? render::PngLayout::PerEye : render::PngLayout::SideBySide, 1});
   renderer.set_sink(&sink);
 
-  // The orbit: around the solid's vertical (y) axis, far enough that the solid fills about two
-  // thirds of the field of view, slightly from above.
-  const render::Aabb& bounds = renderer.levels(id).bounds();
-  const glm::dvec3 centre = (bounds.lo + bounds.hi) * 0.5;
-  const double radius = std::max(glm::length(bounds.hi - bounds.lo) * 0.5, 1.0);
-  const double tan_half = std::tan(static_cast<double>(ro.headset.fov[0].angle_up));
-  const double distance = radius / (tan_half * 0.66);
   renderer.set_sink(&sink);
   std::vector<double> frame_ms;
   std::size_t draw_calls = 0, chunks_culled = 0, chunks_drawn = 0, triangles = 0;
+  std::size_t empty_frames = 0;
   const auto start = Clock::now();
   auto previous = start;
   for (std::uint32_t i = 0; i < options.frames; ++i) {
@@ -129,6 +140,11 @@ int run_render(const RenderOptions& options) {
     chunks_culled += stats.chunks_culled;
     chunks_drawn += stats.chunks_drawn;
     triangles += stats.triangles_drawn;
+    if (stats.triangles_drawn == 0) {
+      if (empty_frames == 0)
+        std::cerr << "bisturi render: frame " << i << " draws nothing: the solid is not in view\n";
+      ++empty_frames;
+    }
     const auto now = Clock::now();
     frame_ms.push_back(std::chrono::duration<double, std::milli>(now - previous).count());
     previous = now;
@@ -160,6 +176,11 @@ int run_render(const RenderOptions& options) {
       {"culled_chunks", chunks_culled},
       {"triangles_per_frame", static_cast<double>(triangles) / n},
       {"levels", renderer.levels(id).level_count()},
+      {"empty_frames", empty_frames},
+      {"solid_size", {hi.x - lo.x, hi.y - lo.y, hi.z - lo.z}},
+      {"near_mm", ro.headset.near_mm},
+      {"far_mm", ro.headset.far_mm},
+      {"ipd_mm", ro.headset.ipd_mm},
       {"levels_ms", levels_ms},
       {"validation_messages", renderer.validation_messages()}};
   if (options.json) {
@@ -174,6 +195,9 @@ int run_render(const RenderOptions& options) {
               << summary["triangles_per_frame"].get<double>() << " triangles and "
               << summary["chunks_culled_per_frame"].get<double>() << " culled chunks per frame\n";
   }
+  if (empty_frames > 0)
+    std::cerr << "bisturi render: " << empty_frames << " of " << options.frames
+              << " frames drew nothing\n";
   return renderer.validation_messages() == 0 ? 0 : 3;
 }
 

@@ -306,6 +306,7 @@ int run_run(const RunOptions& options) {
       {"events", events},
       {"final_state_hash", hex(r.final_state_hash)},
       {"trace", r.trace.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.trace.string())},
+      {"headset", nlohmann::json::parse(runtime::to_json(r.headset))},
       {"out", out.string()}};
   std::ofstream(out / "report.json") << report.dump(2) << "\n";
 

@@ -105,6 +105,17 @@ void add_trace_command(CLI::App& app, TraceOptions& options, int (*&run)(const T
   cut->add_option("--to-chunk", options.to_chunk, "last chunk to keep");
   cut->add_flag("--json", options.json, "write a JSON summary on stdout");
   cut->callback([&run] { run = run_trace_cut; });
+
+  CLI::App* dump = trace->add_subcommand(
+      "dump",
+      "print every record decoded: time, device, direction, the report's fields (through the "
+      "recorded driver and, for HID, the report descriptor), force commands as vectors per "
+      "channel (exit 2 at a bad chunk, after the records before it)");
+  dump->add_option("TRACE", options.input, "trace file")->required()->check(CLI::ExistingFile);
+  dump->add_option("--device", options.device,
+                   "only this device: its index, driver name, serial or product");
+  dump->add_flag("--json", options.json, "write one JSON object on stdout");
+  dump->callback([&run] { run = run_trace_dump; });
 }
 
 int run_trace_inspect(const TraceOptions& options) {

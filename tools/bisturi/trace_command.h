@@ -5,6 +5,9 @@
 //   replay TRACE [--json]    replays through the same drivers and force guard in virtual time and
 //                            compares the output reports (exit 0: pass, 3: mismatch, 2: bad chunk)
 //   cut TRACE --out FILE [--from S] [--to S] [--from-chunk N] [--to-chunk N] [--json]
+//   dump TRACE [--device NAME] [--json]
+//                            every record decoded: time, device, direction, report fields, force
+//                            commands as vectors (exit status 2 at a bad chunk)
 
 #include <cstdint>
 #include <optional>
@@ -19,6 +22,7 @@ namespace bisturi::cli {
 struct TraceOptions {
   std::string input;
   std::string output;
+  std::string device;  // dump: index, driver, serial or product
   bool json = false;
   std::optional<double> from_s;
   std::optional<double> to_s;
@@ -32,5 +36,6 @@ void add_trace_command(CLI::App& app, TraceOptions& options, int (*&run)(const T
 int run_trace_inspect(const TraceOptions& options);
 int run_trace_replay(const TraceOptions& options);
 int run_trace_cut(const TraceOptions& options);
+int run_trace_dump(const TraceOptions& options);
 
 }  // namespace bisturi::cli

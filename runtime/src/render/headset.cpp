@@ -53,4 +53,20 @@ std::array<EyeView, 2> eye_views(const HeadsetDescription& headset, const HeadPo
   return eyes;
 }
 
+std::array<EyeView, 2> eye_views(const HeadsetDescription& headset,
+                                 const std::array<EyePose, 2>& eyes) {
+  std::array<EyeView, 2> out;
+  for (std::size_t e = 0; e < 2; ++e) {
+    EyeView& eye = out[e];
+    eye.position_mm = eyes[e].position_mm;
+    glm::dmat4 eye_to_world(glm::mat3_cast(glm::normalize(eyes[e].orientation)));
+    eye_to_world[3] = glm::dvec4(eye.position_mm, 1.0);
+    eye.view = glm::inverse(eye_to_world);
+    eye.fov = eyes[e].fov;
+    eye.projection = projection_from_fov(eye.fov, headset.near_mm, headset.far_mm);
+    eye.view_projection = eye.projection * eye.view;
+  }
+  return out;
+}
+
 }  // namespace bisturi::render

@@ -58,7 +58,9 @@ std::string missing_runtime_reason() {
   return "none is installed (no active_runtime.json), and XR_RUNTIME_JSON does not name one";
 }
 
-const char* state_name(XrSessionState state) {
+}  // namespace
+
+const char* xr_detail::state_name(XrSessionState state) {
   switch (state) {
     case XR_SESSION_STATE_IDLE:
       return "IDLE";
@@ -81,23 +83,6 @@ const char* state_name(XrSessionState state) {
   }
 }
 
-/// World (LPS millimetres) to OpenXR LOCAL (metres, y up): a -90 degree turn about x, so that
-/// superior is up and anterior is +z (see openxr_sink.h).
-XrPosef xr_pose(const glm::dvec3& position_mm, const glm::dquat& orientation) {
-  const double h = std::sqrt(0.5);
-  const glm::dquat world_to_xr(h, -h, 0.0, 0.0);  // (w, x, y, z)
-  const glm::dquat q = glm::normalize(world_to_xr * orientation);
-  XrPosef pose;
-  pose.orientation = {static_cast<float>(q.x), static_cast<float>(q.y), static_cast<float>(q.z),
-                      static_cast<float>(q.w)};
-  pose.position = {static_cast<float>(position_mm.x / 1000.0),
-                   static_cast<float>(position_mm.z / 1000.0),
-                   static_cast<float>(-position_mm.y / 1000.0)};
-  return pose;
-}
-
-}  // namespace
-
 void OpenXrSink::Impl::create_instance() {
   quiet_loader();
   // The renderer's frames reach the headset through Vulkan: the runtime must offer
@@ -112,9 +97,10 @@ void OpenXrSink::Impl::create_instance() {
   blank_extension.type = XR_TYPE_EXTENSION_PROPERTIES;
   std::vector<XrExtensionProperties> extensions(count, blank_extension);
   xrEnumerateInstanceExtensionProperties(nullptr, count, &count, extensions.data());
-  bool vulkan = false;
+  bool vulkan = false, timespec = false;
   for (const XrExtensionProperties& e : extensions) {
     vulkan = vulkan || std::strcmp(e.extensionName, kVulkanExtension) == 0;
+    timespec = timespec || std::strcmp(e.extensionName, kTimespecExtension) == 0;
   }
   if (!vulkan) {
     throw XrUnavailable("the OpenXR runtime does not offer " + std::string(kVulkanExtension) +
@@ -126,8 +112,10 @@ void OpenXrSink::Impl::create_instance() {
                XR_MAX_APPLICATION_NAME_SIZE - 1);
   std::strncpy(info.applicationInfo.engineName, "bisturi", XR_MAX_ENGINE_NAME_SIZE - 1);
   info.applicationInfo.apiVersion = XR_CURRENT_API_VERSION;
-  const char* enabled[] = {kVulkanExtension};
-  info.enabledExtensionCount = 1;
+  // XR_KHR_convert_timespec_time, where offered, puts the runtime's times on the steady clock
+  // (motion-to-photon runs to the predicted display time).
+  const char* enabled[] = {kVulkanExtension, kTimespecExtension};
+  info.enabledExtensionCount = timespec ? 2 : 1;
   info.enabledExtensionNames = enabled;
   r = xrCreateInstance(&info, &instance);
   if (XR_FAILED(r)) {
@@ -147,6 +135,7 @@ void OpenXrSink::Impl::create_instance() {
   load("xrCreateVulkanInstanceKHR", create_vk_instance);
   load("xrGetVulkanGraphicsDevice2KHR", get_vk_device);
   load("xrCreateVulkanDeviceKHR", create_vk_device);
+  if (timespec) load("xrConvertTimeToTimespecTimeKHR", time_to_timespec);
 }
 
 void OpenXrSink::Impl::describe_system() {
@@ -196,10 +185,10 @@ void OpenXrSink::Impl::describe_system() {
 void OpenXrSink::Impl::create_session() {
   XrGraphicsBindingVulkan2KHR binding{};
   binding.type = XR_TYPE_GRAPHICS_BINDING_VULKAN2_KHR;
-  binding.instance = vk_instance;
-  binding.physicalDevice = physical;
-  binding.device = device;
-  binding.queueFamilyIndex = queue_family;
+  binding.instance = context->instance();
+  binding.physicalDevice = context->physical_device();
+  binding.device = context->device();
+  binding.queueFamilyIndex = context->queue_family();
   binding.queueIndex = 0;
   XrSessionCreateInfo info{};
   info.type = XR_TYPE_SESSION_CREATE_INFO;
@@ -207,7 +196,7 @@ void OpenXrSink::Impl::create_session() {
   info.systemId = system;
   xr_setup(xrCreateSession(instance, &info, &session), "xrCreateSession");
 
-  XrReferenceSpaceType type = XR_REFERENCE_SPACE_TYPE_LOCAL;
+  space_type = XR_REFERENCE_SPACE_TYPE_LOCAL;
   if (options.stage_space) {
     std::uint32_t count = 0;
     xr_setup(xrEnumerateReferenceSpaces(session, 0, &count, nullptr), "xrEnumerateReferenceSpaces");
@@ -215,14 +204,17 @@ void OpenXrSink::Impl::create_session() {
     xr_setup(xrEnumerateReferenceSpaces(session, count, &count, spaces.data()),
              "xrEnumerateReferenceSpaces");
     if (std::find(spaces.begin(), spaces.end(), XR_REFERENCE_SPACE_TYPE_STAGE) != spaces.end()) {
-      type = XR_REFERENCE_SPACE_TYPE_STAGE;
+      space_type = XR_REFERENCE_SPACE_TYPE_STAGE;
     }
   }
   XrReferenceSpaceCreateInfo space_info{};
   space_info.type = XR_TYPE_REFERENCE_SPACE_CREATE_INFO;
-  space_info.referenceSpaceType = type;
+  space_info.referenceSpaceType = space_type;
   space_info.poseInReferenceSpace.orientation.w = 1.0f;
   xr_setup(xrCreateReferenceSpace(session, &space_info, &space), "xrCreateReferenceSpace");
+  space_info.referenceSpaceType = XR_REFERENCE_SPACE_TYPE_VIEW;
+  xr_setup(xrCreateReferenceSpace(session, &space_info, &view_space), "xrCreateReferenceSpace");
+  if (options.controller) attach_input();
 }
 
 void OpenXrSink::Impl::choose_format() {
@@ -231,12 +223,14 @@ void OpenXrSink::Impl::choose_format() {
   std::vector<std::int64_t> formats(count);
   xr_setup(xrEnumerateSwapchainFormats(session, count, &count, formats.data()),
            "xrEnumerateSwapchainFormats");
-  // The frames are sRGB-encoded RGBA8 bytes: copied as they are into an sRGB image they mean the
-  // same colours. RGBA first (a plain copy), BGRA second (swizzled while staging).
-  for (const VkFormat wanted : {VK_FORMAT_R8G8B8A8_SRGB, VK_FORMAT_B8G8R8A8_SRGB}) {
+  // The renderer writes sRGB-encoded bytes (shaders/mesh.frag) through a UNORM view of an sRGB
+  // image (a mutable-format swapchain): the compositor reads the colours the PNG sink writes.
+  for (const auto& [wanted, view] :
+       {std::pair{VK_FORMAT_R8G8B8A8_SRGB, VK_FORMAT_R8G8B8A8_UNORM},
+        std::pair{VK_FORMAT_B8G8R8A8_SRGB, VK_FORMAT_B8G8R8A8_UNORM}}) {
     if (std::find(formats.begin(), formats.end(), wanted) != formats.end()) {
       format = wanted;
-      bgra = wanted == VK_FORMAT_B8G8R8A8_SRGB;
+      view_format = view;
       return;
     }
   }
@@ -249,21 +243,52 @@ void OpenXrSink::Impl::choose_format() {
                       (offered.empty() ? std::string("none") : offered) + kFallback);
 }
 
+XrTime OpenXrSink::Impl::now_xr() const {
+  // Without XR_KHR_convert_timespec_time, XrTime is taken as CLOCK_MONOTONIC nanoseconds, which
+  // it is in Monado (and the simulated runtime); PoseClock is that clock on Linux.
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(PoseClock::now().time_since_epoch())
+      .count();
+}
+
+PoseClock::time_point OpenXrSink::Impl::to_pose_clock(XrTime time) const {
+  std::int64_t ns = time;
+  timespec t{};
+  if (time_to_timespec != nullptr && XR_SUCCEEDED(time_to_timespec(instance, time, &t))) {
+    ns = static_cast<std::int64_t>(t.tv_sec) * 1'000'000'000 + t.tv_nsec;
+  }
+  return PoseClock::time_point(
+      std::chrono::duration_cast<PoseClock::duration>(std::chrono::nanoseconds(ns)));
+}
+
 void OpenXrSink::Impl::stop(std::string reason) {
   if (!stopped) stop_reason = std::move(reason);
   stopped = true;
 }
 
-void OpenXrSink::Impl::on_state(XrSessionState next) {
+bool OpenXrSink::Impl::xr_frame(XrResult r, const char* what) {
+  if (XR_SUCCEEDED(r)) return true;
+  if (r == XR_ERROR_SESSION_LOST) {
+    lose_session();
+    return false;
+  }
+  if (r == XR_ERROR_INSTANCE_LOST) {
+    running = false;
+    stop(std::string("the OpenXR runtime went away (") + what + ": XR_ERROR_INSTANCE_LOST)");
+    return false;
+  }
+  throw RenderError(std::string("OpenXR ") + what + " failed: " + xr_result(instance, r));
+}
+
+void OpenXrSink::Impl::on_state(XrSessionState next, XrTime time) {
   state = next;
+  changes.push_back({xr_detail::state_name(next), to_pose_clock(time)});
   switch (next) {
     case XR_SESSION_STATE_READY:
       if (!stopped && !running) {
         XrSessionBeginInfo begin{};
         begin.type = XR_TYPE_SESSION_BEGIN_INFO;
         begin.primaryViewConfigurationType = XR_VIEW_CONFIGURATION_TYPE_PRIMARY_STEREO;
-        xr_frame(xrBeginSession(session, &begin), "xrBeginSession");
-        running = true;
+        if (xr_frame(xrBeginSession(session, &begin), "xrBeginSession")) running = true;
       }
       break;
     case XR_SESSION_STATE_STOPPING:
@@ -278,10 +303,7 @@ void OpenXrSink::Impl::on_state(XrSessionState next) {
           "user quit");
       break;
     case XR_SESSION_STATE_LOSS_PENDING:
-      running = false;  // the session is going away: no more frame calls
-      stop(
-          "the OpenXR runtime is losing the session (LOSS_PENDING): the headset was "
-          "disconnected");
+      lose_session();
       break;
     default:
       break;
@@ -289,13 +311,20 @@ void OpenXrSink::Impl::on_state(XrSessionState next) {
 }
 
 void OpenXrSink::Impl::poll_events() {
-  for (;;) {
+  while (instance != XR_NULL_HANDLE) {
     XrEventDataBuffer event{};
     event.type = XR_TYPE_EVENT_DATA_BUFFER;
-    if (xrPollEvent(instance, &event) != XR_SUCCESS) return;
+    const XrResult r = xrPollEvent(instance, &event);
+    if (r == XR_ERROR_INSTANCE_LOST) {
+      xr_frame(r, "xrPollEvent");
+      return;
+    }
+    if (r != XR_SUCCESS) return;
     if (event.type == XR_TYPE_EVENT_DATA_SESSION_STATE_CHANGED) {
       const auto& changed = reinterpret_cast<const XrEventDataSessionStateChanged&>(event);
-      if (changed.session == session) on_state(changed.state);
+      if (changed.session == session && session != XR_NULL_HANDLE) {
+        on_state(changed.state, changed.time);
+      }
     } else if (event.type == XR_TYPE_EVENT_DATA_INSTANCE_LOSS_PENDING) {
       running = false;
       stop("the OpenXR runtime is going away (instance loss pending)");
@@ -303,93 +332,108 @@ void OpenXrSink::Impl::poll_events() {
   }
 }
 
-void OpenXrSink::Impl::end_frame(XrTime display_time, const StereoFrame* frame) {
-  std::array<XrCompositionLayerProjectionView, 2> views{};
-  XrCompositionLayerProjection layer{};
-  const XrCompositionLayerBaseHeader* layers[] = {
-      reinterpret_cast<const XrCompositionLayerBaseHeader*>(&layer)};
-  XrFrameEndInfo end{};
-  end.type = XR_TYPE_FRAME_END_INFO;
-  end.displayTime = display_time;
-  end.environmentBlendMode = XR_ENVIRONMENT_BLEND_MODE_OPAQUE;
-  if (frame != nullptr) {
-    const std::array<EyeView, 2> eye = eye_views(options.rendered, frame->pose);
-    for (std::size_t e = 0; e < 2; ++e) {
-      XrCompositionLayerProjectionView& v = views[e];
-      v.type = XR_TYPE_COMPOSITION_LAYER_PROJECTION_VIEW;
-      v.pose = xr_pose(eye[e].position_mm, frame->pose.orientation);
-      const EyeFov& fov = options.rendered.fov[e];
-      v.fov = {fov.angle_left, fov.angle_right, fov.angle_up, fov.angle_down};
-      v.subImage.swapchain = eyes[e].swapchain;
-      v.subImage.imageRect = {
-          {0, 0}, {static_cast<std::int32_t>(width), static_cast<std::int32_t>(height)}};
-      v.subImage.imageArrayIndex = 0;
-    }
-    layer.type = XR_TYPE_COMPOSITION_LAYER_PROJECTION;
-    layer.space = space;
-    layer.viewCount = 2;
-    layer.views = views.data();
-    end.layerCount = 1;
-    end.layers = layers;
+void OpenXrSink::Impl::destroy_session() {
+  destroy_swapchain();
+  if (grip_space != XR_NULL_HANDLE) xrDestroySpace(grip_space);
+  grip_space = XR_NULL_HANDLE;
+  if (view_space != XR_NULL_HANDLE) xrDestroySpace(view_space);
+  if (space != XR_NULL_HANDLE) xrDestroySpace(space);
+  if (session != XR_NULL_HANDLE) xrDestroySession(session);
+  view_space = space = XR_NULL_HANDLE;
+  session = XR_NULL_HANDLE;
+  running = false;
+}
+
+void OpenXrSink::Impl::lose_session() {
+  if (lost || session == XR_NULL_HANDLE) return;
+  // The session is going away: nothing more is shown. Its objects go now; a new session is
+  // made once the runtime has the headset again (try_recreate).
+  ++stats.sessions_lost;
+  lost = true;
+  running = false;
+  have_views = false;  // the new session's views are located afresh
+  destroy_session();
+  next_system_try = PoseClock::now();
+}
+
+void OpenXrSink::Impl::try_recreate() {
+  if (!lost || stopped || PoseClock::now() < next_system_try) return;
+  next_system_try = PoseClock::now() + std::chrono::milliseconds(50);
+  XrSystemGetInfo info{};
+  info.type = XR_TYPE_SYSTEM_GET_INFO;
+  info.formFactor = XR_FORM_FACTOR_HEAD_MOUNTED_DISPLAY;
+  XrSystemId again = XR_NULL_SYSTEM_ID;
+  const XrResult r = xrGetSystem(instance, &info, &again);
+  if (r == XR_ERROR_FORM_FACTOR_UNAVAILABLE) return;  // not back yet
+  if (!xr_frame(r, "xrGetSystem")) return;
+  // The renderer's device must be the one the runtime shows from: the same system and device.
+  XrGraphicsRequirementsVulkan2KHR requirements{};
+  requirements.type = XR_TYPE_GRAPHICS_REQUIREMENTS_VULKAN2_KHR;
+  if (!xr_frame(get_requirements(instance, again, &requirements),
+                "xrGetVulkanGraphicsRequirements2KHR")) {
+    return;
   }
-  xr_frame(xrEndFrame(session, &end), "xrEndFrame");
+  XrVulkanGraphicsDeviceGetInfoKHR device_info{};
+  device_info.type = XR_TYPE_VULKAN_GRAPHICS_DEVICE_GET_INFO_KHR;
+  device_info.systemId = again;
+  device_info.vulkanInstance = context->instance();
+  VkPhysicalDevice physical = VK_NULL_HANDLE;
+  if (!xr_frame(get_vk_device(instance, &device_info, &physical),
+                "xrGetVulkanGraphicsDevice2KHR")) {
+    return;
+  }
+  if (physical != context->physical_device()) {
+    stop(
+        "the OpenXR runtime came back on another Vulkan device than the one the renderer draws on");
+    return;
+  }
+  system = again;
+  try {
+    create_session();
+    make_swapchain(width, height);
+  } catch (const XrUnavailable& e) {
+    stop(std::string("the OpenXR session could not be made again: ") + e.what());
+    return;
+  }
+  lost = false;
+  ++stats.sessions_recreated;
+  poll_events();  // READY begins it
 }
 
 OpenXrSink::OpenXrSink(const std::string& application_name)
-    : OpenXrSink(OpenXrSinkOptions{application_name, {}, false, false}) {}
+    : OpenXrSink(OpenXrSinkOptions{.application_name = application_name}) {}
 
 OpenXrSink::OpenXrSink(const OpenXrSinkOptions& options) : impl_(std::make_unique<Impl>()) {
-  impl_->options = options;
-  impl_->create_instance();
-  impl_->describe_system();
-  impl_->create_vulkan();
-  impl_->create_session();
-  impl_->choose_format();
-  impl_->poll_events();  // a runtime that is ready at once begins the session here
+  Impl& s = *impl_;
+  s.options = options;
+  if (const char* log = std::getenv("BISTURI_XR_VIEWS_LOG"); log != nullptr && *log != '\0') {
+    s.views_log = std::fopen(log, "w");
+  }
+  s.create_instance();
+  s.describe_system();
+  if (options.controller) s.create_input();
+  s.create_vulkan();
+  s.create_session();
+  s.choose_format();
+  s.make_swapchain(options.eye_width != 0 ? options.eye_width : s.headset.eye_width,
+                   options.eye_height != 0 ? options.eye_height : s.headset.eye_height);
+  s.poll_events();  // a runtime that is ready at once begins the session here
 }
 
 OpenXrSink::~OpenXrSink() = default;
 
-void OpenXrSink::consume(const StereoFrame& frame) {
-  Impl& s = *impl_;
-  ++s.stats.frames_consumed;
-  s.poll_events();
-  if (!s.running || s.stopped) {
-    ++s.stats.frames_dropped;
-    return;
-  }
-  if (s.width == 0) {
-    s.make_swapchains(frame.eye_width, frame.eye_height);
-  } else if (frame.eye_width != s.width || frame.eye_height != s.height) {
-    throw RenderError(
-        "a frame of " + std::to_string(frame.eye_width) + "x" + std::to_string(frame.eye_height) +
-        " per eye reached the OpenXR sink, "
-        "whose swapchains are " +
-        std::to_string(s.width) + "x" + std::to_string(s.height) + " (made at the first frame)");
-  }
-  XrFrameWaitInfo wait{};
-  wait.type = XR_TYPE_FRAME_WAIT_INFO;
-  XrFrameState frame_state{};
-  frame_state.type = XR_TYPE_FRAME_STATE;
-  const auto waiting = std::chrono::steady_clock::now();
-  s.xr_frame(xrWaitFrame(s.session, &wait, &frame_state), "xrWaitFrame");
-  s.stats.wait_frame_ms +=
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - waiting).count();
-  XrFrameBeginInfo begin{};
-  begin.type = XR_TYPE_FRAME_BEGIN_INFO;
-  s.xr_frame(xrBeginFrame(s.session, &begin), "xrBeginFrame");
-  if (frame_state.shouldRender != XR_TRUE) {
-    s.end_frame(frame_state.predictedDisplayTime, nullptr);
-    ++s.stats.frames_not_rendered;
-    return;
-  }
-  const auto uploading = std::chrono::steady_clock::now();
-  s.upload(frame);
-  s.stats.upload_ms +=
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - uploading)
-          .count();
-  s.end_frame(frame_state.predictedDisplayTime, &frame);
-  ++s.stats.frames_submitted;
+HeadsetFrame OpenXrSink::begin_frame() {
+  return impl_->begin_frame();
+}
+void OpenXrSink::end_frame(const HeadsetFrame& frame, bool rendered) {
+  impl_->end_frame(frame, rendered);
+}
+void OpenXrSink::consume(const StereoFrame& /*frame*/) {}
+bool OpenXrSink::vibrate(float amplitude, double duration_s) {
+  return impl_->vibrate(amplitude, duration_s);
+}
+void OpenXrSink::finish() {
+  impl_->finish();
 }
 
 const HeadsetDescription& OpenXrSink::headset() const {
@@ -402,23 +446,33 @@ OpenXrSinkStats OpenXrSink::stats() const {
   return impl_->stats;
 }
 std::string OpenXrSink::session_state() const {
-  return state_name(impl_->state);
+  return xr_detail::state_name(impl_->state);
+}
+const std::vector<XrStateChange>& OpenXrSink::state_changes() const {
+  return impl_->changes;
+}
+std::string OpenXrSink::reference_space() const {
+  return impl_->space_type == XR_REFERENCE_SPACE_TYPE_STAGE ? "STAGE" : "LOCAL";
 }
 bool OpenXrSink::presenting() const {
-  return impl_->running && !impl_->stopped;
+  return impl_->running && !impl_->stopped &&
+         (impl_->state == XR_SESSION_STATE_VISIBLE || impl_->state == XR_SESSION_STATE_FOCUSED);
+}
+bool OpenXrSink::stopped() const {
+  return impl_->stopped;
 }
 const std::string& OpenXrSink::stop_reason() const {
   return impl_->stop_reason;
 }
 std::string OpenXrSink::swapchain_format() const {
-  return impl_->bgra ? "VK_FORMAT_B8G8R8A8_SRGB" : "VK_FORMAT_R8G8B8A8_SRGB";
+  return impl_->format == VK_FORMAT_B8G8R8A8_SRGB ? "VK_FORMAT_B8G8R8A8_SRGB"
+                                                  : "VK_FORMAT_R8G8B8A8_SRGB";
 }
 std::size_t OpenXrSink::validation_messages() const {
-  return impl_->validation.messages.load();
+  return impl_->context ? impl_->context->validation_messages() : 0;
 }
 std::vector<std::string> OpenXrSink::validation_log() const {
-  const std::lock_guard<std::mutex> lock(impl_->validation.mutex);
-  return impl_->validation.lines;
+  return impl_->context ? impl_->context->validation_log() : std::vector<std::string>{};
 }
 
 }  // namespace bisturi::render

@@ -1,58 +1,53 @@
 #pragma once
-// The OpenXR sink's state, shared by openxr_sink.cpp (instance, session, frame loop) and
-// openxr_sink_vulkan.cpp (the sink's Vulkan device, swapchain images and the upload).
+// The OpenXR sink's state, shared by openxr_sink.cpp (instance, session, lifecycle),
+// openxr_sink_frame.cpp (the frame loop, views and layers) and openxr_sink_vulkan.cpp (the
+// Vulkan instance and device made through the runtime, the swapchain), and with the renderer that
+// draws into the swapchain (OpenXrSinkAccess).
 
 #include <vulkan/vulkan.h>
 #define XR_USE_GRAPHICS_API_VULKAN 1
+#define XR_USE_TIMESPEC 1
 #include <openxr/openxr.h>
 #include <openxr/openxr_platform.h>
+#include <time.h>
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <functional>
+#include <memory>
 #include <mutex>
 #include <thread>
 #include <vector>
 
-#include "bisturi/runtime/render/errors.h"
-#include "vulkan_context.h"
+#include <glm/gtc/quaternion.hpp>
 
+#include "bisturi/runtime/render/errors.h"
 #include "bisturi/runtime/render/openxr_sink.h"
+#include "vulkan_context.h"
 
 namespace bisturi::render::xr_detail {
 
 inline constexpr const char* kVulkanExtension = XR_KHR_VULKAN_ENABLE2_EXTENSION_NAME;
+inline constexpr const char* kTimespecExtension = XR_KHR_CONVERT_TIMESPEC_TIME_EXTENSION_NAME;
 inline const std::string kFallback = "; frames can go to the headless (PNG) sink instead";
 
 /// An XrResult as text (the runtime's name for it when an instance exists).
 std::string xr_result(XrInstance instance, XrResult result);
-
-/// Validation-layer messages on the sink's device, counted (never printed).
-struct ValidationLog {
-  std::atomic<std::size_t> messages{0};
-  mutable std::mutex mutex;
-  std::vector<std::string> lines;
-};
-
-/// The debug-utils callback: counts and keeps (never prints) the validation layer's messages.
-VKAPI_ATTR VkBool32 VKAPI_CALL on_validation(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
-                                             VkDebugUtilsMessageTypeFlagsEXT types,
-                                             const VkDebugUtilsMessengerCallbackDataEXT* data,
-                                             void* user);
+const char* state_name(XrSessionState state);
 
 }  // namespace bisturi::render::xr_detail
 
 namespace bisturi::render {
 
 using xr_detail::kFallback;
+using xr_detail::kTimespecExtension;
 using xr_detail::kVulkanExtension;
-using xr_detail::on_validation;
-using xr_detail::ValidationLog;
 using xr_detail::xr_result;
 
 struct OpenXrSink::Impl {
@@ -67,41 +62,55 @@ struct OpenXrSink::Impl {
   PFN_xrCreateVulkanInstanceKHR create_vk_instance = nullptr;
   PFN_xrGetVulkanGraphicsDevice2KHR get_vk_device = nullptr;
   PFN_xrCreateVulkanDeviceKHR create_vk_device = nullptr;
+  PFN_xrConvertTimeToTimespecTimeKHR time_to_timespec = nullptr;  ///< null: not offered
+  std::uint32_t vk_api_max = 0;
 
-  // The sink's own Vulkan device, made through the runtime (it may need extensions of its own).
-  // Frames arrive as CPU pixels from the renderer, which owns a separate device; they are
-  // uploaded through a staging buffer. Rendering straight into the swapchains on one shared
-  // device (no CPU round trip) is future work.
-  VkInstance vk_instance = VK_NULL_HANDLE;
-  VkDebugUtilsMessengerEXT messenger = VK_NULL_HANDLE;
-  VkPhysicalDevice physical = VK_NULL_HANDLE;
-  VkDevice device = VK_NULL_HANDLE;
-  VkQueue queue = VK_NULL_HANDLE;
-  std::uint32_t queue_family = 0;
-  VkCommandPool pool = VK_NULL_HANDLE;
-  VkCommandBuffer commands = VK_NULL_HANDLE;
-  VkFence fence = VK_NULL_HANDLE;
-  ValidationLog validation;
+  /// The one Vulkan device: made through the runtime, shared with the renderer on this sink.
+  std::shared_ptr<vk::Context> context;
 
   XrSession session = XR_NULL_HANDLE;
-  XrSpace space = XR_NULL_HANDLE;
+  XrSpace space = XR_NULL_HANDLE;       ///< LOCAL or STAGE
+  XrSpace view_space = XR_NULL_HANDLE;  ///< the head
+  XrReferenceSpaceType space_type = XR_REFERENCE_SPACE_TYPE_LOCAL;
   XrSessionState state = XR_SESSION_STATE_UNKNOWN;
   bool running = false;
   bool stopped = false;
+  bool lost = false;  ///< the session was lost: waiting for the headset to make a new one
+  PoseClock::time_point next_system_try{};
   std::string stop_reason;
+  std::vector<XrStateChange> changes;
   std::int64_t format = 0;
-  bool bgra = false;
+  VkFormat view_format = VK_FORMAT_UNDEFINED;  ///< the UNORM twin the renderer draws through
 
-  struct Eye {
-    XrSwapchain swapchain = XR_NULL_HANDLE;
-    std::vector<VkImage> images;
-  };
-  std::array<Eye, 2> eyes;
-  std::uint32_t width = 0, height = 0;  ///< of the swapchains (0: not made yet)
-  VkBuffer staging = VK_NULL_HANDLE;    ///< both eyes, left then right
-  VkDeviceMemory staging_memory = VK_NULL_HANDLE;
-  std::uint8_t* staging_bytes = nullptr;
+  // The swapchain: one two-layer image per slot (left eye layer 0, right eye layer 1).
+  XrSwapchain swapchain = XR_NULL_HANDLE;
+  std::vector<VkImage> images;
+  std::uint32_t width = 0, height = 0;
+  std::uint64_t swapchain_generation = 0;  ///< bumped whenever the images change
+  bool image_acquired = false;
+  std::uint32_t acquired_index = 0;
+  /// Called before the swapchain's images go away (the renderer drops its views of them).
+  std::function<void()> before_swapchain_destroyed;
+
+  // The right controller (OpenXrSinkOptions::controller): actions made once per instance,
+  // attached and given a grip space in each session.
+  XrActionSet action_set = XR_NULL_HANDLE;
+  XrAction grip_action = XR_NULL_HANDLE, trigger_action = XR_NULL_HANDLE,
+           haptic_action = XR_NULL_HANDLE;
+  XrPath right_hand = XR_NULL_PATH;
+  XrSpace grip_space = XR_NULL_HANDLE;
+
+  // The frame loop.
+  std::int64_t last_display_ns = 0;
+  bool have_views = false;  ///< some valid views were located: `last_*` hold them
+  std::array<XrView, 2> last_views{};
+  glm::dvec3 last_head_m{0.0};  ///< the head in the reference space at the last valid location
+  glm::dquat last_head_orientation{1.0, 0.0, 0.0, 0.0};
+  PoseClock::time_point last_sample{};
   OpenXrSinkStats stats;
+  /// BISTURI_XR_VIEWS_LOG: every xrLocateViews answer as the runtime gave it, one JSON line per
+  /// frame, to compare with the layers an API-dump layer records (development aid).
+  std::FILE* views_log = nullptr;
 
   ~Impl() { release(); }
 
@@ -112,25 +121,50 @@ struct OpenXrSink::Impl {
   void xr_setup(XrResult r, const char* what) const {
     if (XR_FAILED(r)) unavailable(what, r);
   }
-  void xr_frame(XrResult r, const char* what) const {
-    if (XR_FAILED(r)) {
-      throw RenderError(std::string("OpenXR ") + what + " failed: " + xr_result(instance, r));
-    }
-  }
+  /// A frame call's result: true when it succeeded; false when the session or the instance was
+  /// lost (handled: the loss is recorded); throws RenderError otherwise.
+  bool xr_frame(XrResult r, const char* what);
 
+  // openxr_sink.cpp
   void create_instance();
   void describe_system();
-  void create_vulkan();
   void create_session();
   void choose_format();
   void poll_events();
-  void on_state(XrSessionState next);
+  void on_state(XrSessionState next, XrTime time);
   void stop(std::string reason);
-  void make_swapchains(std::uint32_t w, std::uint32_t h);
-  void upload(const StereoFrame& frame);
-  void end_frame(XrTime display_time, const StereoFrame* frame);
-  std::uint32_t memory_type(std::uint32_t bits, VkMemoryPropertyFlags flags) const;
+  void lose_session();
+  void try_recreate();
+  void destroy_session();
+  PoseClock::time_point to_pose_clock(XrTime time) const;
+  XrTime now_xr() const;
+
+  // openxr_sink_frame.cpp
+  /// A position (m) and an orientation in the reference space, in the world (mm).
+  glm::dvec3 world_position(const glm::dvec3& reference_m) const;
+  glm::dquat world_orientation(const glm::dquat& reference) const;
+  HeadsetFrame begin_frame();
+  void end_frame(const HeadsetFrame& frame, bool rendered);
+  std::uint32_t acquire_image();
+
+  // openxr_sink_input.cpp
+  void create_input();
+  void attach_input();
+  ControllerState read_controller(XrTime display_time);
+  bool vibrate(float amplitude, double duration_s);
+
+  // openxr_sink_vulkan.cpp
+  void create_vulkan();
+  void make_swapchain(std::uint32_t w, std::uint32_t h);
+  void destroy_swapchain();
+  void finish();
   void release();
+};
+
+/// The renderer's way in: the shared device, the swapchain's images and their acquisition.
+struct OpenXrSinkAccess {
+  using Impl = OpenXrSink::Impl;
+  static Impl& of(OpenXrSink& sink) { return *sink.impl_; }
 };
 
 }  // namespace bisturi::render

@@ -12,6 +12,7 @@
 #include "bisturi/runtime/render/frustum.h"
 #include "gpu_buffer.h"
 #include "mesh_pipeline.h"
+#include "openxr_sink_impl.h"
 #include "stereo_target.h"
 #include "vulkan_context.h"
 
@@ -79,7 +80,11 @@ glm::mat4 to_float(const glm::dmat4& m) {
 
 struct StereoRenderer::Impl {
   RendererOptions options;
-  std::unique_ptr<vk::Context> context;
+  std::shared_ptr<vk::Context> context;
+  /// The headset whose swapchain is drawn into (null: the renderer's own image).
+  OpenXrSinkAccess::Impl* xr = nullptr;
+  std::uint64_t xr_generation = 0;  ///< of the swapchain the target's framebuffers view
+  std::uint64_t frames_read_back = 0;
   std::unique_ptr<vk::StereoTarget> target;
   std::unique_ptr<vk::MeshPipeline> pipeline;
   VkCommandPool pool = VK_NULL_HANDLE;
@@ -100,7 +105,25 @@ struct StereoRenderer::Impl {
     if (options.headset.eye_width == 0 || options.headset.eye_height == 0) {
       throw RenderError("the eye resolution must be at least 1 x 1");
     }
-    context = std::make_unique<vk::Context>(options.validation, options.device);
+    context = std::make_shared<vk::Context>(options.validation, options.device);
+    start();
+  }
+
+  Impl(const RendererOptions& o, OpenXrSink& headset) : options(o) {
+    xr = &OpenXrSinkAccess::of(headset);
+    context = xr->context;
+    options.headset.eye_width = xr->width;
+    options.headset.eye_height = xr->height;
+    options.validation = xr->options.validation;
+    // The swapchain's images may go (a lost session): the views of them go first.
+    xr->before_swapchain_destroyed = [this] {
+      vkDeviceWaitIdle(context->device());
+      target.reset();
+    };
+    start();
+  }
+
+  void start() {
     if (options.frames_in_flight == 0) options.frames_in_flight = context->is_cpu() ? 1 : 2;
     try {
       create();
@@ -110,12 +133,32 @@ struct StereoRenderer::Impl {
     }
   }
 
-  ~Impl() { release(); }
+  ~Impl() {
+    if (xr != nullptr) xr->before_swapchain_destroyed = nullptr;
+    release();
+  }
+
+  /// The render target: the own image, or the headset's swapchain images as they are now.
+  void make_target() {
+    if (xr == nullptr) {
+      target = std::make_unique<vk::StereoTarget>(*context, options.headset.eye_width,
+                                                  options.headset.eye_height);
+    } else {
+      target.reset();
+      options.headset.eye_width = xr->width;
+      options.headset.eye_height = xr->height;
+      if (!xr->images.empty()) {
+        target = std::make_unique<vk::StereoTarget>(*context, xr->width, xr->height,
+                                                    xr->view_format, xr->images);
+      }
+      xr_generation = xr->swapchain_generation;
+    }
+  }
 
   void create() {
     const VkDevice device = context->device();
-    target = std::make_unique<vk::StereoTarget>(*context, options.headset.eye_width,
-                                                options.headset.eye_height);
+    make_target();
+    if (!target) throw RenderError("the OpenXR sink has no swapchain to draw into");
     pipeline = std::make_unique<vk::MeshPipeline>(
         *context, target->render_pass(), options.headset.eye_width, options.headset.eye_height);
     VkCommandPoolCreateInfo pool_info{};
@@ -312,12 +355,28 @@ struct StereoRenderer::Impl {
     return chosen;
   }
 
-  FrameStats render(const HeadPose& head) {
+  FrameStats render(const HeadPose& head, const std::array<EyeView, 2>& eyes) {
     const auto wait_start = Clock::now();
     FrameStats stats;
     stats.frame = frame;
     FrameSlot& slot = slots[frame % slots.size()];
     complete(slot);
+    std::uint32_t image = 0;
+    if (xr != nullptr) {
+      if (!xr->image_acquired) {
+        throw RenderError(
+            "a headset frame was rendered without a swapchain image (call "
+            "OpenXrSink::begin_frame first, and render only when it says so)");
+      }
+      if (xr->swapchain_generation != xr_generation || !target) {
+        // A new swapchain (the session was made again): new views of its images. Its size and
+        // format are those of the old one, so the pipeline stays.
+        vkDeviceWaitIdle(context->device());
+        make_target();
+        if (!target) throw RenderError("the OpenXR sink has no swapchain to draw into");
+      }
+      image = xr->acquired_index;
+    }
     // The slot's last frame (GPU work and the sink) is waited for apart: on a GPU it is most of
     // a frame, and the CPU's own share would hide in it.
     const auto cpu_start = Clock::now();
@@ -325,7 +384,6 @@ struct StereoRenderer::Impl {
     while (!retired.empty() && retired.front().first <= frame)
       retired.pop_front();
 
-    const std::array<EyeView, 2> eyes = eye_views(options.headset, head);
     const std::array<Frustum, 2> frusta{Frustum::from_view_projection(eyes[0].view_projection),
                                         Frustum::from_view_projection(eyes[1].view_projection)};
     vk::EyeUniforms uniforms{};
@@ -404,7 +462,7 @@ struct StereoRenderer::Impl {
     VkRenderPassBeginInfo pass{};
     pass.sType = VK_STRUCTURE_TYPE_RENDER_PASS_BEGIN_INFO;
     pass.renderPass = target->render_pass();
-    pass.framebuffer = target->framebuffer();
+    pass.framebuffer = target->framebuffer(image);
     pass.renderArea = {{0, 0}, {options.headset.eye_width, options.headset.eye_height}};
     pass.clearValueCount = static_cast<std::uint32_t>(clear.size());
     pass.pClearValues = clear.data();
@@ -434,7 +492,9 @@ struct StereoRenderer::Impl {
     vkCmdEndRenderPass(cmd);
 
     slot.read_back = sink != nullptr;
-    slot.copy_pixels = slot.read_back && sink->wants_pixels(frame);
+    // A runtime's image is never copied out: it stays on the device for the compositor.
+    slot.copy_pixels = slot.read_back && !target->external() && sink->wants_pixels(frame);
+    if (slot.copy_pixels) ++frames_read_back;
     if (slot.copy_pixels) {
       const VkDeviceSize bytes =
           VkDeviceSize{options.headset.eye_width} * options.headset.eye_height * 4 * 2;
@@ -475,6 +535,9 @@ struct StereoRenderer::Impl {
 
 StereoRenderer::StereoRenderer(const RendererOptions& options)
     : impl_(std::make_unique<Impl>(options)) {}
+
+StereoRenderer::StereoRenderer(const RendererOptions& options, OpenXrSink& headset)
+    : impl_(std::make_unique<Impl>(options, headset)) {}
 
 StereoRenderer::~StereoRenderer() = default;
 
@@ -519,7 +582,16 @@ void StereoRenderer::set_sink(FrameSink* sink) {
   impl_->sink = sink;
 }
 FrameStats StereoRenderer::render(const HeadPose& head) {
-  return impl_->render(head);
+  return impl_->render(head, eye_views(impl_->options.headset, head));
+}
+FrameStats StereoRenderer::render(const HeadPose& head, const std::array<EyePose, 2>& eyes) {
+  return impl_->render(head, eye_views(impl_->options.headset, eyes));
+}
+std::uint64_t StereoRenderer::frames_read_back() const {
+  return impl_->frames_read_back;
+}
+bool StereoRenderer::draws_into_headset() const {
+  return impl_->xr != nullptr;
 }
 void StereoRenderer::flush() {
   impl_->flush();

@@ -25,22 +25,47 @@ VkFormat pick_depth_format(VkPhysicalDevice physical) {
 StereoTarget::StereoTarget(const Context& context, std::uint32_t width, std::uint32_t height)
     : context_(context), width_(width), height_(height) {
   try {
-    depth_format_ = pick_depth_format(context.physical_device());
-    colour_ = create_image(kColourFormat,
-                           VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
-                           VK_IMAGE_ASPECT_COLOR_BIT);
+    create(kColourFormat, nullptr);
+  } catch (...) {
+    release();
+    throw;
+  }
+}
+
+StereoTarget::StereoTarget(const Context& context, std::uint32_t width, std::uint32_t height,
+                           VkFormat view_format, const std::vector<VkImage>& images)
+    : context_(context), width_(width), height_(height) {
+  try {
+    create(view_format, &images);
+  } catch (...) {
+    release();
+    throw;
+  }
+}
+
+void StereoTarget::create(VkFormat colour_format, const std::vector<VkImage>* external) {
+  {
+    const VkDevice device = context_.device();
+    depth_format_ = pick_depth_format(context_.physical_device());
+    if (external == nullptr) {
+      colour_ = create_image(kColourFormat,
+                             VK_IMAGE_USAGE_COLOR_ATTACHMENT_BIT | VK_IMAGE_USAGE_TRANSFER_SRC_BIT,
+                             VK_IMAGE_ASPECT_COLOR_BIT);
+    }
     depth_ = create_image(depth_format_, VK_IMAGE_USAGE_DEPTH_STENCIL_ATTACHMENT_BIT,
                           VK_IMAGE_ASPECT_DEPTH_BIT);
 
     std::array<VkAttachmentDescription, 2> attachments{};
-    attachments[0].format = kColourFormat;
+    attachments[0].format = colour_format;
     attachments[0].samples = VK_SAMPLE_COUNT_1_BIT;
     attachments[0].loadOp = VK_ATTACHMENT_LOAD_OP_CLEAR;
     attachments[0].storeOp = VK_ATTACHMENT_STORE_OP_STORE;
     attachments[0].stencilLoadOp = VK_ATTACHMENT_LOAD_OP_DONT_CARE;
     attachments[0].stencilStoreOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
     attachments[0].initialLayout = VK_IMAGE_LAYOUT_UNDEFINED;
-    attachments[0].finalLayout = VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL;
+    // Own image: ready to be copied out. A runtime's image: handed back as it was handed over.
+    attachments[0].finalLayout = external == nullptr ? VK_IMAGE_LAYOUT_TRANSFER_SRC_OPTIMAL
+                                                     : VK_IMAGE_LAYOUT_COLOR_ATTACHMENT_OPTIMAL;
     attachments[1] = attachments[0];
     attachments[1].format = depth_format_;
     attachments[1].storeOp = VK_ATTACHMENT_STORE_OP_DONT_CARE;
@@ -55,7 +80,8 @@ StereoTarget::StereoTarget(const Context& context, std::uint32_t width, std::uin
     subpass.pDepthStencilAttachment = &depth_ref;
 
     // In: the previous frame's copy out of the colour image and its depth writes finish before
-    // this frame clears and draws. Out: the draws finish before the copy to the read-back buffer.
+    // this frame clears and draws. Out: the draws finish before the copy to the read-back buffer
+    // (a runtime's image: before anything later on the queue, where the runtime reads it).
     std::array<VkSubpassDependency, 2> deps{};
     deps[0].srcSubpass = VK_SUBPASS_EXTERNAL;
     deps[0].dstSubpass = 0;
@@ -73,9 +99,14 @@ StereoTarget::StereoTarget(const Context& context, std::uint32_t width, std::uin
     deps[1].srcSubpass = 0;
     deps[1].dstSubpass = VK_SUBPASS_EXTERNAL;
     deps[1].srcStageMask = VK_PIPELINE_STAGE_COLOR_ATTACHMENT_OUTPUT_BIT;
-    deps[1].dstStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
     deps[1].srcAccessMask = VK_ACCESS_COLOR_ATTACHMENT_WRITE_BIT;
-    deps[1].dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+    if (external == nullptr) {
+      deps[1].dstStageMask = VK_PIPELINE_STAGE_TRANSFER_BIT;
+      deps[1].dstAccessMask = VK_ACCESS_TRANSFER_READ_BIT;
+    } else {
+      deps[1].dstStageMask = VK_PIPELINE_STAGE_BOTTOM_OF_PIPE_BIT;
+      deps[1].dstAccessMask = 0;
+    }
 
     const std::uint32_t view_mask = 0b11;  // both eyes in one pass
     const std::uint32_t correlation_mask = 0b11;
@@ -95,24 +126,45 @@ StereoTarget::StereoTarget(const Context& context, std::uint32_t width, std::uin
     info.pSubpasses = &subpass;
     info.dependencyCount = static_cast<std::uint32_t>(deps.size());
     info.pDependencies = deps.data();
-    check(vkCreateRenderPass(context.device(), &info, nullptr, &render_pass_),
-          "vkCreateRenderPass");
+    check(vkCreateRenderPass(device, &info, nullptr, &render_pass_), "vkCreateRenderPass");
 
-    const std::array<VkImageView, 2> views{colour_.view, depth_.view};
-    VkFramebufferCreateInfo fb{};
-    fb.sType = VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO;
-    fb.renderPass = render_pass_;
-    fb.attachmentCount = static_cast<std::uint32_t>(views.size());
-    fb.pAttachments = views.data();
-    fb.width = width;
-    fb.height = height;
-    fb.layers = 1;  // multiview: the layers come from the view mask
-    check(vkCreateFramebuffer(context.device(), &fb, nullptr, &framebuffer_),
-          "vkCreateFramebuffer");
-  } catch (...) {
-    release();
-    throw;
+    std::vector<VkImageView> colour_views;
+    if (external == nullptr) {
+      colour_views.push_back(colour_.view);
+    } else {
+      for (const VkImage image : *external) {
+        external_views_.push_back(array_view(image, colour_format, VK_IMAGE_ASPECT_COLOR_BIT));
+      }
+      colour_views = external_views_;
+    }
+    for (const VkImageView colour : colour_views) {
+      const std::array<VkImageView, 2> views{colour, depth_.view};
+      VkFramebufferCreateInfo fb{};
+      fb.sType = VK_STRUCTURE_TYPE_FRAMEBUFFER_CREATE_INFO;
+      fb.renderPass = render_pass_;
+      fb.attachmentCount = static_cast<std::uint32_t>(views.size());
+      fb.pAttachments = views.data();
+      fb.width = width_;
+      fb.height = height_;
+      fb.layers = 1;  // multiview: the layers come from the view mask
+      VkFramebuffer framebuffer = VK_NULL_HANDLE;
+      check(vkCreateFramebuffer(device, &fb, nullptr, &framebuffer), "vkCreateFramebuffer");
+      framebuffers_.push_back(framebuffer);
+    }
   }
+}
+
+VkImageView StereoTarget::array_view(VkImage image, VkFormat format,
+                                     VkImageAspectFlags aspect) const {
+  VkImageViewCreateInfo view{};
+  view.sType = VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO;
+  view.image = image;
+  view.viewType = VK_IMAGE_VIEW_TYPE_2D_ARRAY;
+  view.format = format;
+  view.subresourceRange = {aspect, 0, 1, 0, 2};
+  VkImageView out = VK_NULL_HANDLE;
+  check(vkCreateImageView(context_.device(), &view, nullptr, &out), "vkCreateImageView");
+  return out;
 }
 
 StereoTarget::~StereoTarget() {
@@ -121,9 +173,13 @@ StereoTarget::~StereoTarget() {
 
 void StereoTarget::release() {
   const VkDevice device = context_.device();
-  if (framebuffer_ != VK_NULL_HANDLE) vkDestroyFramebuffer(device, framebuffer_, nullptr);
+  for (const VkFramebuffer f : framebuffers_)
+    vkDestroyFramebuffer(device, f, nullptr);
+  framebuffers_.clear();
+  for (const VkImageView v : external_views_)
+    vkDestroyImageView(device, v, nullptr);
+  external_views_.clear();
   if (render_pass_ != VK_NULL_HANDLE) vkDestroyRenderPass(device, render_pass_, nullptr);
-  framebuffer_ = VK_NULL_HANDLE;
   render_pass_ = VK_NULL_HANDLE;
   destroy(colour_);
   destroy(depth_);
@@ -156,13 +212,7 @@ StereoTarget::Image StereoTarget::create_image(VkFormat format, VkImageUsageFlag
         context_.memory_type(req.memoryTypeBits, VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT);
     check(vkAllocateMemory(device, &alloc, nullptr, &out.memory), "vkAllocateMemory");
     check(vkBindImageMemory(device, out.image, out.memory, 0), "vkBindImageMemory");
-    VkImageViewCreateInfo view{};
-    view.sType = VK_STRUCTURE_TYPE_IMAGE_VIEW_CREATE_INFO;
-    view.image = out.image;
-    view.viewType = VK_IMAGE_VIEW_TYPE_2D_ARRAY;
-    view.format = format;
-    view.subresourceRange = {aspect, 0, 1, 0, 2};
-    check(vkCreateImageView(device, &view, nullptr, &out.view), "vkCreateImageView");
+    out.view = array_view(out.image, format, aspect);
   } catch (...) {
     destroy(out);
     throw;

@@ -1,10 +1,14 @@
 #pragma once
 // The render target of both eyes: a two-layer colour image and a two-layer depth image, and the
-// multiview render pass (view mask 0b11) that draws into both layers at once.
+// multiview render pass (view mask 0b11) that draws into both layers at once. The colour image is
+// the target's own (read back for files) or, for a headset, each of an OpenXR runtime's
+// two-layer swapchain images (one framebuffer per image, drawn straight into, left in
+// COLOR_ATTACHMENT_OPTIMAL as XR_KHR_vulkan_enable2 hands them back).
 
 #include <vulkan/vulkan.h>
 
 #include <cstdint>
+#include <vector>
 
 #include "vulkan_context.h"
 
@@ -15,12 +19,20 @@ class StereoTarget {
   static constexpr VkFormat kColourFormat = VK_FORMAT_R8G8B8A8_UNORM;
 
   StereoTarget(const Context& context, std::uint32_t width, std::uint32_t height);
+  /// Draws into `images` (two layers each, made by someone else on this device), seen through
+  /// views of `view_format`.
+  StereoTarget(const Context& context, std::uint32_t width, std::uint32_t height,
+               VkFormat view_format, const std::vector<VkImage>& images);
   ~StereoTarget();
   StereoTarget(const StereoTarget&) = delete;
   StereoTarget& operator=(const StereoTarget&) = delete;
 
   [[nodiscard]] VkRenderPass render_pass() const { return render_pass_; }
-  [[nodiscard]] VkFramebuffer framebuffer() const { return framebuffer_; }
+  /// The framebuffer of the own image (0), or of external image `image`.
+  [[nodiscard]] VkFramebuffer framebuffer(std::size_t image = 0) const {
+    return framebuffers_[image];
+  }
+  [[nodiscard]] bool external() const { return !external_views_.empty(); }
   [[nodiscard]] VkImage colour_image() const { return colour_.image; }
   [[nodiscard]] std::uint32_t width() const { return width_; }
   [[nodiscard]] std::uint32_t height() const { return height_; }
@@ -31,7 +43,9 @@ class StereoTarget {
     VkDeviceMemory memory = VK_NULL_HANDLE;
     VkImageView view = VK_NULL_HANDLE;
   };
+  void create(VkFormat colour_format, const std::vector<VkImage>* external);
   Image create_image(VkFormat format, VkImageUsageFlags usage, VkImageAspectFlags aspect);
+  VkImageView array_view(VkImage image, VkFormat format, VkImageAspectFlags aspect) const;
   void destroy(Image& image);
   void release();
 
@@ -42,7 +56,8 @@ class StereoTarget {
   Image colour_;
   Image depth_;
   VkRenderPass render_pass_ = VK_NULL_HANDLE;
-  VkFramebuffer framebuffer_ = VK_NULL_HANDLE;
+  std::vector<VkImageView> external_views_;
+  std::vector<VkFramebuffer> framebuffers_;
 };
 
 }  // namespace bisturi::render::vk

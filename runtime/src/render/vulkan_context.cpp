@@ -84,9 +84,20 @@ void check(VkResult result, const char* what) {
 
 Context::Context(bool validation, DevicePreference preference) {
   try {
-    create_instance(validation);
-    pick_device(preference);
-    create_device();
+    create_instance(validation, nullptr);
+    pick_device(preference, VK_NULL_HANDLE);
+    create_device(nullptr);
+  } catch (...) {
+    release();
+    throw;
+  }
+}
+
+Context::Context(bool validation, const RuntimeCreation& runtime) {
+  try {
+    create_instance(validation, &runtime);
+    pick_device(DevicePreference::Any, runtime.physical_device(instance_));
+    create_device(&runtime);
   } catch (...) {
     release();
     throw;
@@ -125,7 +136,7 @@ std::vector<std::string> Context::validation_log() const {
   return log_;
 }
 
-void Context::create_instance(bool validation) {
+void Context::create_instance(bool validation, const RuntimeCreation* runtime) {
   VkApplicationInfo app{};
   app.sType = VK_STRUCTURE_TYPE_APPLICATION_INFO;
   app.pApplicationName = "bisturi";
@@ -145,13 +156,17 @@ void Context::create_instance(bool validation) {
   info.enabledExtensionCount = static_cast<std::uint32_t>(extensions.size());
   info.ppEnabledExtensionNames = extensions.data();
   if (validation) info.pNext = &messenger;  // also reports on instance creation itself
-  const VkResult result = vkCreateInstance(&info, nullptr, &instance_);
-  if (result == VK_ERROR_INCOMPATIBLE_DRIVER || result == VK_ERROR_INITIALIZATION_FAILED) {
-    throw NoVulkanDevice(std::string("no Vulkan driver could be loaded (vkCreateInstance: ") +
-                         result_name(result) +
-                         "); install a driver, e.g. Mesa's lavapipe (mesa-vulkan-drivers)");
+  if (runtime != nullptr) {
+    instance_ = runtime->create_instance(info);
+  } else {
+    const VkResult result = vkCreateInstance(&info, nullptr, &instance_);
+    if (result == VK_ERROR_INCOMPATIBLE_DRIVER || result == VK_ERROR_INITIALIZATION_FAILED) {
+      throw NoVulkanDevice(std::string("no Vulkan driver could be loaded (vkCreateInstance: ") +
+                           result_name(result) +
+                           "); install a driver, e.g. Mesa's lavapipe (mesa-vulkan-drivers)");
+    }
+    check(result, "vkCreateInstance");
   }
-  check(result, "vkCreateInstance");
   if (validation) {
     auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
         vkGetInstanceProcAddr(instance_, "vkCreateDebugUtilsMessengerEXT"));
@@ -160,7 +175,7 @@ void Context::create_instance(bool validation) {
   }
 }
 
-void Context::pick_device(DevicePreference preference) {
+void Context::pick_device(DevicePreference preference, VkPhysicalDevice only) {
   std::uint32_t count = 0;
   check(vkEnumeratePhysicalDevices(instance_, &count, nullptr), "vkEnumeratePhysicalDevices");
   std::vector<VkPhysicalDevice> devices(count);
@@ -169,6 +184,7 @@ void Context::pick_device(DevicePreference preference) {
   int best_rank = 1000;
   std::string refused;
   for (VkPhysicalDevice d : devices) {
+    if (only != VK_NULL_HANDLE && d != only) continue;  // the runtime's device or none
     VkPhysicalDeviceProperties props;
     vkGetPhysicalDeviceProperties(d, &props);
     VkPhysicalDeviceVulkan11Features v11{};
@@ -214,7 +230,7 @@ void Context::pick_device(DevicePreference preference) {
   vkGetPhysicalDeviceMemoryProperties(physical_, &memory_);
 }
 
-void Context::create_device() {
+void Context::create_device(const RuntimeCreation* runtime) {
   const float priority = 1.0f;
   VkDeviceQueueCreateInfo queue{};
   queue.sType = VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO;
@@ -229,7 +245,11 @@ void Context::create_device() {
   info.pNext = &v11;
   info.queueCreateInfoCount = 1;
   info.pQueueCreateInfos = &queue;
-  check(vkCreateDevice(physical_, &info, nullptr, &device_), "vkCreateDevice");
+  if (runtime != nullptr) {
+    device_ = runtime->create_device(physical_, info);
+  } else {
+    check(vkCreateDevice(physical_, &info, nullptr, &device_), "vkCreateDevice");
+  }
   vkGetDeviceQueue(device_, queue_family_, 0, &queue_);
 }
 

@@ -6,6 +6,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <functional>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -18,13 +19,25 @@ namespace bisturi::render::vk {
 void check(VkResult result, const char* what);
 const char* result_name(VkResult result);
 
+/// How an OpenXR runtime makes the instance and the device instead (XR_KHR_vulkan_enable2): it
+/// adds the extensions its compositor needs and names the physical device it shows frames from,
+/// so the renderer draws on the device the runtime reads. Each throws on failure.
+struct RuntimeCreation {
+  std::function<VkInstance(const VkInstanceCreateInfo&)> create_instance;
+  std::function<VkPhysicalDevice(VkInstance)> physical_device;
+  std::function<VkDevice(VkPhysicalDevice, const VkDeviceCreateInfo&)> create_device;
+};
+
 class Context {
  public:
   Context(bool validation, DevicePreference preference);
+  /// The instance and device made through the runtime (which picks the physical device).
+  Context(bool validation, const RuntimeCreation& runtime);
   ~Context();
   Context(const Context&) = delete;
   Context& operator=(const Context&) = delete;
 
+  [[nodiscard]] VkInstance instance() const { return instance_; }
   [[nodiscard]] VkDevice device() const { return device_; }
   [[nodiscard]] VkPhysicalDevice physical_device() const { return physical_; }
   [[nodiscard]] VkQueue queue() const { return queue_; }
@@ -47,9 +60,9 @@ class Context {
   void record_message(std::string text);
 
  private:
-  void create_instance(bool validation);
-  void pick_device(DevicePreference preference);
-  void create_device();
+  void create_instance(bool validation, const RuntimeCreation* runtime);
+  void pick_device(DevicePreference preference, VkPhysicalDevice only);
+  void create_device(const RuntimeCreation* runtime);
   void release();
 
   VkInstance instance_ = VK_NULL_HANDLE;

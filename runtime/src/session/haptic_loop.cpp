@@ -167,6 +167,16 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
   } else {
     std::fill(command_.begin(), command_.end(), 0.0);
   }
+  // No force the trainee cannot see the cause of: while the headset shows nothing, zero.
+  if (parts_.display_live != nullptr) {
+    const bool held = !parts_.display_live->load(std::memory_order_acquire);
+    if (held != display_held_) note(held ? "display_hold" : "display_live");
+    display_held_ = held;
+  }
+  if (display_held_) {
+    std::fill(command_.begin(), command_.end(), 0.0);
+    ++counters_.display_held_ticks;
+  }
   const bool was_lost = lost_;
   if (!lost_) send(t);
   // A tick without a force command is noted, so the replay counts it too.

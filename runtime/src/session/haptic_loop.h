@@ -82,6 +82,7 @@ struct HapticLoopCounters {
   std::uint64_t malformed_reports = 0;
   std::uint64_t guard_latches = 0;     ///< steps on which the guard latched
   std::uint64_t supervisor_zeros = 0;  ///< stalls the supervisor zeroed the output for
+  std::uint64_t display_held_ticks = 0;  ///< ticks held at zero: the headset showed nothing
   /// Session time when the haptic device / head tracker was lost (-1: never), and why.
   double haptic_lost_s = -1.0;
   std::string haptic_lost_reason;
@@ -110,6 +111,10 @@ struct HapticLoopParts {
   std::function<void(devices::Nanoseconds)> step_twins;
   /// Live: the head tracker's newest state, for the renderer (not called once it is lost).
   std::function<void(const devices::TrackerState&)> head_state;
+  /// Live: false while a headset shows nothing (not visible yet, its session lost): the ticks
+  /// send zero then, and each change is noted ("display_hold", "display_live") for the replay.
+  /// Null: always shown (files, the replay, which follows the notes: hold_display).
+  const std::atomic<bool>* display_live = nullptr;
 };
 
 class HapticLoop {
@@ -128,6 +133,9 @@ class HapticLoop {
   bool zero_if_stalled(devices::Nanoseconds now, devices::Nanoseconds limit) noexcept;
   /// The supervisor's zero, unconditionally (the replay, where the trace says it happened).
   void zero_now() noexcept;
+  /// The replay: the ticks from here send zero (held) or their command, as the trace's
+  /// "display_hold" / "display_live" notes say the live session did.
+  void hold_display(bool held) noexcept { display_held_ = held; }
 
   /// The last tick's command (N, per force component, before the guard).
   [[nodiscard]] const std::vector<double>& command() const { return command_; }
@@ -160,6 +168,7 @@ class HapticLoop {
   const TickOutput* step_output_ = nullptr;
   bool lost_ = false;
   bool head_lost_ = false;
+  bool display_held_ = false;
   std::atomic<bool> recording_{true};
   std::mutex error_mutex_;
   std::uint64_t k_ = 0;

@@ -8,6 +8,8 @@
 
 #include <glm/geometric.hpp>
 #include <glm/vec3.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtx/quaternion.hpp>
 
 #include "bisturi/runtime/render/headset.h"
 #include "bisturi/runtime/session/scene_description.h"
@@ -78,10 +80,16 @@ Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid
   const auto at = [total](double fraction) {
     return devices::Nanoseconds{static_cast<std::int64_t>(std::llround(fraction * total))};
   };
-  const auto key = [&](double fraction, const glm::dvec3& tip_mm, double joints_rad) {
+  // The scalpel's blade runs along the pose's +z from the tip: during the cut it points out of
+  // the surface along the cut's normal, so that it crosses the surface as it sweeps (upright for
+  // the default normal +z, the pose's identity).
+  const glm::dquat blade = glm::rotation(glm::dvec3(0.0, 0.0, 1.0), cn);
+  const auto key = [&](double fraction, const glm::dvec3& tip_mm, double joints_rad,
+                       bool cutting = false) {
     devices::MotionKey k;
     k.t = at(fraction);
     k.pose.position_m = to_metres(tip_mm);
+    if (cutting) k.pose.orientation = {blade.w, blade.x, blade.y, blade.z};
     k.joints_rad.assign(glove_joints, joints_rad);
     p.glove.motion.push_back(k);
   };
@@ -97,10 +105,10 @@ Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid
   key(0.60, grasp - 0.5 * gn, closed);
   key(0.63, grasp - 0.5 * gn, open);                     // release
   key(0.68, grasp + 10.0 * gn, open);
-  key(0.74, cut_a + 4.0 * cn, open);
-  key(0.78, cut_a - d.cut_depth_mm * cn, open);          // blade in
-  key(0.90, cut_b - d.cut_depth_mm * cn, open);          // sweep
-  key(0.96, cut_b + 20.0 * cn, open);
+  key(0.74, cut_a + 4.0 * cn, open, true);
+  key(0.78, cut_a - d.cut_depth_mm * cn, open, true);    // blade in
+  key(0.90, cut_b - d.cut_depth_mm * cn, open, true);    // sweep
+  key(0.96, cut_b + 20.0 * cn, open, true);
   p.glove.presses = {{at(0.785), 0, true}, {at(0.905), 0, false}};
   p.phases = {{"approach", at(0.0), at(0.12)},
               {"palpate", at(0.12), at(0.26)},

@@ -3,12 +3,16 @@
 #include "render_loop.h"
 
 #include <chrono>
+#include <limits>
 #include <thread>
 
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtx/quaternion.hpp>
 
+#include <nlohmann/json.hpp>
+
+#include "bisturi/devices/trace/trace_format.h"
 #include "bisturi/runtime/render/errors.h"
 #include "bisturi/runtime/render/instrument_mesh.h"
 #include "bisturi/runtime/render/openxr_sink.h"
@@ -46,7 +50,6 @@ struct RenderSolid {
   }
 };
 
-
 /// Frames pass through here on their way to the real sink: motion-to-photon and action-to-response
 /// are measured at the moment the image is finished.
 class MeasuringSink final : public render::FrameSink {
@@ -72,11 +75,13 @@ class MeasuringSink final : public render::FrameSink {
     if (inner_ != nullptr) inner_->consume(frame);
     ++consumed_;
     if (frame.pose.sample_time.time_since_epoch().count() == 0) return;  // no pose yet
+    // Shown at the runtime's predicted display time (OpenXR), or when finished (files).
+    const render::PoseClock::time_point shown =
+        frame.pose.display_time.time_since_epoch().count() != 0 ? frame.pose.display_time
+                                                                : frame.ready_time;
     report_.motion_to_photon_ms.record(
-        std::chrono::duration<double, std::milli>(frame.ready_time - frame.pose.sample_time)
-            .count());
-    const Nanoseconds ready =
-        std::chrono::duration_cast<Nanoseconds>(frame.ready_time.time_since_epoch());
+        std::chrono::duration<double, std::milli>(shown - frame.pose.sample_time).count());
+    const Nanoseconds ready = std::chrono::duration_cast<Nanoseconds>(shown.time_since_epoch());
     any_ready_ = true;
     last_frame_ = frame.index;
     last_ready_ = ready;
@@ -122,6 +127,87 @@ glm::dmat4 instrument_pose(const glm::dvec3& from_mm, const glm::dvec3& to_mm) {
   return m;
 }
 
+/// Where the scene sits in the headset's space (the scene's [headset] keys; see
+/// scene_description.h): the field's centre defaults to the centre of the solids' bounds.
+render::OpenXrSinkOptions headset_options(const SceneDescription& scene, const Snapshot& initial,
+                                          const SessionReport& report) {
+  render::OpenXrSinkOptions o;
+  o.stage_space = scene.headset.stage_space;
+  o.eye_width = report.eye_width;
+  o.eye_height = report.eye_height;
+  if (scene.headset.field_centre_mm) {
+    const auto& c = *scene.headset.field_centre_mm;
+    o.field_centre_mm = {c[0], c[1], c[2]};
+  } else {
+    glm::dvec3 lo(std::numeric_limits<double>::max()), hi(-std::numeric_limits<double>::max());
+    for (const SolidState& s : initial.solids) {
+      for (const glm::dvec3& p : s.positions_mm) {
+        lo = glm::min(lo, p);
+        hi = glm::max(hi, p);
+      }
+    }
+    if (lo.x <= hi.x) o.field_centre_mm = (lo + hi) * 0.5;
+  }
+  const double height =
+      scene.headset.field_height_m.value_or(scene.headset.stage_space ? 0.95 : -0.35);
+  o.field_position_m = {0.0, height, -scene.headset.field_distance_m};
+  return o;
+}
+
+/// The runtime's head pose of a drawn frame, for the trace.
+std::string head_note(const render::HeadsetFrame& f) {
+  const nlohmann::json j = {
+      {"xr_head",
+       {{"display_time_ns", f.display_time_ns},
+        {"views_valid", f.views_valid},
+        {"position_mm", {f.head.position_mm.x, f.head.position_mm.y, f.head.position_mm.z}},
+        {"orientation_wxyz",
+         {f.head.orientation.w, f.head.orientation.x, f.head.orientation.y,
+          f.head.orientation.z}}}}};
+  return j.dump();
+}
+
+/// The headset's figures into the report; the display rate and dropped frames are the runtime's.
+void report_headset(const render::OpenXrSink& xr, const render::StereoRenderer& renderer,
+                    render::PoseClock::time_point origin, SessionReport& report) {
+  HeadsetReport& h = report.headset;
+  const render::OpenXrSinkStats st = xr.stats();
+  h.sink = "openxr";
+  h.runtime = xr.runtime_name();
+  h.reference_space = xr.reference_space();
+  h.swapchain_format = xr.swapchain_format();
+  h.eye_width = renderer.options().headset.eye_width;
+  h.eye_height = renderer.options().headset.eye_height;
+  h.display_period_ms = static_cast<double>(st.display_period_ns) * 1e-6;
+  h.min_display_period_ms = static_cast<double>(st.min_display_period_ns) * 1e-6;
+  h.max_display_period_ms = static_cast<double>(st.max_display_period_ns) * 1e-6;
+  h.display_hz = st.display_period_ns > 0 ? 1e9 / static_cast<double>(st.display_period_ns) : 0.0;
+  h.frames_begun = st.frames_begun;
+  h.frames_submitted = st.frames_submitted;
+  h.frames_not_rendered = st.frames_not_rendered;
+  h.frames_without_views = st.frames_without_views;
+  h.dropped_frames = st.dropped_frames;
+  h.invalid_view_locations = st.invalid_view_locations;
+  h.states.clear();
+  for (const render::XrStateChange& c : xr.state_changes())
+    h.states.push_back({c.state, std::chrono::duration<double>(c.time - origin).count()});
+  h.sessions_lost = st.sessions_lost;
+  h.sessions_recreated = st.sessions_recreated;
+  h.shared_device = renderer.draws_into_headset();
+  h.frames_read_back = renderer.frames_read_back();
+  h.frames_crossed_cpu = h.frames_read_back > 0;
+  for (std::size_t e = 0; e < 2; ++e) {
+    const render::EyeFov& f = xr.headset().fov[e];
+    h.fov[e] = {f.angle_left, f.angle_right, f.angle_up, f.angle_down};
+  }
+  h.stop_reason = xr.stop_reason();
+  h.note =
+      "views, head pose and pacing from the OpenXR runtime; the scene's head tracker does not "
+      "place the views";
+  if (h.display_hz > 0.0) report.display_hz = h.display_hz;
+  report.dropped_frames = h.dropped_frames;
+}
+
 }  // namespace
 
 void run_render_loop(const RenderLoopContext& c) {
@@ -131,7 +217,8 @@ void run_render_loop(const RenderLoopContext& c) {
   const Snapshot& initial = c.initial;
   TripleBuffer<Snapshot>& handoff = c.snapshots;
   TripleBuffer<render::HeadPose>& head_handoff = c.head_poses;
-  const std::atomic<bool>& stop = c.stop;
+  std::atomic<bool>& stop = c.stop;
+  devices::Clock& clock = options.clock != nullptr ? *options.clock : devices::steady_clock();
   std::atomic<bool>& render_ready = c.ready;
   std::atomic<std::uint64_t>& frames = c.frames;
   std::vector<double>& event_response = c.event_response_ms;
@@ -149,32 +236,41 @@ void run_render_loop(const RenderLoopContext& c) {
     f.angle_up = static_cast<float>(scene.headset.fov_deg[2] * kRad);
     f.angle_down = static_cast<float>(-scene.headset.fov_deg[3] * kRad);
   }
-  render::StereoRenderer renderer(ro);
-  report.render_device = renderer.device_name();
-  report.render_device_is_cpu = renderer.device_is_cpu();
-  std::unique_ptr<render::FrameSink> sink;
-  render::PngSink* png = nullptr;
+  // The headset first: the renderer draws on its device (and goes before it).
+  std::unique_ptr<render::OpenXrSink> xr;
   if (options.openxr) {
     try {
-      sink = std::make_unique<render::OpenXrSink>(
-          render::OpenXrSinkOptions{.rendered = ro.headset});  // views carry its fov and IPD
+      xr = std::make_unique<render::OpenXrSink>(headset_options(scene, initial, report));
       report.sink = "openxr";
     } catch (const render::XrUnavailable& e) {
       report.sink_note =
           std::string("OpenXR unavailable (") + e.what() + "): frames go to the PNG sink";
     }
   }
-  if (!sink && !options.frames_dir.empty()) {
+  std::unique_ptr<render::StereoRenderer> renderer_owner =
+      xr ? std::make_unique<render::StereoRenderer>(ro, *xr)
+         : std::make_unique<render::StereoRenderer>(ro);
+  render::StereoRenderer& renderer = *renderer_owner;
+  report.render_device = renderer.device_name();
+  report.render_device_is_cpu = renderer.device_is_cpu();
+  if (xr) {
+    report.eye_width = renderer.options().headset.eye_width;
+    report.eye_height = renderer.options().headset.eye_height;
+  }
+  std::unique_ptr<render::FrameSink> png_owner;
+  render::PngSink* png = nullptr;
+  if (!xr && !options.frames_dir.empty()) {
     auto p = std::make_unique<render::PngSink>(
         options.frames_dir,
         render::PngSinkOptions{render::PngLayout::SideBySide, options.image_every});
     png = p.get();
-    sink = std::move(p);
+    png_owner = std::move(p);
     report.sink = "png";
   }
-  if (!sink) report.sink = "none";
-  const bool runtime_paces = report.sink == "openxr";
-  MeasuringSink measuring(sink.get(), report, event_response, event_times);
+  if (!xr && !png) report.sink = "none";
+  render::FrameSink* sink = xr ? static_cast<render::FrameSink*>(xr.get()) : png_owner.get();
+  c.display_live.store(!xr);
+  MeasuringSink measuring(sink, report, event_response, event_times);
   renderer.set_sink(&measuring);
 
   std::vector<RenderSolid> meshes(initial.solids.size());
@@ -206,6 +302,7 @@ void run_render_loop(const RenderLoopContext& c) {
       renderer.add_instrument(render::capsule_solid(0.4, 1.0), blade_material, glm::dmat4(1.0));
   renderer.set_visible(blade_id, false);
   render_ready.store(true);
+  const render::PoseClock::time_point origin = render::PoseClock::now();  // ~ the haptic start
 
   std::uint64_t seen_events = 0;
   const auto period = std::chrono::duration<double, std::milli>(display_period_ms);
@@ -216,6 +313,17 @@ void run_render_loop(const RenderLoopContext& c) {
   while (!stop.load(std::memory_order_relaxed) && !handoff.take())
     std::this_thread::sleep_for(std::chrono::microseconds(200));
   while (!stop.load(std::memory_order_relaxed)) {
+    render::HeadsetFrame xr_frame;
+    if (xr) {
+      // The runtime's frame: paced by xrWaitFrame, posed by its views.
+      xr_frame = xr->begin_frame();
+      c.display_live.store(xr->presenting());
+      if (xr->stopped()) {
+        stop.store(true);  // the user exited or the runtime went away: the session ends
+        break;
+      }
+      if (!xr_frame.began) continue;
+    }
     const auto begin = std::chrono::steady_clock::now();
     handoff.take();
     const Snapshot& s = handoff.front();
@@ -233,30 +341,43 @@ void run_render_loop(const RenderLoopContext& c) {
     renderer.set_visible(blade_id, s.cutting);
     if (s.cutting) {
       glm::dmat4 m = instrument_pose(s.tip_mm, s.blade_to_mm);
-      m = m * glm::scale(glm::dmat4(1.0),
-                         glm::dvec3(1.0, 1.0, glm::length(s.blade_to_mm - s.tip_mm)));
+      m = m *
+          glm::scale(glm::dmat4(1.0), glm::dvec3(1.0, 1.0, glm::length(s.blade_to_mm - s.tip_mm)));
       renderer.set_pose(blade_id, m);
     }
-    head_handoff.take();
-    const render::HeadPose pose = head_handoff.front();
-    const render::FrameStats stats = renderer.render(pose);
+    render::FrameStats stats;
+    if (xr) {
+      if (xr_frame.should_render) stats = renderer.render(xr_frame.head, xr_frame.eyes);
+      if (xr_frame.should_render && c.writer != nullptr) {
+        try {
+          c.writer->note(clock.now().count(), head_note(xr_frame));
+        } catch (const devices::TraceError&) {
+          // The recording failed; the haptic loop reports why. Frames go on.
+        }
+      }
+      xr->end_frame(xr_frame, xr_frame.should_render);
+      if (!xr_frame.should_render) continue;  // nothing drawn: no frame to time
+    } else {
+      head_handoff.take();
+      stats = renderer.render(head_handoff.front());
+    }
     for (; seen_events < s.event_count; ++seen_events) {
-      if (s.event_count - seen_events <= s.recent.size())
-        measuring.shows(stats.frame, seen_events);
+      if (s.event_count - seen_events <= s.recent.size()) measuring.shows(stats.frame, seen_events);
     }
     const auto end = std::chrono::steady_clock::now();
     report.render_ms.record(std::chrono::duration<double, std::milli>(end - begin).count());
     if (!first) {
       const double gap = std::chrono::duration<double, std::milli>(begin - previous).count();
       report.frame_ms.record(gap);
+      // With OpenXR the runtime's display periods count the dropped frames (report_headset).
       const auto missed = static_cast<std::uint64_t>(gap / display_period_ms + 0.5);
-      if (missed > 1) report.dropped_frames += missed - 1;
+      if (missed > 1 && !xr) report.dropped_frames += missed - 1;
     }
     first = false;
     previous = begin;
     frames.fetch_add(1, std::memory_order_relaxed);
     next += std::chrono::duration_cast<std::chrono::steady_clock::duration>(period);
-    if (next < end || runtime_paces) {
+    if (next < end || xr) {
       // Behind: the next frame starts at once (no catch-up burst). With OpenXR the runtime's
       // xrWaitFrame paces the frames to the headset's display; sleeping too would halve it.
       next = end;
@@ -265,6 +386,13 @@ void run_render_loop(const RenderLoopContext& c) {
     }
   }
   renderer.flush();
+  c.display_live.store(false);
+  if (xr) {
+    const std::string reason = xr->stop_reason();  // before finish() gives its own
+    xr->finish();
+    report_headset(*xr, renderer, origin, report);
+    report.headset.stop_reason = reason;
+  }
   if (png != nullptr) png->finish();
   report.frames = frames.load();
   report.images = png != nullptr ? png->images_written() : measuring.consumed();

@@ -1,14 +1,20 @@
 #pragma once
 // The session's render thread: at the headset's rate it takes the newest snapshot of the solids
-// and instruments and the newest head pose, draws both eyes (StereoRenderer) and hands the frame to
-// the sink (OpenXR when a runtime is there, PNG files otherwise), measuring frame times,
-// motion-to-photon and action-to-response into the report.
+// and instruments, draws both eyes (StereoRenderer) and hands the frame to the sink, measuring
+// frame times, motion-to-photon and action-to-response into the report.
+//  - OpenXR (when a runtime is there): the runtime paces the loop (xrWaitFrame), locates the views
+//    and the head at the predicted display time, and the frame is drawn with those views straight
+//    into its swapchain on the device it shares; motion-to-photon runs from the views' sample to
+//    the predicted display time. The scene's head tracker does not place the views then.
+//  - PNG files otherwise: the loop paces itself to the scene's display rate and draws the head
+//    pose the haptic thread publishes (the scene's head tracker).
 
 #include <atomic>
 #include <cstdint>
 #include <vector>
 
 #include "bisturi/devices/clock.h"
+#include "bisturi/devices/trace/trace_writer.h"
 #include "bisturi/runtime/render/headset.h"
 #include "bisturi/runtime/session/scene_description.h"
 #include "bisturi/runtime/session/session.h"
@@ -25,13 +31,21 @@ struct RenderLoopContext {
   const Snapshot& initial;
   TripleBuffer<Snapshot>& snapshots;
   TripleBuffer<render::HeadPose>& head_poses;
-  const std::atomic<bool>& stop;  ///< the loop ends when set
-  std::atomic<bool>& ready;       ///< set once the renderer is up (or failed)
+  /// The loop ends when set; set here when the headset is gone for good (the user exited, the
+  /// runtime went away): the session ends with it.
+  std::atomic<bool>& stop;
+  std::atomic<bool>& ready;  ///< set once the renderer is up (or failed)
   std::atomic<std::uint64_t>& frames;
   /// Per event: ms from its device report to the first frame showing it (written here).
   std::vector<double>& event_response_ms;
   /// Per event: when its device report was read (written by the tissue thread).
   std::vector<devices::Nanoseconds>& event_times;
+  /// False while an OpenXR headset shows nothing (not yet visible, session lost): the haptic
+  /// loop holds its forces at zero then. Always true with the PNG sink.
+  std::atomic<bool>& display_live;
+  /// The session's recording (null: none): with OpenXR each drawn frame's head pose, as the
+  /// runtime located it, goes in as an "xr_head" note.
+  devices::TraceWriter* writer = nullptr;
 };
 
 /// Runs until `stop`. Throws render::RenderError (no Vulkan device) and what the sinks throw.

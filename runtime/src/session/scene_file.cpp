@@ -10,6 +10,8 @@
 #include <sstream>
 
 #include "bisturi/runtime/session/scene_description.h"
+#include "bisturi/sim/errors.h"
+#include "bisturi/sim/tissue.h"
 #include "default_scene_toml.h"
 #include "embedded_data.h"
 
@@ -145,6 +147,60 @@ class SceneReader {
     return *n->value<bool>();
   }
 
+  /// [solids.material]: a preset and/or elastic parameters, calibrated into the surface model's
+  /// springs and volume term; stiffness_N_per_m by hand is the expert override.
+  void read_material(const toml::table& m, const std::string& path,
+                     MaterialDescription& out) const {
+    const std::string mp = path + ".material";
+    only_keys(m, mp,
+              {"preset", "youngs_modulus_kPa", "poisson_ratio", "retardation_time_s",
+               "stiffness_N_per_m", "damping_N_s_per_m", "density_kg_per_m3", "colour"});
+    sim::ElasticMaterial elastic;
+    bool any_elastic = false;
+    if (m.contains("preset")) {
+      out.preset = string_or(m, mp, "preset", "");
+      try {
+        elastic = sim::tissue_preset(out.preset).material;
+      } catch (const sim::SimInputError& e) {
+        fail(m.get("preset"), m, mp + ".preset", e.what());
+      }
+      any_elastic = true;
+    }
+    for (const char* key : {"youngs_modulus_kPa", "poisson_ratio", "retardation_time_s"})
+      any_elastic = any_elastic || m.contains(key);
+    elastic.youngs_modulus_kPa = number(m, mp, "youngs_modulus_kPa", elastic.youngs_modulus_kPa);
+    elastic.poisson_ratio = number(m, mp, "poisson_ratio", elastic.poisson_ratio);
+    elastic.retardation_time_s = number(m, mp, "retardation_time_s", elastic.retardation_time_s);
+    elastic.density_kg_per_m3 = positive(m, mp, "density_kg_per_m3", elastic.density_kg_per_m3);
+    out.density_kg_per_m3 = any_elastic
+                                ? elastic.density_kg_per_m3
+                                : positive(m, mp, "density_kg_per_m3", out.density_kg_per_m3);
+    if (any_elastic) {
+      sim::Material calibrated;
+      try {
+        calibrated = sim::calibrate_surface(elastic);
+      } catch (const sim::SimInputError& e) {
+        fail(nullptr, m, mp, e.what());
+      }
+      out.elastic = true;
+      out.youngs_modulus_kPa = elastic.youngs_modulus_kPa;
+      out.poisson_ratio = elastic.poisson_ratio;
+      out.retardation_time_s = elastic.retardation_time_s;
+      out.stiffness_N_per_m = calibrated.structural_N_per_m;
+      out.damping_N_s_per_m = calibrated.spring_damping_N_s_per_m;
+      out.bulk_modulus_Pa = calibrated.bulk_modulus_Pa;
+    }
+    if (m.contains("stiffness_N_per_m")) {
+      out.stiffness_override = true;
+      out.stiffness_N_per_m = positive(m, mp, "stiffness_N_per_m", out.stiffness_N_per_m);
+    }
+    out.damping_N_s_per_m = number(m, mp, "damping_N_s_per_m", out.damping_N_s_per_m);
+    if (out.damping_N_s_per_m < 0.0) {
+      fail(m.get("damping_N_s_per_m"), m, mp + ".damping_N_s_per_m", "must not be negative");
+    }
+    out.colour = numbers<3>(m, mp, "colour", out.colour);
+  }
+
   std::string string_or(const toml::table& t, const std::string& path, std::string_view key,
                         const std::string& fallback) const {
     const toml::node* n = t.get(key);
@@ -203,7 +259,9 @@ class SceneReader {
   }
 
   void read_headset(const toml::table& t, HeadsetDescription& h) const {
-    only_keys(t, "headset", {"ipd_mm", "fov_deg", "eye_width", "eye_height", "refresh_hz"});
+    only_keys(t, "headset",
+              {"ipd_mm", "fov_deg", "eye_width", "eye_height", "refresh_hz", "reference_space",
+               "field_centre_mm", "field_height_m", "field_distance_m"});
     h.ipd_mm = positive(t, "headset", "ipd_mm", h.ipd_mm);
     h.fov_deg = numbers<4>(t, "headset", "fov_deg", h.fov_deg);
     for (std::size_t i = 0; i < 4; ++i) {
@@ -215,6 +273,16 @@ class SceneReader {
     h.eye_width = static_cast<int>(integer(t, "headset", "eye_width", h.eye_width, 16, 8192));
     h.eye_height = static_cast<int>(integer(t, "headset", "eye_height", h.eye_height, 16, 8192));
     h.refresh_hz = positive(t, "headset", "refresh_hz", h.refresh_hz);
+    // Where the scene sits in an OpenXR headset's space.
+    h.stage_space = choice(t, "headset", "reference_space", h.stage_space,
+                           {{"local", false}, {"stage", true}});
+    if (t.get("field_centre_mm") != nullptr) {
+      h.field_centre_mm = numbers<3>(t, "headset", "field_centre_mm", {});
+    }
+    if (t.get("field_height_m") != nullptr) {
+      h.field_height_m = number(t, "headset", "field_height_m", 0.0);
+    }
+    h.field_distance_m = number(t, "headset", "field_distance_m", h.field_distance_m);
   }
 
   SolidDescription read_solid(const toml::table& t, const std::string& path) const {
@@ -278,20 +346,7 @@ class SceneReader {
     s.smooth = static_cast<int>(integer(t, path, "smooth", s.smooth, 0, 1000));
     s.offset_mm = numbers<3>(t, path, "offset_mm", s.offset_mm);
     s.simulate = boolean(t, path, "simulate", s.simulate);
-    if (const toml::table* m = table_at(t, path, "material")) {
-      const std::string mp = path + ".material";
-      only_keys(*m, mp, {"stiffness_N_per_m", "damping_N_s_per_m", "density_kg_per_m3", "colour"});
-      s.material.stiffness_N_per_m =
-          positive(*m, mp, "stiffness_N_per_m", s.material.stiffness_N_per_m);
-      s.material.damping_N_s_per_m =
-          number(*m, mp, "damping_N_s_per_m", s.material.damping_N_s_per_m);
-      if (s.material.damping_N_s_per_m < 0.0) {
-        fail(m->get("damping_N_s_per_m"), *m, mp + ".damping_N_s_per_m", "must not be negative");
-      }
-      s.material.density_kg_per_m3 =
-          positive(*m, mp, "density_kg_per_m3", s.material.density_kg_per_m3);
-      s.material.colour = numbers<3>(*m, mp, "colour", s.material.colour);
-    }
+    if (const toml::table* m = table_at(t, path, "material")) read_material(*m, path, s.material);
     for_each_table(t, "anchors", [&](const toml::table& a, const std::string& sub) {
       const std::string ap = path + "." + sub;
       only_keys(a, ap, {"point_mm", "normal", "distance_mm"});

@@ -108,6 +108,7 @@ void add_loop_counters(const HapticLoop& loop, SessionReport& report) {
   report.head_tracker_lost_s = c.head_lost_s;
   report.head_tracker_lost_reason = c.head_lost_reason;
   report.recording_error = c.recording_error;
+  report.headset.ticks_without_display = c.display_held_ticks;
 }
 
 }  // namespace
@@ -222,6 +223,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
 
   sim_options.device_frame = device_frame_of(*choice.haptic);
   sim_options.device_spec = glove->capabilities().spec;
+  sim_options.channel_roles = session_devices.haptic_channels();
   SessionSim sim(scene, std::move(solids), glove->capabilities().force_channels, sim_options);
 
   // ---- The hand-off ----
@@ -256,10 +258,11 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                       publish_step);
 
   // ---- Render thread ----
+  std::atomic<bool> display_live{true};  // false while a headset shows nothing: no forces
   std::thread render_thread([&] {
     try {
       run_render_loop({scene, options, report, initial, handoff, head_handoff, stop, render_ready,
-                       frames, event_response, event_times});
+                       frames, event_response, event_times, display_live, writer.get()});
     } catch (const std::exception& e) {
       render_error = e.what();
       render_ready.store(true);
@@ -287,6 +290,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   parts.writer = writer.get();
   parts.head = head;
   parts.step_twins = [&](Nanoseconds t) { session_devices.step_twins(t); };
+  parts.display_live = &display_live;
   parts.head_state = [&](const devices::TrackerState& hs) {
     // The head pose straight to the renderer (motion-to-photon starts at its sample).
     render::HeadPose& hp = head_handoff.back();
@@ -395,6 +399,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     report.error = "soft tissue: " + tissue_error;
   } else if (interrupted.load()) {
     report.ending = "interrupted";
+  } else if (!report.headset.stop_reason.empty()) {
+    report.ending = "headset";
   } else {
     report.ending = "completed";
   }

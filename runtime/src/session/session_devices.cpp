@@ -46,6 +46,26 @@ const devices::DriverInfo* driver_for(const DeviceDescription& d,
   return driver;
 }
 
+/// Where the driver's hardware is listed: the bus it registered, never its name.
+std::unique_ptr<devices::DeviceSource> source_for(const devices::DriverInfo& driver,
+                                                  const DeviceDescription& d,
+                                                  const devices::Registry& registry) {
+  switch (driver.bus) {
+    case devices::TransportKind::Hid:
+      return std::make_unique<devices::HidSource>(d.vendor_id, d.product_id);
+    case devices::TransportKind::Usb: {
+      std::vector<devices::UsbId> wanted = devices::usb_ids(registry);
+      if (d.vendor_id != 0 && d.product_id != 0) wanted.push_back({d.vendor_id, d.product_id});
+      return std::make_unique<devices::UsbSource>(std::move(wanted));
+    }
+    case devices::TransportKind::Virtual:
+      break;
+  }
+  throw SceneFileError(describe(d) + ": driver '" + driver.name +
+                       "' has no hardware bus (it runs on twins and traces only): set "
+                       "simulated = true");
+}
+
 }  // namespace
 
 DeviceChoice choose_session_devices(const SceneDescription& scene) {
@@ -129,6 +149,10 @@ SessionDevices::SessionDevices(const SceneDescription& scene, const Procedure& p
   if (head_ == nullptr)
     throw SceneFileError(describe(*choice_.head) + ": its driver '" + head_device_->driver_name() +
                          "' is not a head tracker");
+  haptic_roles_ =
+      registry.find_by_name(haptic_->driver_name()) != nullptr
+          ? registry.find_by_name(haptic_->driver_name())->layout.roles(haptic_->capabilities())
+          : devices::ChannelLayout{}.roles(haptic_->capabilities());
 }
 
 SessionDevices::~SessionDevices() = default;
@@ -143,27 +167,18 @@ std::unique_ptr<devices::Device> SessionDevices::open_one(const DeviceDescriptio
   std::unique_ptr<devices::Transport> transport;
   if (d.simulated) {
     // The twin speaks the real device's bytes; the driver on the host side cannot tell.
-    std::unique_ptr<devices::SimulatedDevice> twin;
-    if (driver->name == "hid-glove")
-      twin = std::make_unique<devices::SimulatedGlove>(script, "GLOVE-0001", haptic_hz_);
-    else if (driver->name == "vendor-arm")
-      twin = std::make_unique<devices::SimulatedArm>(script, "ARM-0001", haptic_hz_);
-    else if (driver->name == "hid-tracker")
-      twin = std::make_unique<devices::SimulatedHeadTracker>(script);
-    else
-      throw SceneFileError(describe(d) + ": no simulated twin for driver '" + driver->name +
-                           "' (twins: hid-glove, vendor-arm, hid-tracker)");
+    if (!driver->make_twin)
+      throw SceneFileError(describe(d) + ": driver '" + driver->name +
+                           "' registers no simulated twin (set simulated = false for hardware)");
+    std::unique_ptr<devices::SimulatedDevice> twin =
+        driver->make_twin(script, d.serial, haptic_hz_);
     devices::VirtualPair pair = devices::make_virtual_pair(twin->descriptor());
     twin->attach(std::move(pair.device));
     transport = std::move(pair.host);
     twins_.push_back(std::move(twin));
     summary_.push_back(d.name + ": " + driver->name + " (simulated)");
   } else {
-    std::unique_ptr<devices::DeviceSource> source;
-    if (driver->name == "vendor-arm")
-      source = std::make_unique<devices::UsbSource>(devices::usb_ids(registry));
-    else
-      source = std::make_unique<devices::HidSource>(d.vendor_id, d.product_id);
+    std::unique_ptr<devices::DeviceSource> source = source_for(*driver, d, registry);
     const devices::DeviceDescriptor found = find_real_device(d, registry, source->enumerate());
     transport = source->open(found);
     summary_.push_back(d.name + ": " + driver->name + " (" + devices::describe(found) + ")");

@@ -153,6 +153,8 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
     sim_options.tissue_threads = tissue_threads;
     sim_options.device_frame = device_frame_of(*choice.haptic);
     sim_options.device_spec = glove->capabilities().spec;
+    if (const devices::DriverInfo* driver = registry.find_by_name(glove->driver_name()))
+      sim_options.channel_roles = driver->layout.roles(glove->capabilities());
     sim = std::make_unique<SessionSim>(scene, std::move(solids),
                                        glove->capabilities().force_channels, sim_options);
     steps = std::make_unique<ReplayTickSteps>(*sim);
@@ -198,6 +200,8 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
         pending_zero = Zero::Stop;
       } else if (text == "watchdog_zero") {
         pending_zero = Zero::Watchdog;
+      } else if (text == "display_hold" || text == "display_live") {
+        if (loop) loop->hold_display(text == "display_hold");
       } else if (auto l = parse_late_tick_note(text)) {
         if (steps) steps->late = l;
       } else if (auto c = parse_tissue_rate_note(text)) {

@@ -108,9 +108,14 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   // Everything the first step would build lazily (solver structure, BVHs, scratch) is built now,
   // before the haptic clock starts: tick 1 costs what tick 2 costs.
   world_.prepare();
-  for (const devices::ForceChannel& c : channels_) {
-    command_size_ += c.components;
-    if (c.components == 1 && !c.unitless) ++fingers_;
+  devices::Capabilities shape;
+  shape.force_channels = channels_;
+  const devices::ChannelLayout layout{options_.channel_roles};
+  roles_ = layout.roles(shape);
+  for (std::size_t i = 0; i < channels_.size(); ++i) {
+    command_size_ += channels_[i].components;
+    if (roles_[i].use == devices::ChannelUse::Finger)
+      fingers_ = std::max<std::size_t>(fingers_, roles_[i].finger + 1u);
   }
   out_.command_N.assign(command_size_, 0.0);
   out_.finger_contact_N.assign(fingers_, 0.0);
@@ -277,10 +282,12 @@ void SessionSim::command_for(const TickOutput& step, const glm::dvec3& tip_now_m
   if (step.contact) force += coupling_N_per_m_ * (step.tip_m - tip_now_m);
   const double contact_N = std::min(glm::length(force), max_force_N_);
   command_N.resize(command_size_);
-  std::size_t k = 0, finger = 0;
-  for (const devices::ForceChannel& c : channels_) {
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < channels_.size(); ++i) {
+    const devices::ForceChannel& c = channels_[i];
+    const devices::ChannelRole& role = roles_[i];
     const double limit_N = std::min(max_force_N_, c.max_force_N);
-    if (c.components == 3) {
+    if (role.use == devices::ChannelUse::Vector) {
       // The force itself, in the device's frame: scaled down as a whole, never turned.
       glm::dvec3 f = options_.device_frame.force_to_device(force);
       const double magnitude = glm::length(f);
@@ -290,19 +297,17 @@ void SessionSim::command_for(const TickOutput& step, const glm::dvec3& tip_now_m
       command_N[k++] = f.z;
       continue;
     }
-    for (std::size_t i = 0; i < c.components; ++i, ++k) {
-      double f = 0.0;
-      if (c.unitless) {
-        f = step.cutting ? options_.cut_vibration : 0.0;
-      } else {
-        if (finger < step.finger_contact_N.size()) f += step.finger_contact_N[finger];
-        if (finger < 2) f += contact_N;  // thumb and index hold the instrument
-        if (step.grasping) f += options_.grasp_force_N;
-        f = std::min(f, limit_N);
-      }
-      command_N[k] = f;
+    double f = 0.0;
+    if (role.use == devices::ChannelUse::Finger) {
+      if (role.finger < step.finger_contact_N.size()) f += step.finger_contact_N[role.finger];
+      if (role.finger < 2) f += contact_N;  // thumb and index hold the instrument
+      if (step.grasping) f += options_.grasp_force_N;
+      f = std::min(f, limit_N);
+    } else if (c.unitless && c.components == 1) {
+      f = step.cutting ? options_.cut_vibration : 0.0;  // a cue, not a force
     }
-    if (c.components == 1 && !c.unitless) ++finger;
+    for (std::size_t j = 0; j < c.components; ++j)
+      command_N[k++] = j == 0 ? f : 0.0;
   }
 }
 

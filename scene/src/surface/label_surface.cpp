@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <string>
 #include <vector>
@@ -30,20 +31,176 @@ void check_options(const LabelSurfaceOptions& o) {
   }
 }
 
-Grid<float> indicator(const Grid<float>& labels, float label, std::size_t& inside) {
-  Grid<float> field;
-  field.geometry = labels.geometry;
+// Squared distances along one line of samples (spacing h) to the nearest feature sample (f = 0
+// there, infinite elsewhere): the lower envelope of parabolas of Felzenszwalb and Huttenlocher
+// ("Distance transforms of sampled functions", 2012), exact, linear in the line's length.
+void distance_1d(const std::vector<double>& f, std::vector<double>& d, double h,
+                 std::vector<std::size_t>& v, std::vector<double>& z) {
+  const std::size_t n = f.size();
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  std::size_t k = 0;
+  std::size_t first = 0;
+  while (first < n && f[first] == kInf)
+    ++first;
+  if (first == n) {
+    std::fill(d.begin(), d.end(), kInf);
+    return;
+  }
+  v[0] = first;
+  z[0] = -kInf;
+  z[1] = kInf;
+  for (std::size_t q = first + 1; q < n; ++q) {
+    if (f[q] == kInf) continue;
+    const double xq = static_cast<double>(q) * h;
+    for (;;) {
+      const double xv = static_cast<double>(v[k]) * h;
+      const double sx = ((f[q] + xq * xq) - (f[v[k]] + xv * xv)) / (2.0 * (xq - xv));
+      if (sx <= z[k] && k > 0) {
+        --k;
+        continue;
+      }
+      ++k;
+      v[k] = q;
+      z[k] = sx;
+      z[k + 1] = kInf;
+      break;
+    }
+  }
+  k = 0;
+  for (std::size_t q = 0; q < n; ++q) {
+    const double x = static_cast<double>(q) * h;
+    while (z[k + 1] < x)
+      ++k;
+    const double dx = x - static_cast<double>(v[k]) * h;
+    d[q] = dx * dx + f[v[k]];
+  }
+}
+
+/// Distances (mm) within each slice (k fixed) from every sample to the nearest sample whose
+/// mask value is `to`; infinite in a slice without one.
+void slice_distances(const std::vector<std::uint8_t>& mask, const VolumeGeometry& g,
+                     std::uint8_t to, std::vector<float>& out) {
+  const auto nx = static_cast<std::size_t>(g.dims[0]), ny = static_cast<std::size_t>(g.dims[1]);
+  const auto nz = static_cast<std::size_t>(g.dims[2]);
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const std::size_t longest = std::max(nx, ny);
+  std::vector<double> f(longest), d(longest), z(longest + 1), plane(nx * ny);
+  std::vector<std::size_t> v(longest);
+  for (std::size_t k = 0; k < nz; ++k) {
+    const std::size_t base = k * nx * ny;
+    f.resize(nx);
+    d.resize(nx);
+    for (std::size_t j = 0; j < ny; ++j) {
+      for (std::size_t i = 0; i < nx; ++i)
+        f[i] = mask[base + j * nx + i] == to ? 0.0 : kInf;
+      distance_1d(f, d, g.spacing.x, v, z);
+      for (std::size_t i = 0; i < nx; ++i)
+        plane[j * nx + i] = d[i];
+    }
+    f.resize(ny);
+    d.resize(ny);
+    for (std::size_t i = 0; i < nx; ++i) {
+      for (std::size_t j = 0; j < ny; ++j)
+        f[j] = plane[j * nx + i];
+      distance_1d(f, d, g.spacing.y, v, z);
+      for (std::size_t j = 0; j < ny; ++j)
+        out[base + j * nx + i] = static_cast<float>(std::sqrt(d[j]));
+    }
+  }
+}
+
+// A label map resampled from thicker slices by repeating them (CGAL's liver repeats every third
+// slice) holds runs of identical slices: one original slice each, at the run's middle. Every
+// slice of a run then gets the distances interpolated between its run's and the neighbouring
+// run's, by position, as if the original slices had been interpolated; a run of one is kept.
+void interpolate_repeated_slices(const std::vector<std::uint8_t>& mask, Grid<float>& field) {
+  const VolumeGeometry& g = field.geometry;
+  const std::size_t plane = static_cast<std::size_t>(g.dims[0] * g.dims[1]);
+  const auto nz = static_cast<std::size_t>(g.dims[2]);
+  struct Run {
+    std::size_t first, last;
+    double centre() const { return 0.5 * static_cast<double>(first + last); }
+  };
+  std::vector<Run> runs;
+  std::size_t filled = 0, repeats = 0, longest = 1;
+  for (std::size_t k = 0; k < nz; ++k) {
+    const auto slice = mask.begin() + static_cast<std::ptrdiff_t>(k * plane);
+    const bool empty = std::find(slice, slice + static_cast<std::ptrdiff_t>(plane), 1) ==
+                       slice + static_cast<std::ptrdiff_t>(plane);
+    filled += empty ? 0 : 1;
+    // Empty slices are never repeats: a map has plenty above and below the label.
+    const bool same =
+        !empty && k > 0 && runs.back().last == k - 1 &&
+        std::equal(slice, slice + static_cast<std::ptrdiff_t>(plane),
+                   slice - static_cast<std::ptrdiff_t>(plane));
+    if (same) {
+      runs.back().last = k;
+      ++repeats;
+      longest = std::max(longest, k - runs.back().first + 1);
+    } else {
+      runs.push_back({k, k});
+    }
+  }
+  // Only a map that repeats many of its slices in short runs was resampled that way; a long run
+  // is a part that does not change along the slices (a tube along them), and is kept.
+  if (repeats == 0 || 4 * repeats < filled || longest > 4) return;
+  // Each run's own distances: those of its first slice (all its slices are alike).
+  const std::vector<float> original(field.values.data(), field.values.data() + field.values.size());
+  const auto at = [&](const Run& r, std::size_t i) { return original[r.first * plane + i]; };
+  for (std::size_t r = 0; r < runs.size(); ++r) {
+    if (runs[r].first == runs[r].last) continue;
+    for (std::size_t k = runs[r].first; k <= runs[r].last; ++k) {
+      const double z = static_cast<double>(k);
+      const Run* other = nullptr;
+      if (z < runs[r].centre() && r > 0) other = &runs[r - 1];
+      if (z > runs[r].centre() && r + 1 < runs.size()) other = &runs[r + 1];
+      if (other == nullptr) continue;
+      const auto w = static_cast<float>((z - runs[r].centre()) / (other->centre() - runs[r].centre()));
+      float* out = field.values.data() + k * plane;
+      for (std::size_t i = 0; i < plane; ++i)
+        out[i] = (1.0F - w) * at(runs[r], i) + w * at(*other, i);
+    }
+  }
+}
+
+// The field marching cubes runs on: shape-based interpolation (Raya and Udupa, "Shape-based
+// interpolation of multidimensional objects", 1990). Each slice's samples hold their signed
+// in-slice distance to the label's outline (positive inside), so along the slice axis a crossed
+// edge is cut where the distance interpolates to zero: between two slices the outline moves
+// smoothly instead of in one step per slice, which is what makes terraces. The sign is the
+// indicator's (so the crossed edges, and the topology, are those of the 0/1 indicator) except in
+// repeated slices, whose distances are interpolated (interpolate_repeated_slices). A slice
+// without inside (or outside) samples counts as one slice spacing away. `indicator` gets the
+// field's sign: the band the smoothing keeps vertices in.
+Grid<float> label_field(const Grid<float>& labels, float label, std::size_t& inside,
+                        Grid<float>& indicator) {
+  const VolumeGeometry& g = labels.geometry;
   const std::size_t n = labels.values.size();
-  field.values.resize(n);
-  const float* in = labels.values.data();
-  float* out = field.values.data();
+  std::vector<std::uint8_t> mask(n);
+  indicator.geometry = g;
+  indicator.values.resize(n);
   std::size_t count = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    const bool is = in[i] == label;
-    out[i] = is ? 1.0F : 0.0F;
-    count += is ? 1 : 0;
+    mask[i] = labels.values[i] == label ? 1 : 0;
+    indicator.values[i] = mask[i];
+    count += mask[i];
   }
   inside = count;
+  Grid<float> field;
+  field.geometry = g;
+  field.values.resize(n);
+  if (count == 0) return field;
+  std::vector<float> to_outside(n), to_inside(n);
+  slice_distances(mask, g, 0, to_outside);
+  slice_distances(mask, g, 1, to_inside);
+  const auto far = static_cast<float>(g.spacing.z);
+  for (std::size_t i = 0; i < n; ++i) {
+    const float d = mask[i] != 0 ? to_outside[i] : -to_inside[i];
+    field.values[i] = std::isfinite(d) ? d : (mask[i] != 0 ? far : -far);
+  }
+  interpolate_repeated_slices(mask, field);
+  for (std::size_t i = 0; i < n; ++i)
+    indicator.values[i] = field.values[i] > 0.0F ? 1.0F : 0.0F;
   return field;
 }
 
@@ -231,8 +388,8 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
 
 IsoSurfaceOptions iso_options(const LabelSurfaceOptions& o) {
   IsoSurfaceOptions iso;
-  iso.iso = 0.5F;
-  iso.placement = VertexPlacement::Linear;  // the edge midpoints the box is centred on
+  iso.iso = 0.0F;
+  iso.placement = VertexPlacement::Linear;
   iso.progress = o.progress;
   iso.build_progress = o.build_progress;
   return iso;
@@ -286,11 +443,12 @@ PolygonMesh extract_label_surface_mesh(const Grid<float>& labels, float label,
   LabelSurfaceStats local;
   LabelSurfaceStats& s = stats ? *stats : local;
   auto t = Clock::now();
-  const Grid<float> field = indicator(labels, label, s.label_voxels);
+  Grid<float> band;
+  const Grid<float> field = label_field(labels, label, s.label_voxels, band);
   s.indicator_seconds = seconds_since(t);
   PolygonMesh mesh = extract_isosurface_mesh(field, iso_options(options), &s.extraction);
   if (options.iterations > 0 && options.rounds > 0 && !mesh.positions.empty()) {
-    smooth_in_band({mesh.positions.data(), mesh.positions.size()}, neighbours_of(mesh), field,
+    smooth_in_band({mesh.positions.data(), mesh.positions.size()}, neighbours_of(mesh), band,
                    options, s);
   }
   return mesh;
@@ -302,12 +460,13 @@ Dlfl extract_label_surface(const Grid<float>& labels, float label,
   LabelSurfaceStats local;
   LabelSurfaceStats& s = stats ? *stats : local;
   auto t = Clock::now();
-  const Grid<float> field = indicator(labels, label, s.label_voxels);
+  Grid<float> band;
+  const Grid<float> field = label_field(labels, label, s.label_voxels, band);
   s.indicator_seconds = seconds_since(t);
   Dlfl mesh = extract_isosurface(field, iso_options(options), &s.extraction);
   if (options.iterations > 0 && options.rounds > 0 && mesh.vertex_capacity() > 0) {
     auto& pos = mesh.positions();
-    smooth_in_band({pos.data(), mesh.vertex_capacity()}, neighbours_of(mesh), field, options, s);
+    smooth_in_band({pos.data(), mesh.vertex_capacity()}, neighbours_of(mesh), band, options, s);
   }
   return mesh;
 }

@@ -107,11 +107,24 @@ struct ReportInfo {
   bool with_id = false;
 };
 
+// A data field wider than 32 bits: counted in its report's size, its values not read.
+struct WideField {
+  ReportType type = ReportType::Input;
+  std::uint8_t report_id = 0;
+  std::uint32_t bit_offset = 0;
+  std::uint32_t bit_size = 0;
+  std::uint32_t count = 0;
+  std::uint32_t usage = 0;  // the first usage given, 0 when none
+};
+
 struct ReportDescriptor {
   std::vector<Field> fields;
   std::vector<Collection> collections;
   std::vector<ReportInfo> reports;
+  std::vector<WideField> wide_fields;
   bool uses_report_ids = false;
+  // What real firmware does that the specification frowns on, accepted: "byte N: item: what".
+  std::vector<std::string> warnings;
 
   const ReportInfo* find_report(ReportType type, std::uint8_t id) const;
   // The top-level application collection's usage (the first one), 0 when none.
@@ -121,7 +134,9 @@ struct ReportDescriptor {
 };
 
 // Parses a report descriptor. `device` names the device in error messages. Throws ProtocolError
-// (device, byte offset of the offending item, reason) on a malformed descriptor.
+// (device, byte offset of the offending item, "Item Name: reason") on a malformed descriptor.
+// Report Size 0 and fields wider than 32 bits occur in shipping firmware: they parse, with a
+// warning (zero-size items take no bits; wide fields count in their report's size, unread).
 ReportDescriptor parse_report_descriptor(std::span<const std::uint8_t> bytes,
                                          const std::string& device = "HID descriptor");
 

@@ -1,6 +1,8 @@
-// The real transports: HID devices through hidapi (hidraw backend) and vendor-specific USB devices
-// through libusb interrupt transfers. Enumeration is polled (DeviceManager) for hot-plug.
-// These machines have no USB: the tests drive the drivers through virtual transports instead.
+// The real transports: HID devices through hidapi (hidraw backend, non-blocking reads) and
+// vendor-specific USB devices through libusb's asynchronous interrupt transfers (usb_async.h), so
+// a zero-timeout read never waits. Enumeration is polled (DeviceManager) for hot-plug.
+// These machines have no USB: the tests drive the drivers through virtual transports and the
+// asynchronous USB logic through an in-process bus (docs/devices/usb-transport.md).
 #pragma once
 
 #include <memory>
@@ -26,7 +28,8 @@ class HidSource final : public DeviceSource {
 
 // libusb. Lists devices whose vendor/product id is in `wanted` (all devices with a
 // vendor-specific interface when empty) and opens the first vendor-specific interface with an
-// interrupt IN and an interrupt OUT endpoint.
+// interrupt IN and an interrupt OUT endpoint, as an AsyncUsbTransport with a libusb context of
+// its own.
 class UsbSource final : public DeviceSource {
  public:
   explicit UsbSource(std::vector<UsbId> wanted = {});

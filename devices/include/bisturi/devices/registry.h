@@ -25,6 +25,42 @@ struct UsbId {
 using DriverFactory =
     std::function<std::unique_ptr<Device>(std::unique_ptr<Transport>, Clock& clock)>;
 
+class SimulatedDevice;
+struct DeviceScript;
+
+// Makes the driver's simulated twin (simulated.h), which speaks the hardware's bytes through a
+// virtual transport: what a scene's `simulated = true` device opens. `serial`: the scene's serial,
+// "" for the twin's own; `haptic_hz`: the session's haptic rate (a twin that reports at a rate of
+// its own, like a head tracker, may ignore it).
+using TwinFactory = std::function<std::unique_ptr<SimulatedDevice>(
+    const DeviceScript& script, const std::string& serial, double haptic_hz)>;
+
+// What the session sends on a force channel.
+enum class ChannelUse : std::uint8_t {
+  Vector,  // 3 components: the contact force vector in the device's frame (the session maps it
+           // through the scene's device-to-scene transform)
+  Finger,  // 1 component: the force of one finger's own contact, a scalar along the actuator
+  Unused,  // left at zero (a vibration motor no contact drives)
+};
+const char* to_string(ChannelUse use);
+
+struct ChannelRole {
+  ChannelUse use = ChannelUse::Unused;
+  std::uint8_t finger = 0;  // Finger: 0 thumb, 1 index, 2 middle, 3 ring, 4 little
+  bool operator==(const ChannelRole&) const = default;
+};
+
+// A driver's channel layout: the roles of its force channels, in Capabilities::force_channels
+// order. Channels past the list (a HID glove's come from its descriptor) get a role from their
+// shape: 3 components -> Vector; 1 component with a force unit -> Finger, the next finger in
+// order; anything else (unitless, a sixth finger) -> Unused.
+struct ChannelLayout {
+  std::vector<ChannelRole> channels;
+  // One role per channel of an opened device. A listed role that does not fit the channel (a
+  // Vector on a 1-component channel) becomes Unused: the session sends that channel zero.
+  std::vector<ChannelRole> roles(const Capabilities& capabilities) const;
+};
+
 struct DriverInfo {
   std::string name;            // unique: "hid-glove", "vendor-arm", ...
   std::string summary;         // one line for listings
@@ -32,6 +68,12 @@ struct DriverInfo {
   // Optional: claims devices it recognises otherwise (a HID descriptor describing a glove).
   std::function<bool(const DeviceDescriptor&)> matches;
   DriverFactory create;
+  // Where its hardware is found: Hid -> hidapi (HidSource), Usb -> libusb (UsbSource), Virtual ->
+  // nowhere (a driver for twins or traces only).
+  TransportKind bus = TransportKind::Virtual;
+  DeviceClass device_class = DeviceClass::HapticGlove;  // what it opens
+  TwinFactory make_twin;                                // empty: no twin
+  ChannelLayout layout;
 };
 
 class Registry {
@@ -58,7 +100,8 @@ class Registry {
 };
 
 // Adds the drivers built into this library: "hid-glove" (generic HID glove), "hid-tracker"
-// (generic HID head tracker) and "vendor-arm" (the libusb haptic arm).
+// (generic HID head tracker), "vendor-arm" (the libusb haptic arm) and "sample-pinch" (the
+// template in devices/sample/).
 void register_builtin_drivers(Registry& registry);
 
 // A registry holding the built-in drivers.

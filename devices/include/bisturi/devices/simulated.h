@@ -122,9 +122,14 @@ class SimulatedHeadTracker final : public SimulatedDevice {
 };
 
 // The vendor haptic arm (docs/devices/vendor-haptic-protocol.md), with its device-side watchdog
-// (forces off after 100 ms without a force packet).
+// (forces off after 100 ms without a force packet). Its info packet states the datasheet figures
+// below (the protocol document's example arm).
 class SimulatedArm final : public SimulatedDevice {
  public:
+  static constexpr double kMaxStiffness_N_per_m = 2000.0;
+  static constexpr double kWorkspaceMin_m[3] = {-0.080, -0.060, -0.050};
+  static constexpr double kWorkspaceMax_m[3] = {0.080, 0.060, 0.070};
+
   explicit SimulatedArm(DeviceScript script, std::string serial = "ARM-0001",
                         double rate_hz = 1000.0, double max_force_N = 8.0,
                         double max_force_rate_N_per_s = 400.0);

@@ -1,25 +1,26 @@
 #pragma once
 // Backward Euler for the mass-spring model, one Newton-type step per (sub)step, solved by a
-// conjugate gradient warm-started with the previous step's velocity change and preconditioned
-// by Jacobi plus a coarse correction over aggregates of nearby vertices (two-level), in float
-// lanes (double for tolerances below 1e-5) while the state stays in double
-// (docs/sim/integrator.md says why, with the measurements).
+// conjugate gradient preconditioned by block Jacobi (each row's 3 x 3 diagonal block) plus a
+// coarse correction over aggregates of nearby vertices (two-level), in float lanes (double for
+// tolerances below 1e-5) while the state stays in double (docs/sim/integrator.md says why, with
+// the measurements).
 //
 //   (M (1 + h a) + h C + h^2 H) dv = h (f(x, v) - h H v),   v += dv,   x += h v
 //
-// H is not the springs' exact Hessian but the bound k I per spring (the Hessian of
-// k/2 (|d| - L)^2 never exceeds k I: its axial eigenvalue is k, its transverse one
-// k (1 - L/|d|) < k). The quadratic model then lies above the true incremental potential, so
-// each step lowers it (a majorise-minimise step, as in projective dynamics) however far the
-// tissue is pushed out of its plane, where the exact Hessian has no transverse stiffness at rest
-// and the linearised step overshoots. The same bound is used for the damping (c I per spring).
-// With both, the matrix is a constant weighted graph Laplacian (the same for x, y and z): it is
-// stored once per topology (and set of free vertices) as rows of neighbours tagged with their
-// stiffness class and applied by gathering neighbour differences. Penalty contacts
-// (SoftBody::add_contact) add their k n n^T blocks to it. a is the mass-proportional drag. The
+// H is each spring's Hessian with its transverse part clamped at zero, k u u^T +
+// k max(0, 1 - L/|d|) (I - u u^T), and C its damping c u u^T (SpringHessian::Clamped): a
+// positive semi-definite 3 x 3 block per spring, a I + s s^T, made by the spring pass each
+// substep and applied by gathering neighbour differences over rows of neighbours stored once per
+// topology (and set of free vertices). The haptic force then converges with the step length.
+// SpringHessian::Bound uses k I per spring (and c I) instead: a constant weighted Laplacian and a
+// majorise-minimise step that never overshoots, but a transverse viscosity h k per spring that
+// makes the 1 ms tissue several times stiffer than the converged one. The coarse level is built
+// on the bound either way (it is factored once per topology and h). Penalty contacts
+// (SoftBody::add_contact) add their k n n^T blocks. a is the mass-proportional drag. The
 // volume term is explicit. Anchored, kinematic and massless vertices are constraints: the solve
 // runs over the free vertices only, in a compact numbering with four lanes (x, y, z, pad) per
-// vertex. Every loop runs in a fixed order (reductions keep one partial sum per lane, combined in
+// vertex; a spring to one of them weighs on its free end's diagonal block. Every loop runs in a
+// fixed order (reductions keep one partial sum per lane, combined in
 // a fixed order, and the AVX2 and baseline clones of the hot loops round alike): the same inputs
 // give bit-identical states. With IntegratorOptions::threads > 1 the spring passes and the
 // solve's matrix products are split over a team of threads in parts fixed by the thread count,
@@ -61,6 +62,16 @@
 
 namespace bisturi::sim {
 
+/// The springs' stiffness in the solve's matrix and in its h^2 H v term.
+enum class SpringHessian : std::uint8_t {
+  /// Each spring's Hessian with its transverse part clamped at zero (positive semi-definite):
+  /// the linearised backward Euler step, whose haptic force converges with the step length.
+  Clamped,
+  /// The bound k I per spring (and c I for its damping): a majorise-minimise step that never
+  /// overshoots, but acts as a transverse viscosity h k per spring (docs/sim/integrator.md).
+  Bound,
+};
+
 struct IntegratorOptions {
   double dt_s = 1e-3;
   glm::dvec3 gravity_m_s2{0.0, 0.0, -9.81};
@@ -71,6 +82,12 @@ struct IntegratorOptions {
   /// factored once per topology, set of free vertices and substep length); off: Jacobi alone.
   bool cg_coarse_level = true;
   double cg_relative_tolerance = 1e-4;
+  SpringHessian spring_hessian = SpringHessian::Clamped;
+  /// Start the solve from the last step's velocity change instead of zero. Off: with the clamped
+  /// Hessian it saves nothing at 6 iterations (the solve runs to its cap either way), with 4 it
+  /// led to guard rollbacks, and before block Jacobi it kept a resting sphere buzzing at
+  /// 0.09 m/s (docs/sim/integrator.md). The bound Hessian converges from it in fewer iterations.
+  bool cg_warm_start = false;
   /// The solve also stops when the residual force is small in absolute terms: its RMS over the
   /// free vertices below cg_weight_fraction x the RMS of their weights (m |g|), or below
   /// cg_force_floor_N per vertex (for scenes without gravity). A body at rest then costs 0-2
@@ -192,6 +209,10 @@ class ImplicitIntegrator {
       std::size_t count = 0;  ///< real springs (a.size() is padded)
     };
     SpringSet active, fixed, halo;
+    /// Per entry of pcol: the index in `active` of its spring (kNotFree for the padding); and
+    /// for each active spring from a solved row to a held vertex, the row and the spring (its
+    /// block weighs on that row's diagonal).
+    std::vector<std::uint32_t> entry_spring, held_springs;
     /// Sleeping free vertices with a spring or a triangle to an awake one.
     std::vector<std::uint32_t> border;
     double fixed_energy = 0.0;
@@ -207,16 +228,16 @@ class ImplicitIntegrator {
     std::vector<double> coarse;
     std::vector<float> coarse_f;
     std::vector<std::uint32_t> coarse_first, coarse_start;
-    /// The solve's diagonal for one substep length, kept while the system, h and the team stay
-    /// (it changes with nothing else): per row its value, the part that is not a free
-    /// neighbour's weight, the Jacobi inverse (4 lanes, contact blocks left out), the float
-    /// solve's copies, and the rows' summed squared masses.
+    /// The bound matrix's diagonal for one substep length, kept while the system, h and the
+    /// team stay (it changes with nothing else): per row its value (with k I per spring: the
+    /// sleep test's stopping force), the mass part m (1 + h a), its float copy, and the rows'
+    /// summed squared masses.
     struct Diagonal {
       std::uint64_t system = 0;  ///< the System::id it was built for (0: none)
       double h = 0.0;
       unsigned members = 0;
-      std::vector<double> value, self, inv;
-      std::vector<float> self_f, inv_f;
+      std::vector<double> value, self;
+      std::vector<float> self_f;
       double weight2 = 0.0;
     } diagonal;
     /// Scratch of update_coarse: the diagonal of P^T A P and one row of it, and the entries
@@ -331,6 +352,7 @@ class ImplicitIntegrator {
       double elastic = 0.0;             ///< the springs' energy, fixed ones included
       double six_v = 0.0;               ///< 6 V (closed bodies)
       std::vector<glm::dvec3> f, grad;  ///< spring forces, volume gradient (swapped with f_, grad_)
+      std::vector<float> blocks;        ///< the springs' blocks (swapped with blocks_)
     } ahead;
   };
   Structure& structure(const SoftBody& body);
@@ -357,6 +379,9 @@ class ImplicitIntegrator {
   template <bool AllRows>
   static void fill_entries(const std::vector<Spring>& springs, System& sys,
                            const double (&classes)[4], const std::uint8_t* dirty);
+  /// sys.entry_spring and sys.held_springs from its rows and active springs (after a build or
+  /// an update).
+  static void map_entries(const Structure& st, System& sys);
   /// Groups the system's rows into aggregates of nearby vertices.
   static void aggregate(System& sys);
   /// (Re)factors sys's coarse matrix (over its aggregates, which it must have) for substep
@@ -411,14 +436,17 @@ class ImplicitIntegrator {
   double volume_pass(const SoftBody& body);
   /// The energy of sys's fixed springs (which do not move while sys is in use), taken once.
   static double fixed_energy(System& sys, const SoftBody& body);
+  /// The solve's matrix for this substep from the spring pass's blocks (blocks_): each entry's
+  /// block (entry_blocks_), the held springs' diagonal blocks (held_blocks_) and the block
+  /// Jacobi inverses of the rows' 3 x 3 diagonal blocks, contacts included (jinv_, jinv_f_).
+  void block_rows(System& sys);
   /// st.diagonal for substep length h (rebuilt when stale).
   void update_diagonal(System& st, const SoftBody& body, double h, const double (&w)[4]);
   /// The CG over the free vertices in T (float: half the memory traffic; double for tolerances
-  /// float cannot reach), from the warm start. Reads rhs_, st.diagonal (its contact rows
-  /// replaced by contact_rows_ during the solve) and contacts_; returns the solution (4 lanes
-  /// per row) in fbuf_ or dv_.
+  /// float cannot reach), from the warm start. Reads rhs_, st.diagonal, blocks_ (block_rows)
+  /// and contacts_; returns the solution (4 lanes per row) in fbuf_ or dv_.
   template <class T>
-  const T* solve(System& st, const double (&w)[4], const std::vector<glm::dvec3>& warm,
+  const T* solve(System& st, const std::vector<glm::dvec3>& warm, bool warm_start,
                  int max_iterations, double rel_tol2, double abs_tol2, StepStats& stats);
   /// Empty when the state is fine, else the reason. elastic_after: the end state's elastic
   /// energy (end_pass), used when energy_check is set.
@@ -426,7 +454,7 @@ class ImplicitIntegrator {
   std::string check(const SoftBody& body, const IntegratorOptions& options, double energy_before,
                     bool energy_check, double elastic_after,
                     const std::vector<std::uint32_t>* only = nullptr) const;
-  /// The contacts on sys's rows: their k n n^T blocks (contacts_, contact_rows_) and their
+  /// The contacts on sys's rows: their k n n^T blocks (contacts_) and their
   /// h^2 H v term taken off rhs_.
   void gather_contacts(const System& sys, const SoftBody& body, double h2,
                        std::vector<double>* step_residual, const Structure& st);
@@ -520,14 +548,6 @@ class ImplicitIntegrator {
   // Solver data over the free vertices, four lanes (x, y, z, zero pad) per vertex: the
   // right-hand side and the double solve's solution.
   std::vector<double> rhs_, dv_;
-  /// The rows with contact blocks: their diagonal with the blocks, per lane.
-  struct ContactRow {
-    std::uint32_t row = 0;
-    double d[3] = {0.0, 0.0, 0.0};
-  };
-  std::vector<ContactRow> contact_rows_;
-  /// Per row: its index in contact_rows_ while they are gathered, else kNotFree.
-  std::vector<std::uint32_t> contact_slot_;
   /// Per free vertex, summed per aggregate for sleeping: the squared residual force, pressure
   /// gradient and stopping force of the last substep.
   std::vector<double> row_residual_, row_gradient_, row_speed_;
@@ -536,6 +556,11 @@ class ImplicitIntegrator {
   std::vector<float> cbuf_f_;     ///< coarse vectors (rc, xc) of the float solve
   std::vector<double> cbuf_d_;    ///< and of the double solve
   std::vector<double> contacts_;  ///< 5 per contact: compact index, nx, ny, nz, h^2 k
+  /// The spring pass's blocks (4 floats per active spring), and the solve's matrix made from
+  /// them (block_rows).
+  std::vector<float> blocks_, entry_blocks_, jinv_f_;
+  bool bound_hessian_ = false;  ///< the step's IntegratorOptions::spring_hessian is Bound
+  std::vector<double> held_blocks_, jinv_, diag_blocks_;
 };
 
 }  // namespace bisturi::sim

@@ -40,6 +40,17 @@ struct HeadPose {
   glm::dquat orientation{1.0, 0.0, 0.0, 0.0};  ///< head frame to world
   /// When the tracker sampled this pose: motion-to-photon latency is measured from here.
   PoseClock::time_point sample_time{};
+  /// When the frame drawn for this pose will be shown: an OpenXR runtime's predicted display
+  /// time; zero when the frame is shown as soon as it is finished (files, tests).
+  PoseClock::time_point display_time{};
+};
+
+/// One eye as a runtime locates it: where it is and how it looks in the world (mm; the eye frame
+/// is OpenXR's view frame) and its field of view.
+struct EyePose {
+  glm::dvec3 position_mm{0.0};
+  glm::dquat orientation{1.0, 0.0, 0.0, 0.0};  ///< eye frame to world
+  EyeFov fov{};
 };
 
 /// A pose at `eye_mm` looking at `target_mm` with `up` (world) roughly up.
@@ -59,5 +70,10 @@ glm::dmat4 projection_from_fov(const EyeFov& fov, double near_mm, double far_mm)
 
 /// Views of the left (0) and right (1) eye for a head pose.
 std::array<EyeView, 2> eye_views(const HeadsetDescription& headset, const HeadPose& head);
+
+/// Views of eyes a runtime located (their own poses and fields of view); the headset gives the
+/// depth range only.
+std::array<EyeView, 2> eye_views(const HeadsetDescription& headset,
+                                 const std::array<EyePose, 2>& eyes);
 
 }  // namespace bisturi::render

@@ -1,7 +1,9 @@
 #pragma once
 // The stereo renderer: Vulkan 1.2, both eyes in one multiview render pass into a two-layer colour
 // and depth image, offscreen (a headless device such as Mesa's lavapipe works; a GPU is preferred
-// when there is one), frames handed to a FrameSink.
+// when there is one), frames handed to a FrameSink. Made on an OpenXrSink, it draws on the device
+// the OpenXR runtime made and straight into the runtime's two-layer swapchain images: nothing is
+// read back (the read-back is only for sinks that want pixels, such as the PNG files).
 //
 // Per frame, for every solid: frustum culling of the solid's box against both eyes, a level of
 // detail picked by projected screen-space error, then culling of that level's chunk tree (a
@@ -55,6 +57,8 @@ struct RendererOptions {
   LevelOptions levels;
 };
 
+class OpenXrSink;
+
 struct SolidId {
   std::uint32_t index = 0;
 };
@@ -76,6 +80,9 @@ class StereoRenderer {
  public:
   /// Throws NoVulkanDevice when no suitable Vulkan device exists, RenderError otherwise.
   explicit StereoRenderer(const RendererOptions& options);
+  /// Draws on `headset`'s device into its swapchain, at its eye size (options.headset's eye size
+  /// and validation are replaced by the headset's). `headset` must outlive the renderer.
+  StereoRenderer(const RendererOptions& options, OpenXrSink& headset);
   ~StereoRenderer();
   StereoRenderer(const StereoRenderer&) = delete;
   StereoRenderer& operator=(const StereoRenderer&) = delete;
@@ -100,12 +107,20 @@ class StereoRenderer {
   /// Records and submits one frame for `head`; the frame reaches the sink once the device is done
   /// with it (during a later call, or flush()).
   FrameStats render(const HeadPose& head);
+  /// The same with the eyes a runtime located (their poses and fields of view, not the
+  /// headset description's). On a headset: into the swapchain image of the frame that
+  /// OpenXrSink::begin_frame began (call OpenXrSink::end_frame after).
+  FrameStats render(const HeadPose& head, const std::array<EyePose, 2>& eyes);
   /// Waits for every frame in flight and hands them to the sink.
   void flush();
 
   [[nodiscard]] const RendererOptions& options() const;
   [[nodiscard]] std::string device_name() const;
   [[nodiscard]] bool device_is_cpu() const;
+  /// Frames whose pixels were copied to host memory (for a sink that wanted them).
+  [[nodiscard]] std::uint64_t frames_read_back() const;
+  /// True when made on an OpenXrSink: frames are drawn into the runtime's images in place.
+  [[nodiscard]] bool draws_into_headset() const;
   /// Validation-layer messages (warnings and errors) so far; 0 without validation.
   [[nodiscard]] std::size_t validation_messages() const;
   [[nodiscard]] std::vector<std::string> validation_log() const;

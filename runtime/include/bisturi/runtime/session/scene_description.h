@@ -22,10 +22,23 @@ class SceneFileError : public InputError {
   using InputError::InputError;
 };
 
+/// A solid's material. In physical units: a tissue preset (sim::tissue_presets: liver, kidney,
+/// spleen, vessel-wall, fat) and/or Young's modulus, Poisson's ratio, density and retardation
+/// time, from which the springs and the volume term are calibrated (sim::calibrate_surface):
+/// stiffness_N_per_m, damping_N_s_per_m and bulk_modulus_Pa are then the calibrated ones.
+/// stiffness_N_per_m given in the scene is the expert override of the structural spring
+/// constant (the scene reader warns that it is one).
 struct MaterialDescription {
-  double stiffness_N_per_m = 400.0;
+  std::string preset;               ///< empty: none
+  double youngs_modulus_kPa = 0.0;  ///< 0: not given
+  double poisson_ratio = 0.45;
+  double retardation_time_s = 0.01;
+  bool elastic = false;              ///< calibrated from the elastic parameters
+  double stiffness_N_per_m = 400.0;  ///< structural spring constant
   double damping_N_s_per_m = 0.8;
+  double bulk_modulus_Pa = 2000.0;    ///< the volume term's
   double density_kg_per_m3 = 1050.0;  // soft tissue
+  bool stiffness_override = false;    ///< stiffness_N_per_m was given by hand
   std::array<double, 3> colour{0.8, 0.35, 0.3};
 };
 
@@ -103,6 +116,15 @@ struct HeadsetDescription {
   int eye_width = 1024;
   int eye_height = 1024;
   double refresh_hz = 90.0;
+  // An OpenXR headset: the reference space (STAGE where the runtime offers it, else LOCAL) and
+  // where the scene sits in it: the world point at the operating field's centre (default: the
+  // centre of the solids' bounds at the start) is placed field_distance_m ahead of the space's
+  // origin and field_height_m above it (default -0.35 in LOCAL, whose origin is at the eyes;
+  // 0.95 in STAGE, whose origin is on the floor: a table's height).
+  bool stage_space = false;
+  std::optional<std::array<double, 3>> field_centre_mm;
+  std::optional<double> field_height_m;
+  double field_distance_m = 0.45;
 };
 
 struct RateDescription {

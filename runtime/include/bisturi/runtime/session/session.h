@@ -33,6 +33,7 @@
 
 #include "bisturi/devices/clock.h"
 #include "bisturi/runtime/render/stereo_renderer.h"
+#include "bisturi/runtime/session/headset_report.h"
 #include "bisturi/runtime/session/scene_description.h"
 #include "bisturi/runtime/session/session_sim.h"
 #include "bisturi/runtime/session/timing.h"
@@ -185,9 +186,10 @@ struct SessionReport {
   std::string head_tracker_lost_reason;
   /// Why the recording stopped before the end (empty: it did not, or nothing was recorded).
   std::string recording_error;
-  /// How the session ended: "completed" (its duration), "interrupted" (stop_requested) or
-  /// "error" (the renderer or the soft tissue failed; `error` says what). The report is whole in
-  /// every case.
+  /// How the session ended: "completed" (its duration), "interrupted" (stop_requested),
+  /// "headset" (the OpenXR runtime ended it early: the user exited or the runtime went away;
+  /// headset.stop_reason says which) or "error" (the renderer or the soft tissue failed; `error`
+  /// says what). The report is whole in every case.
   std::string ending;
   std::string error;
   std::vector<EventReport> events;
@@ -195,6 +197,7 @@ struct SessionReport {
   double max_force_N = 0.0;
   std::uint64_t final_state_hash = 0;
   std::filesystem::path trace;
+  HeadsetReport headset;
 };
 
 /// The soft-tissue step's thread count for solids of `simulated_vertices` vertices in all on a

@@ -1,9 +1,10 @@
 #pragma once
 // The session's devices: the haptic device that drives the instruments and the head tracker, each
-// either a simulated twin behind a virtual transport (driven by the scene's script) or real
-// hardware found by driver name, vendor/product id and serial (hidapi for HID drivers, libusb for
-// "vendor-arm"). Both go through the same registry and drivers, and through the trace writer when
-// the session records.
+// either a simulated twin behind a virtual transport (the twin the driver registered, driven by
+// the scene's script) or real hardware found by driver name, vendor/product id and serial on the
+// bus the driver registered (hidapi for HID, libusb for raw USB). Nothing here knows a driver by
+// name: a new driver plugs in through its DriverInfo alone. Both go through the same registry and
+// drivers, and through the trace writer when the session records.
 
 #include <cstdint>
 #include <memory>
@@ -41,8 +42,9 @@ devices::DeviceDescriptor find_real_device(const DeviceDescription& description,
 class SessionDevices {
  public:
   /// Opens both devices (recording them into `writer` when it is not null). `procedure` scripts
-  /// the simulated twins. Throws SceneFileError for a simulated driver without a twin, and
-  /// devices::DeviceError when real hardware is not connected or cannot be opened.
+  /// the simulated twins. Throws SceneFileError for a simulated driver without a twin or real
+  /// hardware for a driver without a bus, and devices::DeviceError when real hardware is not
+  /// connected or cannot be opened.
   SessionDevices(const SceneDescription& scene, const Procedure& procedure,
                  const devices::Registry& registry, devices::Clock& clock,
                  devices::TraceWriter* writer);
@@ -56,6 +58,11 @@ class SessionDevices {
   [[nodiscard]] devices::HapticDevice& haptic() const { return *haptic_; }
   [[nodiscard]] devices::Tracker& head() const { return *head_; }
   [[nodiscard]] const DeviceDescription& haptic_description() const { return *choice_.haptic; }
+  /// What the session sends on each of the haptic device's force channels (its driver's layout,
+  /// in capabilities().force_channels order).
+  [[nodiscard]] const std::vector<devices::ChannelRole>& haptic_channels() const {
+    return haptic_roles_;
+  }
   /// The haptic device's index in the trace (0 when not recording).
   [[nodiscard]] std::uint16_t haptic_trace_index() const { return haptic_index_; }
   /// "glove: hid-glove (simulated)", "head: hid-tracker (GloveCo Tracker (1234:5678, ...))".
@@ -77,6 +84,7 @@ class SessionDevices {
   devices::HapticDevice* haptic_ = nullptr;
   devices::Tracker* head_ = nullptr;
   std::uint16_t haptic_index_ = 0;
+  std::vector<devices::ChannelRole> haptic_roles_;
   std::vector<std::string> summary_;
 };
 

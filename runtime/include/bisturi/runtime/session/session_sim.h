@@ -24,6 +24,7 @@
 #include <glm/vec3.hpp>
 
 #include "bisturi/devices/device.h"
+#include "bisturi/devices/registry.h"
 #include "bisturi/runtime/session/device_frame.h"
 #include "bisturi/runtime/session/scene_builder.h"
 #include "bisturi/runtime/session/scene_description.h"
@@ -82,6 +83,9 @@ struct SessionSimOptions {
   devices::DeviceSpec device_spec;
   /// Stiffness of a fingertip's own contact with the tissue (before the device's limit).
   double finger_stiffness_N_per_m = 300.0;
+  /// What each force channel gets (the driver's ChannelLayout, devices/registry.h); empty: by
+  /// the channel's shape (3 components a vector, 1 with a force unit the next finger).
+  std::vector<devices::ChannelRole> channel_roles;
 };
 
 class SessionSim {
@@ -99,10 +103,11 @@ class SessionSim {
   /// The device's command for a step's output with the tip now at tip_now_m (scene frame; the
   /// step may be a few ticks old when the tissue runs on its own thread): the proxy force
   /// corrected by the coupling spring for the tip's motion since the step, so the force follows
-  /// the hand at the haptic rate. A 3-component channel gets that force as a vector in the
-  /// device's frame (its magnitude capped, its direction kept); a finger actuator its own
-  /// contact, plus the instrument's reaction on the two fingers holding it (the first two) and
-  /// the grasp while the jaws hold tissue; a unitless channel vibrates while the scalpel cuts.
+  /// the hand at the haptic rate. By channel role: a Vector channel gets that force in the
+  /// device's frame (its magnitude capped, its direction kept); a Finger channel that finger's
+  /// own contact, plus the instrument's reaction for the thumb and index that hold it, plus the
+  /// grasp while the jaws hold tissue; an Unused channel zero, except a unitless one (a
+  /// vibration motor), which vibrates while the scalpel cuts.
   /// For the step's own tip it is the step's command_N, bit for bit. Reads only what the
   /// constructor set: safe to call from another thread while tick() runs.
   void command_for(const TickOutput& step, const glm::dvec3& tip_now_m,
@@ -136,6 +141,7 @@ class SessionSim {
   sim::SimWorld world_;
   std::vector<std::string> names_;
   std::vector<devices::ForceChannel> channels_;
+  std::vector<devices::ChannelRole> roles_;  ///< one per channel
   double max_force_N_ = 3.0;
   double coupling_N_per_m_ = 0.0;
   double finger_stiffness_N_per_m_ = 300.0;

@@ -2,18 +2,24 @@
 // Smooth surfaces of label maps. Marching cubes on a label's 0/1 indicator puts every vertex at
 // the midpoint of a grid edge from an inside to an outside sample, so the surface follows the
 // voxels: terraces one slice high, tall ones where slices are thick (a CT label map at
-// 0.6 x 0.6 x 1.3 mm, or 1 x 1 x 3). Here the positions are then low-pass filtered with the
-// windowed-sinc filter of Taubin, Zhang and Golub ("Optimal surface smoothing as filter design",
-// 1996; the filter 3D Slicer applies through VTK), its cut set so that the gain at the pass band
-// is 1 (no shrinkage of the shape itself), and every vertex is kept in the band of cells the
-// label's boundary runs through (cells with both inside and outside corners), as constrained
-// surface nets keep each vertex in its cell: a vertex the filter carried out of the band is put
-// back, along the way it came, to where the band ends. Thin parts therefore cannot melt away.
-//
-// Only positions move: closedness, 2-manifoldness, orientation and genus are those of the
-// marching-cubes surface (see marching_cubes.h). Figures against the plain extraction and
-// against VTK's 3D Slicer pipeline (vtkDiscreteFlyingEdges3D + vtkWindowedSincPolyDataFilter):
-// tools/bench/label_surface_bench.cpp, table in docs/scene/label-surfaces.md.
+// 0.6 x 0.6 x 1.3 mm, or 1 x 1 x 3). Here, on the same crossed edges (the same vertices and
+// triangles, so the same closed, oriented 2-manifold of the same genus):
+// 1. shape-based interpolation (Raya and Udupa, 1990): each slice's samples hold their signed
+//    in-slice distance (mm) to the label's outline, and each crossed edge is cut where that
+//    interpolates to zero, so between slices the outline moves smoothly. Runs of identical
+//    slices (a map resampled from thicker slices by repetition) are interpolated between their
+//    middles;
+// 2. the windowed-sinc low-pass of Taubin, Zhang and Golub ("Optimal surface smoothing as
+//    filter design", 1996; the filter 3D Slicer applies through VTK), its cut set so that the
+//    gain at the pass band is 1 (the shape itself does not shrink);
+// 3. the band constraint: a vertex the filter carried out of the band of cells the outline runs
+//    through (cells with inside and outside corners) goes back along the way it came to where
+//    the band ends, as constrained surface nets keep each vertex in its cell. Thin parts cannot
+//    melt away.
+// Only positions move (outside repeated slices, whose interpolated sign may differ from the
+// indicator's). Figures against the plain extraction and against VTK's 3D Slicer pipeline
+// (vtkDiscreteFlyingEdges3D + vtkWindowedSincPolyDataFilter): tools/bench/label_surface_bench.cpp,
+// table in docs/scene/label-surfaces.md.
 
 #include <array>
 #include <cstddef>
@@ -27,7 +33,7 @@
 namespace bisturi {
 
 struct LabelSurfaceOptions {
-  /// Order of the windowed-sinc filter (neighbour sweeps per round); 0 gives the staircase.
+  /// Order of the windowed-sinc filter (neighbour sweeps per round); 0: step 1 only.
   std::size_t iterations = 20;
   /// Pass band of the filter (frequencies of the umbrella Laplacian, 0..2): lower is smoother.
   double pass_band = 0.01;
