@@ -153,7 +153,9 @@ TEST(LabelSurface, ThinPartsStayInTheBandAndDoNotVanish) {
 // A label map resampled from thick slices by repeating each (as CGAL's liver repeats every third
 // slice): the repeats are interpolated, so the surface has no terraces two slices high.
 TEST(LabelSurface, RepeatedSlicesAreInterpolatedNotTerraced) {
-  const Distance ball = [](const dvec3& p) { return glm::length(p - dvec3(0.2, -0.3, 0.4)) - 15.0; };
+  const Distance ball = [](const dvec3& p) {
+    return glm::length(p - dvec3(0.2, -0.3, 0.4)) - 15.0;
+  };
   const Grid<float> thick = voxelise(ball, {1.0, 1.0, 2.0}, 20.0);
   Grid<float> repeated;
   repeated.geometry = thick.geometry;

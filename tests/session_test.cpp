@@ -7,10 +7,10 @@
 #include <array>
 #include <atomic>
 
-#include <glm/glm.hpp>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <glm/glm.hpp>
 #include <sstream>
 #include <thread>
 
@@ -264,8 +264,7 @@ TEST(DefaultScene, TheLiverIsBuiltAndTheProcedureFollowsTheScene) {
   EXPECT_NEAR(hi.z - lo.z, 150.0, 10.0);
 
   const auto duration = devices::Nanoseconds(10'000'000'000);
-  const Procedure p =
-      make_procedure("default", solids, duration, devices::SimulatedGlove::kJoints);
+  const Procedure p = make_procedure("default", solids, duration, devices::SimulatedGlove::kJoints);
   const ProcedureDescription& d = *scene.procedure;
   const glm::dvec3 start = mm_of(p.glove.pose_at(devices::Nanoseconds(0)));
   const glm::dvec3 palpate(d.palpate_mm[0], d.palpate_mm[1], d.palpate_mm[2]);

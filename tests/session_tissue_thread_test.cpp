@@ -61,8 +61,8 @@ SceneDescription sphere_scene() {
 }
 
 /// The default procedure's glove states, one per haptic tick over `ticks` milliseconds.
-std::vector<devices::HapticState> procedure_states(std::size_t ticks,
-                                                   const SceneDescription& scene = default_scene()) {
+std::vector<devices::HapticState> procedure_states(
+    std::size_t ticks, const SceneDescription& scene = default_scene()) {
   const std::vector<BuiltSolid> solids = build_solids(scene);
   const Procedure p = make_procedure("default", solids, Nanoseconds(ticks * 1'000'000),
                                      devices::SimulatedGlove::kJoints);

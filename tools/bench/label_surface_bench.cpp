@@ -218,13 +218,12 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  const std::vector<Shape> shapes = {sphere(20.0), ellipsoid({25.0, 15.0, 10.0}),
-                                     torus(16.0, 6.0)};
-  const std::vector<std::pair<std::string, dvec3>> spacings = {
-      {"0.6x0.6x1.3", {0.6, 0.6, 1.3}}, {"1x1x3", {1.0, 1.0, 3.0}}};
+  const std::vector<Shape> shapes = {sphere(20.0), ellipsoid({25.0, 15.0, 10.0}), torus(16.0, 6.0)};
+  const std::vector<std::pair<std::string, dvec3>> spacings = {{"0.6x0.6x1.3", {0.6, 0.6, 1.3}},
+                                                               {"1x1x3", {1.0, 1.0, 3.0}}};
   std::vector<Row> rows;
-  std::printf("%-20s %-12s %-13s %9s %9s %9s %9s %9s %8s\n", "shape", "spacing", "method",
-              "rms_mm", "max_mm", "n_rms_deg", "n_max_deg", "ms", "tris");
+  std::printf("%-20s %-12s %-13s %9s %9s %9s %9s %9s %8s\n", "shape", "spacing", "method", "rms_mm",
+              "max_mm", "n_rms_deg", "n_max_deg", "ms", "tris");
   for (const auto& [sname, spacing] : spacings) {
     for (const Shape& s : shapes) {
       const Grid<float> labels = voxelise(s, spacing);
@@ -289,9 +288,8 @@ int main(int argc, char** argv) {
         const double sp[3] = {spacing.x, spacing.y, spacing.z};
         const double origin[3] = {labels.geometry.origin.x, labels.geometry.origin.y,
                                   labels.geometry.origin.z};
-        const auto v = bisturi::bench::vtk_label_surface(labels.values.data(),
-                                                         labels.geometry.dims.data(), sp, origin,
-                                                         kLabel, 1);
+        const auto v = bisturi::bench::vtk_label_surface(
+            labels.values.data(), labels.geometry.dims.data(), sp, origin, kLabel, 1);
         pts.resize(v.points.size() / 3);
         for (std::size_t i = 0; i < pts.size(); ++i)
           pts[i] = dvec3(v.points[3 * i], v.points[3 * i + 1], v.points[3 * i + 2]);

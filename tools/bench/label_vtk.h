@@ -8,9 +8,9 @@
 namespace bisturi::bench {
 
 struct VtkLabelSurface {
-  std::vector<double> points;            ///< x y z per point, world millimetres
-  std::vector<std::int64_t> triangles;   ///< three point indices per triangle
-  double seconds = 0.0;                  ///< both filters' Update (not the copies out)
+  std::vector<double> points;           ///< x y z per point, world millimetres
+  std::vector<std::int64_t> triangles;  ///< three point indices per triangle
+  double seconds = 0.0;                 ///< both filters' Update (not the copies out)
 };
 
 /// vtkDiscreteFlyingEdges3D (value `label`) followed by vtkWindowedSincPolyDataFilter with the

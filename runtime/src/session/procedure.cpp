@@ -7,9 +7,9 @@
 #include <limits>
 
 #include <glm/geometric.hpp>
-#include <glm/vec3.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtx/quaternion.hpp>
+#include <glm/vec3.hpp>
 
 #include "bisturi/runtime/render/headset.h"
 #include "bisturi/runtime/session/scene_description.h"
@@ -68,9 +68,8 @@ Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid
   const Box first = bounds(solids.front().mesh);
   const Box second = bounds(solids.size() > 1 ? solids[1].mesh : solids.front().mesh);
   const SceneDescription* scene = solids.front().scene;
-  const ProcedureDescription d = scene != nullptr && scene->procedure
-                                     ? *scene->procedure
-                                     : targets_from_bounds(first, second);
+  const ProcedureDescription d =
+      scene != nullptr && scene->procedure ? *scene->procedure : targets_from_bounds(first, second);
   const glm::dvec3 palpate = vec(d.palpate_mm), pn = vec(d.palpate_normal);
   const glm::dvec3 grasp = vec(d.grasp_mm), gn = vec(d.grasp_normal);
   const glm::dvec3 cut_a = vec(d.cut_from_mm), cut_b = vec(d.cut_to_mm), cn = vec(d.cut_normal);
@@ -95,19 +94,19 @@ Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid
   };
   const double open = 0.1, closed = 1.1;
   key(0.00, palpate + 30.0 * pn, open);
-  key(0.12, palpate + 4.0 * pn, open);                   // approach
-  key(0.20, palpate - d.palpate_depth_mm * pn, open);    // palpate: press in
-  key(0.26, palpate + 4.0 * pn, open);                   // and let go
-  key(0.36, grasp + 10.0 * gn, open);                    // to the vessel
+  key(0.12, palpate + 4.0 * pn, open);                 // approach
+  key(0.20, palpate - d.palpate_depth_mm * pn, open);  // palpate: press in
+  key(0.26, palpate + 4.0 * pn, open);                 // and let go
+  key(0.36, grasp + 10.0 * gn, open);                  // to the vessel
   key(0.42, grasp - 1.0 * gn, open);
-  key(0.46, grasp - 1.0 * gn, closed);                   // grasp
-  key(0.56, grasp + d.pull_mm * gn, closed);             // pull
+  key(0.46, grasp - 1.0 * gn, closed);        // grasp
+  key(0.56, grasp + d.pull_mm * gn, closed);  // pull
   key(0.60, grasp - 0.5 * gn, closed);
-  key(0.63, grasp - 0.5 * gn, open);                     // release
+  key(0.63, grasp - 0.5 * gn, open);  // release
   key(0.68, grasp + 10.0 * gn, open);
   key(0.74, cut_a + 4.0 * cn, open, true);
-  key(0.78, cut_a - d.cut_depth_mm * cn, open, true);    // blade in
-  key(0.90, cut_b - d.cut_depth_mm * cn, open, true);    // sweep
+  key(0.78, cut_a - d.cut_depth_mm * cn, open, true);  // blade in
+  key(0.90, cut_b - d.cut_depth_mm * cn, open, true);  // sweep
   key(0.96, cut_b + 20.0 * cn, open, true);
   p.glove.presses = {{at(0.785), 0, true}, {at(0.905), 0, false}};
   p.phases = {{"approach", at(0.0), at(0.12)},

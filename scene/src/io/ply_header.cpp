@@ -86,8 +86,9 @@ class HeaderParser {
     line += text_.rest();
     while (!line.empty() && (line.back() == ' ' || line.back() == '\t' || line.back() == '\r'))
       line.pop_back();
-    header_.warnings.push_back(cat(err_.file(), ": line ", text_.line_number(),
-                                   ": header line of unknown kind skipped: ", mesh_io::quoted(line)));
+    header_.warnings.push_back(
+        cat(err_.file(), ": line ", text_.line_number(),
+            ": header line of unknown kind skipped: ", mesh_io::quoted(line)));
   }
 
   void read_format() {

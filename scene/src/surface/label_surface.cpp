@@ -129,10 +129,9 @@ void interpolate_repeated_slices(const std::vector<std::uint8_t>& mask, Grid<flo
                        slice + static_cast<std::ptrdiff_t>(plane);
     filled += empty ? 0 : 1;
     // Empty slices are never repeats: a map has plenty above and below the label.
-    const bool same =
-        !empty && k > 0 && runs.back().last == k - 1 &&
-        std::equal(slice, slice + static_cast<std::ptrdiff_t>(plane),
-                   slice - static_cast<std::ptrdiff_t>(plane));
+    const bool same = !empty && k > 0 && runs.back().last == k - 1 &&
+                      std::equal(slice, slice + static_cast<std::ptrdiff_t>(plane),
+                                 slice - static_cast<std::ptrdiff_t>(plane));
     if (same) {
       runs.back().last = k;
       ++repeats;
@@ -155,7 +154,8 @@ void interpolate_repeated_slices(const std::vector<std::uint8_t>& mask, Grid<flo
       if (z < runs[r].centre() && r > 0) other = &runs[r - 1];
       if (z > runs[r].centre() && r + 1 < runs.size()) other = &runs[r + 1];
       if (other == nullptr) continue;
-      const auto w = static_cast<float>((z - runs[r].centre()) / (other->centre() - runs[r].centre()));
+      const auto w =
+          static_cast<float>((z - runs[r].centre()) / (other->centre() - runs[r].centre()));
       float* out = field.values.data() + k * plane;
       for (std::size_t i = 0; i < plane; ++i)
         out[i] = (1.0F - w) * at(runs[r], i) + w * at(*other, i);

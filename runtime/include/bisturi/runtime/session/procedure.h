@@ -6,7 +6,8 @@
 // (ProcedureDescription: points on the organ and on the vessel, the cut's path, with outward
 // normals the instrument comes in along); a scene without one gets the top of the first solid,
 // the anterior (-y) wall of the second and a 24 mm cut across the first's top, from the built
-// solids' bounds. The head looks at the solids from in front and above. Device poses are SI
+// solids' bounds. During the cut the glove's pose turns so that the scalpel's blade (the pose's
+// +z) points out along the cut's normal. The head looks at the solids from in front and above. Device poses are SI
 // metres in the scene's world frame.
 
 #include <chrono>

@@ -62,7 +62,8 @@ struct LabelSurfaceStats {
 /// factors[0] x factors[1] x factors[2] samples become one sample, `label` when at least half of
 /// the block's samples are, 0 otherwise, at the block's centre. Blocks at the far ends hold what
 /// samples are left; one sample of background (0) goes around the result, so the surface is
-/// closed even where the label reaches the map's edge. Throws InputError for a factor below 1 or a `label` of 0.
+/// closed even where the label reaches the map's edge. Throws InputError for a factor below 1 or a
+/// `label` of 0.
 Grid<float> downsample_label(const Grid<float>& labels, float label,
                              const std::array<int, 3>& factors);
 
