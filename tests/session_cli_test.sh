@@ -69,7 +69,6 @@ TOML
     # refuses to start and names the device it looked for.
     sed 's/simulated = true/simulated = false/' "$(dirname "$0")/../config/default.toml" \
       > "$work/real.toml"
-    cp -r "$(dirname "$0")/../config/data" "$work/data"  # its label map, beside it as in config/
     "$bisturi" run "$work/real.toml" --duration 1 --no-openxr --out "$work/real" \
       > "$work/real.txt" 2>&1
     status=$?

@@ -92,8 +92,12 @@ TEST(SceneFile, TheShippedDefaultSceneFileReadsTheLabelMapBesideIt) {
   EXPECT_FALSE(scene.solids[0].embedded);
   EXPECT_TRUE(std::filesystem::exists(scene.solids[0].path));
   EXPECT_EQ(scene.solids[0].path.filename(), "liver.nrrd");
-  // A scene file cannot reach the embedded files.
-  EXPECT_NE(error_of("[[solids]]\nvolume = 'data/liver.nrrd'\nlabel = 255").find("no such file"),
+  // A scene file without the file beside it (the default scene printed and edited elsewhere)
+  // gets the embedded one; other missing files are still errors.
+  const SceneDescription elsewhere = parse_scene(
+      "[[solids]]\nvolume = 'data/liver.nrrd'\nlabel = 255", "scene.toml", "/nonexistent");
+  EXPECT_TRUE(elsewhere.solids[0].embedded);
+  EXPECT_NE(error_of("[[solids]]\nvolume = 'data/kidney.nrrd'\nlabel = 1").find("no such file"),
             std::string::npos);
 }
 

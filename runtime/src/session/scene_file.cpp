@@ -57,7 +57,8 @@ class SceneReader {
         fail(t["device"].node(), t, path + ".device", "no device named '" + in.device + "'");
       scene.instruments.push_back(std::move(in));
     });
-    if (const toml::table* t = table_at(root, "", "procedure")) scene.procedure = read_procedure(*t);
+    if (const toml::table* t = table_at(root, "", "procedure"))
+      scene.procedure = read_procedure(*t);
     return scene;
   }
 
@@ -247,12 +248,15 @@ class SceneReader {
                                   std::string_view key, bool* embedded = nullptr) const {
     std::filesystem::path p = string_or(t, path, key, "");
     if (p.empty()) fail(t.get(key), t, join(path, key), "expected a file name");
-    // The embedded default scene names the files embedded with it (config/data/...).
-    if (embedded_files_ && embedded != nullptr && embedded_file(p.generic_string())) {
-      *embedded = true;
-      return p;
-    }
+    const std::filesystem::path named = p;
     if (p.is_relative() && !base_dir_.empty()) p = base_dir_ / p;
+    // The embedded default scene names the files embedded with it (config/data/...); a scene
+    // file too when no such file is beside it (the default scene printed and edited elsewhere).
+    if (embedded != nullptr && named.is_relative() &&
+        (embedded_files_ || !std::filesystem::exists(p)) && embedded_file(named.generic_string())) {
+      *embedded = true;
+      return named;
+    }
     if (!std::filesystem::exists(p))
       fail(t.get(key), t, join(path, key), "no such file: " + p.string());
     return p;
@@ -286,10 +290,10 @@ class SceneReader {
   }
 
   SolidDescription read_solid(const toml::table& t, const std::string& path) const {
-    only_keys(t, path,
-              {"name", "mesh", "volume", "phantom", "dims", "spacing_mm", "a_mm", "b_mm", "iso",
-               "label", "downsample", "decimate", "smooth", "offset_mm", "material", "anchors",
-               "simulate"});
+    only_keys(
+        t, path,
+        {"name", "mesh", "volume", "phantom", "dims", "spacing_mm", "a_mm", "b_mm", "iso", "label",
+         "downsample", "decimate", "smooth", "offset_mm", "material", "anchors", "simulate"});
     SolidDescription s;
     s.name = string_or(t, path, "name", path);
     const int sources = (t.contains("mesh") ? 1 : 0) + (t.contains("volume") ? 1 : 0) +
