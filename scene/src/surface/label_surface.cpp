@@ -88,6 +88,18 @@ void slice_distances(const std::vector<std::uint8_t>& mask, const VolumeGeometry
   std::vector<std::size_t> v(longest);
   for (std::size_t k = 0; k < nz; ++k) {
     const std::size_t base = k * nx * ny;
+    // A slice of one kind (most of a map around a label): nothing to transform.
+    const auto first = mask.begin() + static_cast<std::ptrdiff_t>(base);
+    const auto last = first + static_cast<std::ptrdiff_t>(nx * ny);
+    const bool has_to = std::find(first, last, to) != last;
+    const bool all_to =
+        has_to && std::find_if(first, last, [to](std::uint8_t m) { return m != to; }) == last;
+    if (!has_to || all_to) {
+      const float value = has_to ? 0.0F : std::numeric_limits<float>::infinity();
+      std::fill(out.begin() + static_cast<std::ptrdiff_t>(base),
+                out.begin() + static_cast<std::ptrdiff_t>(base + nx * ny), value);
+      continue;
+    }
     f.resize(nx);
     d.resize(nx);
     for (std::size_t j = 0; j < ny; ++j) {
