@@ -435,6 +435,45 @@ TEST(ReadPly, BadHeadersAreRefusedWithTheirLine) {
       MeshFormat::Ply, "h.ply", {"h.ply: line 8: vertex 0: bad number 'zz'"});
 }
 
+// Blender 2.4x's PLY exporter wrote its banner into the header without `comment` (assimp's
+// test model cube_blender247.ply starts this way). Readers skip such lines; so does this one,
+// naming the line in a warning, and every known keyword stays strict.
+TEST(ReadPly, HeaderLinesOfUnknownKindAreSkippedWithAWarning) {
+  const std::string blender =
+      "ply\nformat ascii 1.0\nCreated by Blender3D 247 - www.blender.org, source file: ''\n"
+      "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar uint vertex_indices\nend_header\n"
+      "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  const auto m = read_text(blender, MeshFormat::Ply, "b.ply");
+  ASSERT_EQ(m.polygons.positions.size(), 3u);
+  expect_position(m.polygons, 1, 1, 0, 0);
+  EXPECT_EQ(faces_of(m.polygons), (Faces{{0, 1, 2}}));
+  ASSERT_EQ(m.warnings.size(), 1u);
+  EXPECT_NE(m.warnings[0].find("b.ply: line 3: "), std::string::npos) << m.warnings[0];
+  EXPECT_NE(m.warnings[0].find("'Created by Blender3D 247"), std::string::npos) << m.warnings[0];
+
+  // Known files give no warning; comments and obj_info are not unknown.
+  const auto plain = read_text(make_ply(tetra_ply(), PlyEncoding::BinaryLittleEndian),
+                               MeshFormat::Ply);
+  EXPECT_TRUE(plain.warnings.empty());
+
+  // Binary bodies too: the skipped line moves the body offset like any other header line.
+  std::string binary = make_ply(tetra_ply(), PlyEncoding::BinaryBigEndian);
+  binary.insert(binary.find("element"), "exported by some tool\n");
+  const auto b = read_text(binary, MeshFormat::Ply, "be.ply");
+  EXPECT_EQ(b.polygons.positions.size(), 4u);
+  ASSERT_EQ(b.warnings.size(), 1u);
+  EXPECT_NE(b.warnings[0].find("be.ply: line 4: "), std::string::npos) << b.warnings[0];
+
+  // Everything else stays strict: a bad format, a property before any element, an unknown type.
+  expect_error("ply\nformat ascii 2.0\nCreated by Blender3D\n", MeshFormat::Ply, "s.ply",
+               {"s.ply: line 2", "unsupported PLY version"});
+  expect_error("ply\nformat ascii 1.0\nCreated by Blender3D\nproperty float x\nend_header\n",
+               MeshFormat::Ply, "s.ply", {"s.ply: line 4", "a property before any element"});
+  expect_error("ply\nCreated by Blender3D\nelement vertex 0\nend_header\n", MeshFormat::Ply,
+               "s.ply", {"s.ply", "no format line"});
+}
+
 TEST(ReadPly, EmptyFaceIsAnErrorButShortFacesAreKept) {
   auto elements = tetra_ply();
   elements[1].records = {{{0, 1}}, {{2}}};

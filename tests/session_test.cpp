@@ -4,17 +4,26 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <array>
 #include <atomic>
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <glm/glm.hpp>
 #include <sstream>
 #include <thread>
 
+#include "bisturi/devices/simulated.h"
 #include "bisturi/runtime/session/plots.h"
+#include "bisturi/runtime/session/procedure.h"
+#include "bisturi/runtime/session/scene_builder.h"
 #include "bisturi/runtime/session/scene_description.h"
 #include "bisturi/runtime/session/timing.h"
 #include "bisturi/runtime/session/triple_buffer.h"
+#include "bisturi/scene/dlfl_queries.h"
+#include "bisturi/scene/dlfl_validate.h"
+#include "bisturi/sim/units.h"
 
 namespace bisturi::runtime {
 namespace {
@@ -36,8 +45,14 @@ TEST(SceneFile, DefaultSceneIsTheShippedFileAndParses) {
   const SceneDescription scene = default_scene();
   EXPECT_EQ(scene.name, "default");
   ASSERT_EQ(scene.solids.size(), 2u);
-  EXPECT_EQ(scene.solids[0].source, SolidDescription::Source::Phantom);
+  // The organ: the liver label of the embedded label map; the vessel: a phantom.
+  EXPECT_EQ(scene.solids[0].source, SolidDescription::Source::Volume);
+  EXPECT_TRUE(scene.solids[0].embedded);
+  EXPECT_EQ(scene.solids[0].path, "data/liver.nrrd");
+  EXPECT_EQ(scene.solids[0].label, 255u);
+  EXPECT_EQ(scene.solids[1].source, SolidDescription::Source::Phantom);
   EXPECT_EQ(scene.solids[1].anchors.size(), 2u);
+  ASSERT_TRUE(scene.procedure.has_value());
   ASSERT_EQ(scene.devices.size(), 2u);
   EXPECT_EQ(scene.devices[1].role, DeviceDescription::Role::HeadTracker);
   EXPECT_EQ(scene.devices[0].driver, "hid-glove");
@@ -68,6 +83,57 @@ TEST(SceneFile, ErrorsNameTheFileLineAndKey) {
                 .find("line 2: key 'simulation.far_field_interval'"),
             std::string::npos);
   EXPECT_NE(error_of("[simulation]\nfar_field = 8").find("unknown key"), std::string::npos);
+}
+
+TEST(SceneFile, TheShippedDefaultSceneFileReadsTheLabelMapBesideIt) {
+  // As a file on disk the default scene names config/data/liver.nrrd, not the embedded copy.
+  const SceneDescription scene =
+      read_scene_file(std::string(BISTURI_SOURCE_DIR) + "/config/default.toml");
+  EXPECT_FALSE(scene.solids[0].embedded);
+  EXPECT_TRUE(std::filesystem::exists(scene.solids[0].path));
+  EXPECT_EQ(scene.solids[0].path.filename(), "liver.nrrd");
+  // A scene file without the file beside it (the default scene printed and edited elsewhere)
+  // gets the embedded one; other missing files are still errors.
+  const SceneDescription elsewhere = parse_scene(
+      "[[solids]]\nvolume = 'data/liver.nrrd'\nlabel = 255", "scene.toml", "/nonexistent");
+  EXPECT_TRUE(elsewhere.solids[0].embedded);
+  EXPECT_NE(error_of("[[solids]]\nvolume = 'data/kidney.nrrd'\nlabel = 1").find("no such file"),
+            std::string::npos);
+}
+
+TEST(SceneFile, ProcedureTableSetsTheTargets) {
+  const SceneDescription scene = parse_scene(
+      "[procedure]\npalpate_mm = [1, 2, 3]\npalpate_normal = [0, 0, 2]\ngrasp_mm = [4, 5, 6]\n"
+      "cut_from_mm = [0, 0, 0]\ncut_to_mm = [10, 0, 0]\ncut_normal = [0, -3, 0]\n"
+      "cut_depth_mm = 12\npull_mm = 4",
+      "scene.toml");
+  ASSERT_TRUE(scene.procedure.has_value());
+  const ProcedureDescription& p = *scene.procedure;
+  EXPECT_EQ(p.palpate_mm, (std::array<double, 3>{1, 2, 3}));
+  EXPECT_EQ(p.palpate_normal, (std::array<double, 3>{0, 0, 1}));  // normalised
+  EXPECT_EQ(p.cut_normal, (std::array<double, 3>{0, -1, 0}));
+  EXPECT_EQ(p.grasp_normal, (std::array<double, 3>{0, -1, 0}));  // the default
+  EXPECT_DOUBLE_EQ(p.cut_depth_mm, 12.0);
+  EXPECT_DOUBLE_EQ(p.pull_mm, 4.0);
+  EXPECT_DOUBLE_EQ(p.palpate_depth_mm, 6.0);
+  EXPECT_FALSE(parse_scene("name = 'x'", "scene.toml").procedure.has_value());
+
+  const std::string targets =
+      "[procedure]\npalpate_mm = [1, 2, 3]\ngrasp_mm = [4, 5, 6]\ncut_from_mm = [0, 0, 0]\n";
+  EXPECT_NE(error_of(targets).find("key 'procedure.cut_to_mm': missing"), std::string::npos);
+  EXPECT_NE(error_of(targets + "cut_to_mm = [0, 0, 0]").find("two different ends"),
+            std::string::npos);
+  EXPECT_NE(error_of(targets + "cut_to_mm = [1, 0, 0]\ncut_normal = [0, 0, 0]")
+                .find("line 6: key 'procedure.cut_normal': must not be zero"),
+            std::string::npos);
+  EXPECT_NE(error_of(targets + "cut_to_mm = [1, 0, 0]\ncut_depth_mm = -1")
+                .find("key 'procedure.cut_depth_mm'"),
+            std::string::npos);
+  EXPECT_NE(error_of(targets + "cut_to_mm = [1, 0, 0]\ncut_speed = 3").find("unknown key"),
+            std::string::npos);
+  EXPECT_NE(error_of("[[solids]]\nphantom = 'sphere'\ndownsample = [2, 2, 2]")
+                .find("only for a label map"),
+            std::string::npos);
 }
 
 TEST(SceneFile, SimulationTableSetsMultirateStepping) {
@@ -165,6 +231,82 @@ TEST(Plots, HistogramAndSeriesArePngFiles) {
   EXPECT_THROW(write_histogram_png(dir / "missing_dir" / "h.png", "x", "ms", samples),
                std::runtime_error);
   std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace bisturi::runtime
+
+namespace bisturi::runtime {
+namespace {
+
+glm::dvec3 mm_of(const devices::Pose& pose) {
+  return sim::sim_to_scene({pose.position_m.x, pose.position_m.y, pose.position_m.z});
+}
+
+// The default scene's organ is the liver of the embedded label map, small enough for the tissue
+// step, closed and of genus 0; its procedure goes where the scene file says, and the cut sweeps
+// across the vessel.
+TEST(DefaultScene, TheLiverIsBuiltAndTheProcedureFollowsTheScene) {
+  const SceneDescription scene = default_scene();
+  const std::vector<BuiltSolid> solids = build_solids(scene);
+  ASSERT_EQ(solids.size(), 2u);
+  const Dlfl& liver = solids[0].mesh;
+  EXPECT_TRUE(validate(liver).ok());
+  const MeshStatistics stats = mesh_statistics(liver);
+  ASSERT_EQ(stats.parts.size(), 1u);
+  EXPECT_EQ(stats.parts[0].rings, 0u);
+  EXPECT_EQ(stats.parts[0].genus, 0);
+  EXPECT_GT(liver.num_vertices(), 600u);
+  EXPECT_LT(liver.num_vertices(), 1000u);
+  // A liver-sized organ: about 20 x 17 x 15 cm.
+  glm::dvec3 lo(1e9), hi(-1e9);
+  for (std::size_t v = 0; v < liver.vertex_capacity(); ++v) {
+    lo = glm::min(lo, liver.positions()[v]);
+    hi = glm::max(hi, liver.positions()[v]);
+  }
+  EXPECT_NEAR(hi.x - lo.x, 204.0, 10.0);
+  EXPECT_NEAR(hi.z - lo.z, 150.0, 10.0);
+
+  const auto duration = devices::Nanoseconds(10'000'000'000);
+  const Procedure p = make_procedure("default", solids, duration, devices::SimulatedGlove::kJoints);
+  const ProcedureDescription& d = *scene.procedure;
+  const glm::dvec3 start = mm_of(p.glove.pose_at(devices::Nanoseconds(0)));
+  const glm::dvec3 palpate(d.palpate_mm[0], d.palpate_mm[1], d.palpate_mm[2]);
+  const glm::dvec3 pn(d.palpate_normal[0], d.palpate_normal[1], d.palpate_normal[2]);
+  EXPECT_LT(glm::length(start - (palpate + 30.0 * pn)), 1e-6);
+  // The palpation target lies on the built liver (within a few millimetres of a vertex).
+  double nearest = 1e9;
+  for (std::size_t v = 0; v < liver.vertex_capacity(); ++v)
+    nearest = std::min(nearest, glm::length(liver.positions()[v] - palpate));
+  EXPECT_LT(nearest, 12.0);
+
+  // During the cut the blade (15 mm from the tip along the cut's normal) passes from one side of
+  // the vessel to the other and through its extent.
+  glm::dvec3 vlo(1e9), vhi(-1e9);
+  for (std::size_t v = 0; v < solids[1].mesh.vertex_capacity(); ++v) {
+    vlo = glm::min(vlo, solids[1].mesh.positions()[v]);
+    vhi = glm::max(vhi, solids[1].mesh.positions()[v]);
+  }
+  const glm::dvec3 cn(d.cut_normal[0], d.cut_normal[1], d.cut_normal[2]);
+  const ProcedurePhase* cut = nullptr;
+  for (const ProcedurePhase& phase : p.phases)
+    if (phase.name == "cut") cut = &phase;
+  ASSERT_NE(cut, nullptr);
+  bool left = false, right = false, through = false;
+  for (auto t = cut->begin; t <= cut->end; t += devices::Nanoseconds(5'000'000)) {
+    if (p.glove.buttons_at(t) == 0) continue;  // the blade is live while the button is held
+    const glm::dvec3 tip = mm_of(p.glove.pose_at(t));
+    left = left || tip.x < vlo.x;
+    right = right || tip.x > vhi.x;
+    for (double along = 0.0; along <= 15.0; along += 0.5) {
+      const glm::dvec3 b = tip + along * cn;
+      through = through || (b.x > vlo.x && b.x < vhi.x && b.y > vlo.y && b.y < vhi.y &&
+                            b.z > vlo.z && b.z < vhi.z);
+    }
+  }
+  EXPECT_TRUE(left);
+  EXPECT_TRUE(right);
+  EXPECT_TRUE(through);
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include "bisturi/scene/lod/decimate.h"
 #include "bisturi/scene/lod/smooth.h"
 #include "bisturi/scene/polygon_export.h"
+#include "bisturi/scene/volume/label_surface.h"
 #include "bisturi/scene/volume/marching_cubes.h"
 #include "bisturi/scene/volume/volume_io.h"
 #include "progress_line.h"
@@ -22,24 +23,6 @@
 namespace bisturi::cli {
 
 namespace {
-
-/// The field whose isosurface is the surface of one label: 1 inside, 0 outside, cut at 0.5.
-Grid<float> label_field(const Volume& volume, long long label, const std::string& file) {
-  Grid<float> field;
-  field.geometry = volume.geometry;
-  field.values.resize(volume.values.size());
-  const auto wanted = static_cast<float>(label);
-  std::size_t inside = 0;
-  for (std::size_t i = 0; i < volume.values.size(); ++i) {
-    const bool in = volume.values[i] == wanted;
-    field.values[i] = in ? 1.0f : 0.0f;
-    inside += in ? 1 : 0;
-  }
-  if (inside == 0) {
-    throw InputError(file + ": label " + std::to_string(label) + " is not in the volume");
-  }
-  return field;
-}
 
 struct StageTimes {
   double read_ms = 0, surface_ms = 0, build_ms = 0, decimate_ms = 0, smooth_ms = 0, write_ms = 0;
@@ -107,9 +90,23 @@ int run_extract(const ExtractOptions& options) {
   Dlfl mesh;
   t = Clock::now();
   if (options.label) {
-    const Grid<float> field = label_field(volume, *options.label, options.input);
+    const auto wanted = static_cast<float>(*options.label);
+    if (label_voxel_count(volume, wanted) == 0) {
+      throw InputError(options.input + ": label " + std::to_string(*options.label) +
+                       " is not in the volume");
+    }
+    // Smooth, not terraced: constrained windowed-sinc smoothing (label_surface.h).
+    LabelSurfaceOptions label_options;
+    label_options.progress = iso_options.progress;
+    label_options.build_progress = iso_options.build_progress;
+    label_options.smooth_progress = [&](std::size_t done, std::size_t total) {
+      line.show("label surface smoothing", done, total);
+    };
+    LabelSurfaceStats label_stats;
     iso_options.iso = 0.5f;
-    mesh = extract_isosurface(field, iso_options, &stats);
+    mesh = extract_label_surface(volume, wanted, label_options, &label_stats);
+    stats = label_stats.extraction;
+    stats.extract_seconds += label_stats.indicator_seconds + label_stats.smooth_seconds;
   } else {
     if (!std::isfinite(*options.iso)) throw InputError("--iso: the value must be finite");
     iso_options.iso = static_cast<float>(*options.iso);

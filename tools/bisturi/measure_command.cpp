@@ -87,6 +87,8 @@ int run_measure(const MeasureCommandOptions& options) {
   auto t = Clock::now();
   if (is_mesh_file(options.input)) {
     const MeshFile file = read_mesh(options.input);
+    for (const std::string& w : file.warnings)
+      std::cerr << "bisturi: warning: " << w << "\n";
     ImportOptions import;
     import.weld = !file.has_vertex_list;  // an STL soup shares no vertices until welded
     mesh = import_polygons(file.polygons, file.has_vertex_list, import).mesh;

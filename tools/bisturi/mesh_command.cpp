@@ -34,6 +34,9 @@ Loaded load(const MeshOptions& options) {
     line.show("reading " + options.input, done, total);
   };
   out.file = read_mesh(options.input, read_options);
+  line.clear();
+  for (const std::string& w : out.file.warnings)
+    std::cerr << "bisturi: warning: " << w << "\n";
   const auto t1 = std::chrono::steady_clock::now();
   ImportOptions import_options;
   import_options.weld = options.weld;
@@ -84,6 +87,7 @@ nlohmann::json info_json(const MeshOptions& options, const Loaded& loaded, bool 
   }
   return {{"file", options.input},
           {"format", format_name(loaded.file.format)},
+          {"warnings", loaded.file.warnings},
           {"input_vertices", r.input_vertices},
           {"input_faces", r.input_faces},
           {"welded_vertices", r.welded_vertices},

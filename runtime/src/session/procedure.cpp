@@ -7,6 +7,8 @@
 #include <limits>
 
 #include <glm/geometric.hpp>
+#include <glm/gtc/quaternion.hpp>
+#include <glm/gtx/quaternion.hpp>
 #include <glm/vec3.hpp>
 
 #include "bisturi/runtime/render/headset.h"
@@ -39,6 +41,23 @@ devices::Vec3 to_metres(const glm::dvec3& mm) {
   return {m.x, m.y, m.z};
 }
 
+glm::dvec3 vec(const std::array<double, 3>& a) {
+  return {a[0], a[1], a[2]};
+}
+
+/// The targets a scene without a [procedure] table gets: the top of the first solid, the wall
+/// of the second facing the viewer (anterior, -y) halfway up, and a 24 mm cut across the top.
+ProcedureDescription targets_from_bounds(const Box& first, const Box& second) {
+  ProcedureDescription d;
+  const glm::dvec3 top(first.centre().x, first.centre().y, first.hi.z);
+  const glm::dvec3 wall(second.centre().x, second.lo.y, second.centre().z);
+  d.palpate_mm = {top.x, top.y, top.z};
+  d.grasp_mm = {wall.x, wall.y, wall.z};
+  d.cut_from_mm = {top.x - 12.0, top.y, top.z};
+  d.cut_to_mm = {top.x + 12.0, top.y, top.z};
+  return d;
+}
+
 }  // namespace
 
 Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid>& solids,
@@ -48,38 +67,47 @@ Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid
   if (solids.empty()) throw SceneFileError("the scripted procedure needs at least one solid");
   const Box first = bounds(solids.front().mesh);
   const Box second = bounds(solids.size() > 1 ? solids[1].mesh : solids.front().mesh);
-  const glm::dvec3 top(first.centre().x, first.centre().y, first.hi.z);
-  // The second solid's wall facing the viewer (anterior, -y), halfway up.
-  const glm::dvec3 wall(second.centre().x, second.lo.y, second.centre().z);
+  const SceneDescription* scene = solids.front().scene;
+  const ProcedureDescription d =
+      scene != nullptr && scene->procedure ? *scene->procedure : targets_from_bounds(first, second);
+  const glm::dvec3 palpate = vec(d.palpate_mm), pn = vec(d.palpate_normal);
+  const glm::dvec3 grasp = vec(d.grasp_mm), gn = vec(d.grasp_normal);
+  const glm::dvec3 cut_a = vec(d.cut_from_mm), cut_b = vec(d.cut_to_mm), cn = vec(d.cut_normal);
 
   Procedure p;
   const double total = static_cast<double>(duration.count());
   const auto at = [total](double fraction) {
     return devices::Nanoseconds{static_cast<std::int64_t>(std::llround(fraction * total))};
   };
-  const auto key = [&](double fraction, const glm::dvec3& tip_mm, double joints_rad) {
+  // The scalpel's blade runs along the pose's +z from the tip: during the cut it points out of
+  // the surface along the cut's normal, so that it crosses the surface as it sweeps (upright for
+  // the default normal +z, the pose's identity).
+  const glm::dquat blade = glm::rotation(glm::dvec3(0.0, 0.0, 1.0), cn);
+  const auto key = [&](double fraction, const glm::dvec3& tip_mm, double joints_rad,
+                       bool cutting = false) {
     devices::MotionKey k;
     k.t = at(fraction);
     k.pose.position_m = to_metres(tip_mm);
+    if (cutting) k.pose.orientation = {blade.w, blade.x, blade.y, blade.z};
     k.joints_rad.assign(glove_joints, joints_rad);
     p.glove.motion.push_back(k);
   };
   const double open = 0.1, closed = 1.1;
-  key(0.00, top + glm::dvec3(0, 0, 30), open);
-  key(0.12, top + glm::dvec3(0, 0, 4), open);     // approach
-  key(0.20, top + glm::dvec3(0, 0, -6), open);    // palpate: press in
-  key(0.26, top + glm::dvec3(0, 0, 4), open);     // and let go
-  key(0.36, wall + glm::dvec3(0, -10, 0), open);  // to the second solid
-  key(0.42, wall + glm::dvec3(0, 1, 0), open);
-  key(0.46, wall + glm::dvec3(0, 1, 0), closed);   // grasp
-  key(0.56, wall + glm::dvec3(0, -6, 0), closed);  // pull
-  key(0.60, wall + glm::dvec3(0, 0.5, 0), closed);
-  key(0.63, wall + glm::dvec3(0, 0.5, 0), open);  // release
-  key(0.68, wall + glm::dvec3(0, -10, 0), open);
-  key(0.74, top + glm::dvec3(-12, 0, 4), open);
-  key(0.78, top + glm::dvec3(-12, 0, -9), open);  // blade in
-  key(0.90, top + glm::dvec3(12, 0, -9), open);   // sweep
-  key(0.96, top + glm::dvec3(12, 0, 20), open);
+  key(0.00, palpate + 30.0 * pn, open);
+  key(0.12, palpate + 4.0 * pn, open);                 // approach
+  key(0.20, palpate - d.palpate_depth_mm * pn, open);  // palpate: press in
+  key(0.26, palpate + 4.0 * pn, open);                 // and let go
+  key(0.36, grasp + 10.0 * gn, open);                  // to the vessel
+  key(0.42, grasp - 1.0 * gn, open);
+  key(0.46, grasp - 1.0 * gn, closed);        // grasp
+  key(0.56, grasp + d.pull_mm * gn, closed);  // pull
+  key(0.60, grasp - 0.5 * gn, closed);
+  key(0.63, grasp - 0.5 * gn, open);  // release
+  key(0.68, grasp + 10.0 * gn, open);
+  key(0.74, cut_a + 4.0 * cn, open, true);
+  key(0.78, cut_a - d.cut_depth_mm * cn, open, true);  // blade in
+  key(0.90, cut_b - d.cut_depth_mm * cn, open, true);  // sweep
+  key(0.96, cut_b + 20.0 * cn, open, true);
   p.glove.presses = {{at(0.785), 0, true}, {at(0.905), 0, false}};
   p.phases = {{"approach", at(0.0), at(0.12)},
               {"palpate", at(0.12), at(0.26)},

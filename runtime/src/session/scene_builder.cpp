@@ -4,38 +4,20 @@
 
 #include <chrono>
 #include <cstdint>
+#include <iostream>
 #include <string>
 
 #include "bisturi/scene/io/mesh_file.h"
 #include "bisturi/scene/lod/decimate.h"
 #include "bisturi/scene/lod/smooth.h"
 #include "bisturi/scene/polygon_import.h"
+#include "bisturi/scene/volume/label_surface.h"
 #include "bisturi/scene/volume/marching_cubes.h"
 #include "bisturi/scene/volume/phantoms.h"
 #include "bisturi/scene/volume/volume_io.h"
+#include "embedded_data.h"
 
 namespace bisturi::runtime {
-
-namespace {
-
-/// 1 inside the label, 0 outside: its isosurface at 0.5 is the label's surface.
-Grid<float> label_field(const Volume& volume, std::uint32_t label, const std::string& where) {
-  Grid<float> field;
-  field.geometry = volume.geometry;
-  field.values.resize(volume.values.size());
-  const auto wanted = static_cast<float>(label);
-  std::size_t inside = 0;
-  for (std::size_t i = 0; i < volume.values.size(); ++i) {
-    const bool in = volume.values[i] == wanted;
-    field.values[i] = in ? 1.0f : 0.0f;
-    inside += in ? 1 : 0;
-  }
-  if (inside == 0)
-    throw SceneFileError(where + ": label " + std::to_string(label) + " is not in the volume");
-  return field;
-}
-
-}  // namespace
 
 Dlfl build_solid(const SolidDescription& solid, const std::string& scene_name,
                  const BuildProgress& progress) {
@@ -50,6 +32,8 @@ Dlfl build_solid(const SolidDescription& solid, const std::string& scene_name,
     ReadOptions read;
     read.progress = report("read");
     const MeshFile file = read_mesh(solid.path, read);
+    for (const std::string& w : file.warnings)
+      std::cerr << "bisturi: warning: " << where << ": " << w << "\n";
     ImportOptions import;
     import.progress = [&](std::string_view stage, std::size_t done, std::size_t total) {
       if (progress) progress(solid.name, stage, done, total);
@@ -66,6 +50,10 @@ else {
     p.a = solid.a_mm;
     p.b = solid.b_mm;
     volume = make_phantom(p);
+  } else if (solid.embedded) {
+    const auto bytes = embedded_file(solid.path.generic_string());
+    if (!bytes) throw SceneFileError(where + ": no embedded file " + solid.path.string());
+    volume = read_nrrd_from_memory(*bytes, solid.path.string() + " (embedded)");
   } else {
     volume = read_volume(solid.path);
   }
@@ -73,8 +61,21 @@ else {
   iso.progress = report("surface");
   iso.build_progress = report("build");
   if (solid.label) {
-    iso.iso = 0.5f;
-    mesh = extract_isosurface(label_field(volume, *solid.label, where), iso);
+    const auto wanted = static_cast<float>(*solid.label);
+    if (label_voxel_count(volume, wanted) == 0)
+      throw SceneFileError(where + ": label " + std::to_string(*solid.label) +
+                           " is not in the volume");
+    // Smooth, not terraced: constrained windowed-sinc smoothing (label_surface.h).
+    LabelSurfaceOptions label;
+    label.progress = iso.progress;
+    label.build_progress = iso.build_progress;
+    label.smooth_progress = report("smooth label");
+    if (solid.downsample != std::array<int, 3>{1, 1, 1}) {
+      const Grid<float> coarse = downsample_label(volume, wanted, solid.downsample);
+      mesh = extract_label_surface(coarse, wanted, label);
+    } else {
+      mesh = extract_label_surface(volume, wanted, label);
+    }
   } else {
     iso.iso = static_cast<float>(solid.iso);
     mesh = extract_isosurface(volume, iso);
@@ -109,6 +110,7 @@ std::vector<BuiltSolid> build_solids(const SceneDescription& scene, const BuildP
     const auto start = std::chrono::steady_clock::now();
     BuiltSolid b;
     b.description = &s;
+    b.scene = &scene;
     b.mesh = build_solid(s, name, progress);
     b.build_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();

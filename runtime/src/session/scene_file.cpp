@@ -13,6 +13,7 @@
 #include "bisturi/sim/errors.h"
 #include "bisturi/sim/tissue.h"
 #include "default_scene_toml.h"
+#include "embedded_data.h"
 
 namespace bisturi::runtime {
 
@@ -20,14 +21,14 @@ namespace {
 
 class SceneReader {
  public:
-  SceneReader(std::string name, std::filesystem::path base_dir)
-      : name_(std::move(name)), base_dir_(std::move(base_dir)) {}
+  SceneReader(std::string name, std::filesystem::path base_dir, bool embedded_files = false)
+      : name_(std::move(name)), base_dir_(std::move(base_dir)), embedded_files_(embedded_files) {}
 
   SceneDescription read(const toml::table& root) {
     SceneDescription scene;
     only_keys(root, "",
               {"name", "duration_s", "rates", "simulation", "headset", "solids", "devices",
-               "instruments"});
+               "instruments", "procedure"});
     scene.name = string_or(root, "", "name", scene.name);
     scene.duration_s = positive(root, "", "duration_s", scene.duration_s);
     if (const toml::table* t = table_at(root, "", "rates")) {
@@ -56,6 +57,8 @@ class SceneReader {
         fail(t["device"].node(), t, path + ".device", "no device named '" + in.device + "'");
       scene.instruments.push_back(std::move(in));
     });
+    if (const toml::table* t = table_at(root, "", "procedure"))
+      scene.procedure = read_procedure(*t);
     return scene;
   }
 
@@ -242,10 +245,18 @@ class SceneReader {
   }
 
   std::filesystem::path file_path(const toml::table& t, const std::string& path,
-                                  std::string_view key) const {
+                                  std::string_view key, bool* embedded = nullptr) const {
     std::filesystem::path p = string_or(t, path, key, "");
     if (p.empty()) fail(t.get(key), t, join(path, key), "expected a file name");
+    const std::filesystem::path named = p;
     if (p.is_relative() && !base_dir_.empty()) p = base_dir_ / p;
+    // The embedded default scene names the files embedded with it (config/data/...); a scene
+    // file too when no such file is beside it (the default scene printed and edited elsewhere).
+    if (embedded != nullptr && named.is_relative() &&
+        (embedded_files_ || !std::filesystem::exists(p)) && embedded_file(named.generic_string())) {
+      *embedded = true;
+      return named;
+    }
     if (!std::filesystem::exists(p))
       fail(t.get(key), t, join(path, key), "no such file: " + p.string());
     return p;
@@ -279,9 +290,10 @@ class SceneReader {
   }
 
   SolidDescription read_solid(const toml::table& t, const std::string& path) const {
-    only_keys(t, path,
-              {"name", "mesh", "volume", "phantom", "dims", "spacing_mm", "a_mm", "b_mm", "iso",
-               "label", "decimate", "smooth", "offset_mm", "material", "anchors", "simulate"});
+    only_keys(
+        t, path,
+        {"name", "mesh", "volume", "phantom", "dims", "spacing_mm", "a_mm", "b_mm", "iso", "label",
+         "downsample", "decimate", "smooth", "offset_mm", "material", "anchors", "simulate"});
     SolidDescription s;
     s.name = string_or(t, path, "name", path);
     const int sources = (t.contains("mesh") ? 1 : 0) + (t.contains("volume") ? 1 : 0) +
@@ -294,7 +306,7 @@ class SceneReader {
       s.path = file_path(t, path, "mesh");
     } else if (t.contains("volume")) {
       s.source = SolidDescription::Source::Volume;
-      s.path = file_path(t, path, "volume");
+      s.path = file_path(t, path, "volume", &s.embedded);
     } else {
       s.source = SolidDescription::Source::Phantom;
       s.phantom = string_or(t, path, "phantom", s.phantom);
@@ -318,6 +330,19 @@ class SceneReader {
     if (t.contains("label")) {
       s.label = static_cast<std::uint32_t>(integer(t, path, "label", 1, 0, 0xffffff));
     }
+    if (const toml::node* n = t.get("downsample")) {
+      const toml::array* a = n->as_array();
+      if (a == nullptr || a->size() != 3) fail(n, t, path + ".downsample", "expected 3 integers");
+      for (std::size_t i = 0; i < 3; ++i) {
+        const auto v = a->get(i)->value<std::int64_t>();
+        if (!a->get(i)->is_integer() || !v || *v < 1 || *v > 64) {
+          fail(a->get(i), t, path + ".downsample[" + std::to_string(i) + "]",
+               "expected an integer between 1 and 64");
+        }
+        s.downsample[i] = static_cast<int>(*v);
+      }
+      if (!s.label) fail(n, t, path + ".downsample", "only for a label map (give 'label')");
+    }
     s.decimate = number(t, path, "decimate", s.decimate);
     if (!(s.decimate > 0.0 && s.decimate <= 1.0)) {
       fail(t.get("decimate"), t, path + ".decimate", "must be in (0, 1]");
@@ -340,6 +365,38 @@ class SceneReader {
       s.anchors.push_back(anchor);
     });
     return s;
+  }
+
+  ProcedureDescription read_procedure(const toml::table& t) const {
+    const std::string p = "procedure";
+    only_keys(t, p,
+              {"palpate_mm", "palpate_normal", "palpate_depth_mm", "grasp_mm", "grasp_normal",
+               "pull_mm", "cut_from_mm", "cut_to_mm", "cut_normal", "cut_depth_mm"});
+    ProcedureDescription d;
+    for (const char* key : {"palpate_mm", "grasp_mm", "cut_from_mm", "cut_to_mm"}) {
+      if (!t.contains(key)) fail(nullptr, t, join(p, key), "missing (a target of the procedure)");
+    }
+    d.palpate_mm = numbers<3>(t, p, "palpate_mm", d.palpate_mm);
+    d.grasp_mm = numbers<3>(t, p, "grasp_mm", d.grasp_mm);
+    d.cut_from_mm = numbers<3>(t, p, "cut_from_mm", d.cut_from_mm);
+    d.cut_to_mm = numbers<3>(t, p, "cut_to_mm", d.cut_to_mm);
+    if (d.cut_from_mm == d.cut_to_mm)
+      fail(t.get("cut_to_mm"), t, join(p, "cut_to_mm"), "the cut needs two different ends");
+    const auto unit = [&](const char* key, std::array<double, 3> v) {
+      v = numbers<3>(t, p, key, v);
+      const double len = std::hypot(v[0], v[1], v[2]);
+      if (!(len > 0.0)) fail(t.get(key), t, join(p, key), "must not be zero");
+      for (double& c : v)
+        c /= len;
+      return v;
+    };
+    d.palpate_normal = unit("palpate_normal", d.palpate_normal);
+    d.grasp_normal = unit("grasp_normal", d.grasp_normal);
+    d.cut_normal = unit("cut_normal", d.cut_normal);
+    d.palpate_depth_mm = positive(t, p, "palpate_depth_mm", d.palpate_depth_mm);
+    d.pull_mm = positive(t, p, "pull_mm", d.pull_mm);
+    d.cut_depth_mm = positive(t, p, "cut_depth_mm", d.cut_depth_mm);
+    return d;
   }
 
   DeviceDescription read_device(const toml::table& t, const std::string& path) const {
@@ -393,6 +450,7 @@ class SceneReader {
 
   std::string name_;
   std::filesystem::path base_dir_;
+  bool embedded_files_ = false;
 };
 
 }  // namespace
@@ -406,7 +464,10 @@ SceneDescription parse_scene(std::string_view toml_text, const std::string& name
     throw SceneFileError(name_for_errors + ": line " + std::to_string(e.source().begin.line) +
                          ": " + std::string(e.description()));
   }
-  return SceneReader(name_for_errors, base_dir).read(root);
+  // The embedded default scene's own text (also as a recording holds it, with no folder) names
+  // the files embedded with it; any other scene names files on disk.
+  const bool embedded_files = base_dir.empty() && toml_text == default_scene_toml();
+  return SceneReader(name_for_errors, base_dir, embedded_files).read(root);
 }
 
 SceneDescription read_scene_file(const std::filesystem::path& file) {

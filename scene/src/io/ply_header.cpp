@@ -65,7 +65,7 @@ class HeaderParser {
       } else if (keyword == "property") {
         read_property();
       } else if (keyword != "comment" && keyword != "obj_info" && !keyword.empty()) {
-        fail(cat("unknown header keyword ", quoted(keyword)));
+        skip_unknown_line(keyword);
       }
     }
     if (!has_format) fail("the header has no format line");
@@ -77,6 +77,19 @@ class HeaderParser {
 
  private:
   [[noreturn]] void fail(std::string_view what) const { err_.at_line(text_.line_number(), what); }
+
+  // Old exporters wrote free text into the header without `comment` (Blender 2.4x: "Created by
+  // Blender3D 247 - www.blender.org, source file: ..."); rply, assimp and MeshLab skip such
+  // lines, so they are skipped here too, with a warning that quotes the line.
+  void skip_unknown_line(std::string_view keyword) {
+    std::string line(keyword);
+    line += text_.rest();
+    while (!line.empty() && (line.back() == ' ' || line.back() == '\t' || line.back() == '\r'))
+      line.pop_back();
+    header_.warnings.push_back(
+        cat(err_.file(), ": line ", text_.line_number(),
+            ": header line of unknown kind skipped: ", mesh_io::quoted(line)));
+  }
 
   void read_format() {
     const std::string_view encoding = text_.token();

@@ -41,8 +41,9 @@ struct PlyHeader {
   std::size_t body_offset = 0;      ///< first byte after the end_header line
   std::size_t body_first_line = 0;  ///< its line number (ascii bodies)
   std::uint64_t vertex_count = 0;
-  std::size_t x = 0, y = 0, z = 0;  ///< vertex property positions
-  std::size_t face_list = 0;        ///< face property position of vertex_indices
+  std::size_t x = 0, y = 0, z = 0;    ///< vertex property positions
+  std::size_t face_list = 0;          ///< face property position of vertex_indices
+  std::vector<std::string> warnings;  ///< header lines skipped, each with the file and line
 };
 
 PlyHeader parse_ply_header(std::string_view file, const ErrorSite& err);

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "ply_header.h"
 #include "ply_sources.h"
@@ -156,7 +157,7 @@ MeshFile read_ply(std::span<const std::byte> data, const std::string& name,
                   const ReadOptions& options) {
   const ErrorSite err(name);
   if (data.empty()) err.whole("file is empty");
-  const PlyHeader header = parse_ply_header(as_text(data), err);
+  PlyHeader header = parse_ply_header(as_text(data), err);
   check_counts(header, data.size() - header.body_offset, err);
 
   MeshFile out;
@@ -173,6 +174,7 @@ MeshFile read_ply(std::span<const std::byte> data, const std::string& name,
     BodyReader(source, header, out.polygons, progress).read();
   }
   progress.finish();
+  out.warnings = std::move(header.warnings);
   return out;
 }
 

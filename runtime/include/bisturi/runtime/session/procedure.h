@@ -1,9 +1,14 @@
 #pragma once
 // The scripted procedure that drives the simulated glove and head tracker of a scene whose
-// devices use script = "default": approach the first solid, palpate it, grasp the second solid's
-// wall and pull it, release, then cut across the top of the first solid. The timeline is laid out
-// over the session's duration (so a one-second run goes through every phase) and the targets
-// come from the built solids' bounds. Device poses are SI metres in the scene's world frame.
+// devices use script = "default": approach the organ, palpate it, grasp a vessel's wall and pull
+// it, release, then cut along a path. The timeline is laid out over the session's duration (so a
+// one-second run goes through every phase). The targets are the scene's [procedure] table
+// (ProcedureDescription: points on the organ and on the vessel, the cut's path, with outward
+// normals the instrument comes in along); a scene without one gets the top of the first solid,
+// the anterior (-y) wall of the second and a 24 mm cut across the first's top, from the built
+// solids' bounds. During the cut the glove's pose turns so that the scalpel's blade (the pose's
+// +z) points out along the cut's normal. The head looks at the solids from in front and above. Device poses are SI
+// metres in the scene's world frame.
 
 #include <chrono>
 #include <string>

@@ -1,7 +1,9 @@
 #pragma once
 // Builds the solids of a SceneDescription at start-up: phantom or volume -> isosurface (marching
-// cubes into the DLFL) -> decimation -> Taubin smoothing -> offset; mesh files through the
-// polygon import. Deterministic: a live session and its replay build identical solids.
+// cubes into the DLFL; a label of a label map through the smooth label surface of
+// label_surface.h) -> decimation -> Taubin smoothing -> offset; mesh files through the polygon
+// import. One mesh per solid, for the tissue model and the renderer alike (no separate drawing
+// mesh at full resolution yet). Deterministic: a live session and its replay build identical solids.
 
 #include <cstddef>
 #include <functional>
@@ -17,6 +19,7 @@ struct BuiltSolid {
   const SolidDescription* description = nullptr;  ///< into the scene it was built from
   Dlfl mesh;                                      ///< world millimetres, compacted
   double build_ms = 0.0;
+  const SceneDescription* scene = nullptr;  ///< the scene it was built from (its [procedure])
 };
 
 /// (solid name, stage, done, total) while a solid is built.

@@ -53,8 +53,11 @@ struct AnchorDescription {
 struct SolidDescription {
   std::string name;
   enum class Source { Mesh, Volume, Phantom } source = Source::Phantom;
-  /// Mesh or volume file, resolved against the scene file's folder.
+  /// Mesh or volume file, resolved against the scene file's folder. In the embedded default
+  /// scene: the name of a file embedded in the program (see embedded_data.h), e.g.
+  /// "data/liver.nrrd" for config/data/liver.nrrd.
   std::filesystem::path path;
+  bool embedded = false;  ///< `path` names an embedded file, not one on disk
   // Phantom volumes (source Phantom): see bisturi/scene/volume/phantoms.h.
   std::string phantom = "sphere";
   std::array<std::int64_t, 3> dims{48, 48, 48};
@@ -64,6 +67,9 @@ struct SolidDescription {
   // Extraction (Volume and Phantom sources).
   double iso = 0.0;
   std::optional<std::uint32_t> label;  ///< extract this label of a label map instead of `iso`
+  /// Label maps: blocks of this many samples per axis become one before extraction (a label
+  /// where at least half the block is; see downsample_label), for a coarse tissue model.
+  std::array<int, 3> downsample{1, 1, 1};
   double decimate = 1.0;               ///< fraction of faces kept
   int smooth = 0;                      ///< Taubin iterations
   /// Added to every vertex (mm): places the solid in the scene.
@@ -136,6 +142,23 @@ struct SimulationDescription {
   int far_field_interval = 1;
 };
 
+/// Targets of the scripted procedure (approach, palpate, grasp, cut) in scene millimetres, so a
+/// new anatomy gets a working demonstration without code. Normals are outward unit vectors of
+/// the surface at the target: the instrument comes in along them and presses or cuts against
+/// them. Without a [procedure] table they come from the solids' bounds (see procedure.h).
+struct ProcedureDescription {
+  std::array<double, 3> palpate_mm{0, 0, 0};  ///< a point on the organ's surface the probe presses
+  std::array<double, 3> palpate_normal{0, 0, 1};
+  double palpate_depth_mm = 6.0;              ///< how far the probe presses in
+  std::array<double, 3> grasp_mm{0, 0, 0};    ///< a point on a vessel's wall the grasper takes
+  std::array<double, 3> grasp_normal{0, -1, 0};
+  double pull_mm = 6.0;                       ///< how far the grasper pulls the wall out
+  std::array<double, 3> cut_from_mm{0, 0, 0};  ///< the cut's path along the surface
+  std::array<double, 3> cut_to_mm{0, 0, 0};
+  std::array<double, 3> cut_normal{0, 0, 1};
+  double cut_depth_mm = 9.0;  ///< how deep the blade goes below the path
+};
+
 struct SceneDescription {
   std::string name = "unnamed";
   /// The file it was read from; empty for the embedded default scene.
@@ -146,6 +169,8 @@ struct SceneDescription {
   HeadsetDescription headset;
   RateDescription rates;
   SimulationDescription simulation;
+  /// The [procedure] table; empty: targets from the solids' bounds.
+  std::optional<ProcedureDescription> procedure;
   /// Session length when the command line does not give one.
   double duration_s = 10.0;
 };
@@ -159,8 +184,9 @@ SceneDescription read_scene_file(const std::filesystem::path& file);
 SceneDescription parse_scene(std::string_view toml_text, const std::string& name_for_errors,
                              const std::filesystem::path& base_dir = {});
 
-/// The embedded default scene (needs no file): a vessel segment and a soft organ built from
-/// generated phantoms, a simulated glove and head tracker following the scripted procedure.
+/// The embedded default scene (needs no file): a liver built from a CT-derived label map
+/// embedded in the program (config/data/liver.nrrd) and a vessel segment from a generated
+/// phantom along it, a simulated glove and head tracker following the scripted procedure.
 SceneDescription default_scene();
 
 /// The embedded default scene as TOML text (what `bisturi run --print-default-scene` shows and

@@ -13,12 +13,15 @@
 //   infinite coordinate, a count the data does not hold, an empty file. Nothing partial is
 //   returned, and no count read from a file is trusted before it is checked against the bytes
 //   that follow it.
+// - The one leniency: a PLY header line of unknown kind (free text an old exporter wrote without
+//   `comment`) is skipped and named in MeshFile::warnings, as rply, assimp and MeshLab do.
 
 #include <cstddef>
 #include <filesystem>
 #include <functional>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "bisturi/scene/oriented_builder.h"
 
@@ -34,6 +37,9 @@ struct MeshFile {
   bool has_vertex_list = true;
   MeshFormat format = MeshFormat::Obj;
   std::size_t source_bytes = 0;
+  /// What was skipped because real tools skip it, one message each ("file: line N: ..."): PLY
+  /// header lines of unknown kind. Callers show them; nothing else is lenient.
+  std::vector<std::string> warnings;
 };
 
 struct ReadOptions {

@@ -1,0 +1,86 @@
+#pragma once
+// Smooth surfaces of label maps. Marching cubes on a label's 0/1 indicator puts every vertex at
+// the midpoint of a grid edge from an inside to an outside sample, so the surface follows the
+// voxels: terraces one slice high, tall ones where slices are thick (a CT label map at
+// 0.6 x 0.6 x 1.3 mm, or 1 x 1 x 3). Here, on the same crossed edges (the same vertices and
+// triangles, so the same closed, oriented 2-manifold of the same genus):
+// 1. shape-based interpolation (Raya and Udupa, 1990): each slice's samples hold their signed
+//    in-slice distance (mm) to the label's outline, and each crossed edge is cut where that
+//    interpolates to zero, so between slices the outline moves smoothly. Runs of identical
+//    slices (a map resampled from thicker slices by repetition) are interpolated between their
+//    middles;
+// 2. the windowed-sinc low-pass of Taubin, Zhang and Golub ("Optimal surface smoothing as
+//    filter design", 1996; the filter 3D Slicer applies through VTK), its cut set so that the
+//    gain at the pass band is 1 (the shape itself does not shrink);
+// 3. the band constraint: a vertex the filter carried out of the band of cells the outline runs
+//    through (cells with inside and outside corners) goes back along the way it came to where
+//    the band ends, as constrained surface nets keep each vertex in its cell. Thin parts cannot
+//    melt away.
+// Only positions move (outside repeated slices, whose interpolated sign may differ from the
+// indicator's). Figures against the plain extraction and against VTK's 3D Slicer pipeline
+// (vtkDiscreteFlyingEdges3D + vtkWindowedSincPolyDataFilter): tools/bench/label_surface_bench.cpp,
+// table in docs/scene/label-surfaces.md.
+
+#include <array>
+#include <cstddef>
+#include <functional>
+
+#include "bisturi/scene/dlfl.h"
+#include "bisturi/scene/oriented_builder.h"
+#include "bisturi/scene/volume/marching_cubes.h"
+#include "bisturi/scene/volume/volume.h"
+
+namespace bisturi {
+
+struct LabelSurfaceOptions {
+  /// Order of the windowed-sinc filter (neighbour sweeps per round); 0: step 1 only.
+  std::size_t iterations = 20;
+  /// Pass band of the filter (frequencies of the umbrella Laplacian, 0..2): lower is smoother.
+  double pass_band = 0.01;
+  /// Filter passes, each followed by the band constraint. Passes after the first filter what is
+  /// left between the result and the marching-cubes positions and add it back (Tukey's
+  /// twicing): less shrinkage of small curved parts, more of the staircase left.
+  std::size_t rounds = 1;
+  /// Called with (done, total) slabs of cells, then with the DLFL build (extract_label_surface).
+  std::function<void(std::size_t, std::size_t)> progress;
+  std::function<void(std::size_t, std::size_t)> build_progress;
+  /// Called with (rounds done, rounds).
+  std::function<void(std::size_t, std::size_t)> smooth_progress;
+};
+
+struct LabelSurfaceStats {
+  ExtractionStats extraction;
+  std::size_t label_voxels = 0;
+  /// Vertices the band constraint pulled back in the last round.
+  std::size_t clamped_last = 0;
+  double indicator_seconds = 0.0;
+  double smooth_seconds = 0.0;
+};
+
+/// A coarser label map for a coarser surface (a tissue model of a few hundred vertices from a
+/// CT label map, without decimating a surface of hundreds of thousands): blocks of
+/// factors[0] x factors[1] x factors[2] samples become one sample, `label` when at least half of
+/// the block's samples are, 0 otherwise, at the block's centre. Blocks at the far ends hold what
+/// samples are left; one sample of background (0) goes around the result, so the surface is
+/// closed even where the label reaches the map's edge. Throws InputError for a factor below 1 or a
+/// `label` of 0.
+Grid<float> downsample_label(const Grid<float>& labels, float label,
+                             const std::array<int, 3>& factors);
+
+/// Samples whose value equals `label`.
+std::size_t label_voxel_count(const Grid<float>& labels, float label);
+
+/// The smooth surface of the samples whose value equals `label`, as indexed triangles (world
+/// millimetres, outward normals). Throws InputError as extract_isosurface_mesh does, and for
+/// one iteration or a pass band outside (0, 2). A label absent from the volume gives an empty
+/// mesh.
+PolygonMesh extract_label_surface_mesh(const Grid<float>& labels, float label,
+                                       const LabelSurfaceOptions& options = {},
+                                       LabelSurfaceStats* stats = nullptr);
+
+/// The same surface as a Dlfl (extract_isosurface's structure; vertex v is vertex v of the mesh).
+Dlfl extract_label_surface(const Grid<float>& labels, float label,
+                           const LabelSurfaceOptions& options = {},
+                           LabelSurfaceStats* stats = nullptr);
+
+}  // namespace bisturi

@@ -1,0 +1,486 @@
+// Constrained windowed-sinc smoothing of marching-cubes label surfaces (see label_surface.h).
+
+#include "bisturi/scene/volume/label_surface.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "bisturi/scene/errors.h"
+
+namespace bisturi {
+
+namespace {
+
+using Vec3 = Dlfl::Vec3;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+void check_options(const LabelSurfaceOptions& o) {
+  if (o.iterations == 1 || !(o.pass_band > 0.0 && o.pass_band < 2.0)) {
+    throw InputError("label surface: need iterations 0 or >= 2 and a pass band in (0, 2) (got " +
+                     std::to_string(o.iterations) + ", " + std::to_string(o.pass_band) + ")");
+  }
+}
+
+// Squared distances along one line of samples (spacing h) to the nearest feature sample (f = 0
+// there, infinite elsewhere): the lower envelope of parabolas of Felzenszwalb and Huttenlocher
+// ("Distance transforms of sampled functions", 2012), exact, linear in the line's length.
+void distance_1d(const std::vector<double>& f, std::vector<double>& d, double h,
+                 std::vector<std::size_t>& v, std::vector<double>& z) {
+  const std::size_t n = f.size();
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  std::size_t k = 0;
+  std::size_t first = 0;
+  while (first < n && f[first] == kInf)
+    ++first;
+  if (first == n) {
+    std::fill(d.begin(), d.end(), kInf);
+    return;
+  }
+  v[0] = first;
+  z[0] = -kInf;
+  z[1] = kInf;
+  for (std::size_t q = first + 1; q < n; ++q) {
+    if (f[q] == kInf) continue;
+    const double xq = static_cast<double>(q) * h;
+    for (;;) {
+      const double xv = static_cast<double>(v[k]) * h;
+      const double sx = ((f[q] + xq * xq) - (f[v[k]] + xv * xv)) / (2.0 * (xq - xv));
+      if (sx <= z[k] && k > 0) {
+        --k;
+        continue;
+      }
+      ++k;
+      v[k] = q;
+      z[k] = sx;
+      z[k + 1] = kInf;
+      break;
+    }
+  }
+  k = 0;
+  for (std::size_t q = 0; q < n; ++q) {
+    const double x = static_cast<double>(q) * h;
+    while (z[k + 1] < x)
+      ++k;
+    const double dx = x - static_cast<double>(v[k]) * h;
+    d[q] = dx * dx + f[v[k]];
+  }
+}
+
+/// Distances (mm) within each slice (k fixed) from every sample to the nearest sample whose
+/// mask value is `to`; infinite in a slice without one.
+void slice_distances(const std::vector<std::uint8_t>& mask, const VolumeGeometry& g,
+                     std::uint8_t to, std::vector<float>& out) {
+  const auto nx = static_cast<std::size_t>(g.dims[0]), ny = static_cast<std::size_t>(g.dims[1]);
+  const auto nz = static_cast<std::size_t>(g.dims[2]);
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const std::size_t longest = std::max(nx, ny);
+  std::vector<double> f(longest), d(longest), z(longest + 1), plane(nx * ny);
+  std::vector<std::size_t> v(longest);
+  for (std::size_t k = 0; k < nz; ++k) {
+    const std::size_t base = k * nx * ny;
+    // A slice of one kind (most of a map around a label): nothing to transform.
+    const auto first = mask.begin() + static_cast<std::ptrdiff_t>(base);
+    const auto last = first + static_cast<std::ptrdiff_t>(nx * ny);
+    const bool has_to = std::find(first, last, to) != last;
+    const bool all_to =
+        has_to && std::find_if(first, last, [to](std::uint8_t m) { return m != to; }) == last;
+    if (!has_to || all_to) {
+      const float value = has_to ? 0.0F : std::numeric_limits<float>::infinity();
+      std::fill(out.begin() + static_cast<std::ptrdiff_t>(base),
+                out.begin() + static_cast<std::ptrdiff_t>(base + nx * ny), value);
+      continue;
+    }
+    f.resize(nx);
+    d.resize(nx);
+    for (std::size_t j = 0; j < ny; ++j) {
+      for (std::size_t i = 0; i < nx; ++i)
+        f[i] = mask[base + j * nx + i] == to ? 0.0 : kInf;
+      distance_1d(f, d, g.spacing.x, v, z);
+      for (std::size_t i = 0; i < nx; ++i)
+        plane[j * nx + i] = d[i];
+    }
+    f.resize(ny);
+    d.resize(ny);
+    for (std::size_t i = 0; i < nx; ++i) {
+      for (std::size_t j = 0; j < ny; ++j)
+        f[j] = plane[j * nx + i];
+      distance_1d(f, d, g.spacing.y, v, z);
+      for (std::size_t j = 0; j < ny; ++j)
+        out[base + j * nx + i] = static_cast<float>(std::sqrt(d[j]));
+    }
+  }
+}
+
+// A label map resampled from thicker slices by repeating them (CGAL's liver repeats every third
+// slice) holds runs of identical slices: one original slice each, at the run's middle. Every
+// slice of a run then gets the distances interpolated between its run's and the neighbouring
+// run's, by position, as if the original slices had been interpolated; a run of one is kept.
+void interpolate_repeated_slices(const std::vector<std::uint8_t>& mask, Grid<float>& field) {
+  const VolumeGeometry& g = field.geometry;
+  const std::size_t plane = static_cast<std::size_t>(g.dims[0] * g.dims[1]);
+  const auto nz = static_cast<std::size_t>(g.dims[2]);
+  struct Run {
+    std::size_t first, last;
+    double centre() const { return 0.5 * static_cast<double>(first + last); }
+  };
+  std::vector<Run> runs;
+  std::size_t filled = 0, repeats = 0, longest = 1;
+  for (std::size_t k = 0; k < nz; ++k) {
+    const auto slice = mask.begin() + static_cast<std::ptrdiff_t>(k * plane);
+    const bool empty = std::find(slice, slice + static_cast<std::ptrdiff_t>(plane), 1) ==
+                       slice + static_cast<std::ptrdiff_t>(plane);
+    filled += empty ? 0 : 1;
+    // Empty slices are never repeats: a map has plenty above and below the label.
+    const bool same = !empty && k > 0 && runs.back().last == k - 1 &&
+                      std::equal(slice, slice + static_cast<std::ptrdiff_t>(plane),
+                                 slice - static_cast<std::ptrdiff_t>(plane));
+    if (same) {
+      runs.back().last = k;
+      ++repeats;
+      longest = std::max(longest, k - runs.back().first + 1);
+    } else {
+      runs.push_back({k, k});
+    }
+  }
+  // Only a map that repeats many of its slices in short runs was resampled that way; a long run
+  // is a part that does not change along the slices (a tube along them), and is kept.
+  if (repeats == 0 || 4 * repeats < filled || longest > 4) return;
+  // Each run's own distances: those of its first slice (all its slices are alike).
+  const std::vector<float> original(field.values.data(), field.values.data() + field.values.size());
+  const auto at = [&](const Run& r, std::size_t i) { return original[r.first * plane + i]; };
+  for (std::size_t r = 0; r < runs.size(); ++r) {
+    if (runs[r].first == runs[r].last) continue;
+    for (std::size_t k = runs[r].first; k <= runs[r].last; ++k) {
+      const double z = static_cast<double>(k);
+      const Run* other = nullptr;
+      if (z < runs[r].centre() && r > 0) other = &runs[r - 1];
+      if (z > runs[r].centre() && r + 1 < runs.size()) other = &runs[r + 1];
+      if (other == nullptr) continue;
+      const auto w =
+          static_cast<float>((z - runs[r].centre()) / (other->centre() - runs[r].centre()));
+      float* out = field.values.data() + k * plane;
+      for (std::size_t i = 0; i < plane; ++i)
+        out[i] = (1.0F - w) * at(runs[r], i) + w * at(*other, i);
+    }
+  }
+}
+
+// The field marching cubes runs on: shape-based interpolation (Raya and Udupa, "Shape-based
+// interpolation of multidimensional objects", 1990). Each slice's samples hold their signed
+// in-slice distance to the label's outline (positive inside), so along the slice axis a crossed
+// edge is cut where the distance interpolates to zero: between two slices the outline moves
+// smoothly instead of in one step per slice, which is what makes terraces. The sign is the
+// indicator's (so the crossed edges, and the topology, are those of the 0/1 indicator) except in
+// repeated slices, whose distances are interpolated (interpolate_repeated_slices). A slice
+// without inside (or outside) samples counts as one slice spacing away. `indicator` gets the
+// field's sign: the band the smoothing keeps vertices in.
+Grid<float> label_field(const Grid<float>& labels, float label, std::size_t& inside,
+                        Grid<float>& indicator) {
+  const VolumeGeometry& g = labels.geometry;
+  const std::size_t n = labels.values.size();
+  std::vector<std::uint8_t> mask(n);
+  indicator.geometry = g;
+  indicator.values.resize(n);
+  std::size_t count = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    mask[i] = labels.values[i] == label ? 1 : 0;
+    indicator.values[i] = mask[i];
+    count += mask[i];
+  }
+  inside = count;
+  Grid<float> field;
+  field.geometry = g;
+  field.values.resize(n);
+  if (count == 0) return field;
+  std::vector<float> to_outside(n), to_inside(n);
+  slice_distances(mask, g, 0, to_outside);
+  slice_distances(mask, g, 1, to_inside);
+  const auto far = static_cast<float>(g.spacing.z);
+  for (std::size_t i = 0; i < n; ++i) {
+    const float d = mask[i] != 0 ? to_outside[i] : -to_inside[i];
+    field.values[i] = std::isfinite(d) ? d : (mask[i] != 0 ? far : -far);
+  }
+  interpolate_repeated_slices(mask, field);
+  for (std::size_t i = 0; i < n; ++i)
+    indicator.values[i] = field.values[i] > 0.0F ? 1.0F : 0.0F;
+  return field;
+}
+
+/// Each vertex's neighbours (CSR): the far ends of its edges.
+struct Neighbours {
+  std::vector<std::uint32_t> offsets;
+  std::vector<std::uint32_t> adjacency;
+};
+
+// In a triangle the corner after v names one neighbour; around a closed manifold vertex these
+// are all of them, once each. At an open border one is missing, which only weights the average.
+Neighbours neighbours_of(const PolygonMesh& mesh) {
+  Neighbours nb;
+  const std::size_t n = mesh.positions.size();
+  nb.offsets.assign(n + 1, 0);
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+    for (const std::uint32_t v : mesh.face(f))
+      ++nb.offsets[v + 1];
+  }
+  for (std::size_t v = 0; v < n; ++v)
+    nb.offsets[v + 1] += nb.offsets[v];
+  nb.adjacency.resize(nb.offsets[n]);
+  std::vector<std::uint32_t> fill(nb.offsets.begin(), nb.offsets.end() - 1);
+  for (std::size_t f = 0; f < mesh.face_count(); ++f) {
+    const auto face = mesh.face(f);
+    for (std::size_t c = 0; c < face.size(); ++c)
+      nb.adjacency[fill[face[c]]++] = face[(c + 1) % face.size()];
+  }
+  return nb;
+}
+
+Neighbours neighbours_of(const Dlfl& mesh) {
+  Neighbours nb;
+  const std::size_t n = mesh.vertex_capacity();
+  nb.offsets.reserve(n + 1);
+  nb.offsets.push_back(0);
+  nb.adjacency.reserve(6 * n);
+  for (std::uint32_t v = 0; v < n; ++v) {
+    const VertexId x(v);
+    if (mesh.alive(x)) {
+      for (RotationId r = mesh.first_rotation(x); r.valid(); r = mesh.next_rotation(r)) {
+        const CornerId start = mesh.rotation_corner(r);
+        CornerId c = start;
+        do {
+          if (!mesh.is_point_sphere(c)) nb.adjacency.push_back(mesh.vertex(mesh.next(c)).idx);
+          c = mesh.rot_next(c);
+        } while (c != start);
+      }
+    }
+    nb.offsets.push_back(static_cast<std::uint32_t>(nb.adjacency.size()));
+  }
+  return nb;
+}
+
+/// The windowed-sinc low-pass filter of Taubin, Zhang and Golub ("Optimal surface smoothing as
+/// filter design", 1996) as weights a_i of the Chebyshev terms T_i(1 - k/2), k a frequency of the
+/// umbrella Laplacian (0..2): a sinc cut at angle theta + sigma, Hamming-windowed. A filter of
+/// low order cannot be as sharp as a small pass band asks, so the cut is moved out by sigma
+/// until the gain at the pass band is 1, as the paper does: the shape's own low frequencies then
+/// pass unchanged (no shrinkage) and the staircase's high ones do not.
+std::vector<double> sinc_weights(std::size_t order, double pass_band) {
+  constexpr double kPi = 3.14159265358979323846;
+  const double theta = std::acos(1.0 - 0.5 * pass_band);
+  std::vector<double> a(order + 1);
+  const auto make = [&](double cut) {
+    for (std::size_t i = 0; i <= order; ++i) {
+      const double d = static_cast<double>(i);
+      const double window = 0.54 + 0.46 * std::cos(d * kPi / static_cast<double>(order + 1));
+      a[i] = window * (i == 0 ? cut / kPi : 2.0 * std::sin(d * cut) / (d * kPi));
+    }
+  };
+  const auto gain_at_pass_band = [&] {
+    double f = 0.0;
+    for (std::size_t i = 0; i <= order; ++i)
+      f += a[i] * std::cos(static_cast<double>(i) * theta);
+    return f;
+  };
+  // The smallest such sigma: above it the gain at theta ripples about 1 and a larger root would
+  // let far more through. Bracketed by steps, then bisected.
+  double lo = 0.0, hi = 0.0;
+  for (make(theta); gain_at_pass_band() < 1.0 && hi < kPi / 2.0 - theta; make(theta + hi)) {
+    lo = hi;
+    hi += 0.01;
+  }
+  for (int it = 0; it < 40; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    make(theta + mid);
+    (gain_at_pass_band() < 1.0 ? lo : hi) = mid;
+  }
+  make(theta + hi);
+  return a;
+}
+
+/// Whether a point lies in a cell whose corners are neither all inside nor all outside: the
+/// band of cells the label's true boundary passes through, where marching cubes put its
+/// vertices. Outside the grid counts as outside the band.
+class BandTest {
+ public:
+  explicit BandTest(const Grid<float>& field) : f_(field) {}
+  bool operator()(const Vec3& world) const {
+    const Vec3 ijk = f_.geometry.world_to_index(world);
+    const auto& d = f_.geometry.dims;
+    const Vec3 c = glm::floor(ijk);
+    if (c.x < 0 || c.y < 0 || c.z < 0 || c.x >= static_cast<double>(d[0] - 1) ||
+        c.y >= static_cast<double>(d[1] - 1) || c.z >= static_cast<double>(d[2] - 1))
+      return false;
+    const auto i = static_cast<std::int64_t>(c.x), j = static_cast<std::int64_t>(c.y),
+               k = static_cast<std::int64_t>(c.z);
+    float lo = 1.0F, hi = 0.0F;
+    for (int corner = 0; corner < 8; ++corner) {
+      const float v = f_.at(i + (corner & 1), j + ((corner >> 1) & 1), k + (corner >> 2));
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
+    }
+    return lo != hi;
+  }
+
+ private:
+  const Grid<float>& f_;
+};
+
+void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>& field,
+                    const LabelSurfaceOptions& o, LabelSurfaceStats& stats) {
+  const auto start = Clock::now();
+  const std::size_t n = pos.size();
+  const std::vector<Vec3> home(pos.begin(), pos.end());
+  const std::vector<double> a = sinc_weights(o.iterations, o.pass_band);
+  // x_{i+1} = 2 (I - K/2) x_i - x_{i-1} = x_i + avg(x_i) - x_{i-1}, with x_1 = (x_0 + avg(x_0))/2.
+  std::vector<Vec3> prev(n), cur(n), next(n);
+  const auto average = [&](const std::vector<Vec3>& x, std::size_t v) {
+    const std::uint32_t b = nb.offsets[v], e = nb.offsets[v + 1];
+    if (b == e) return x[v];
+    Vec3 sum(0.0);
+    for (std::uint32_t k = b; k < e; ++k)
+      sum += x[nb.adjacency[k]];
+    return sum / static_cast<double>(e - b);
+  };
+  const BandTest in_band(field);
+  std::size_t clamped = 0;
+  std::vector<Vec3> input(n);
+  // out = F(input), F the filter: sum of a_i x_i.
+  const auto filter = [&](std::vector<Vec3>& out) {
+    std::copy(input.begin(), input.end(), prev.begin());
+    for (std::size_t v = 0; v < n; ++v) {
+      cur[v] = 0.5 * (prev[v] + average(prev, v));
+      out[v] = a[0] * prev[v] + a[1] * cur[v];
+    }
+    for (std::size_t i = 2; i <= o.iterations; ++i) {
+      for (std::size_t v = 0; v < n; ++v) {
+        next[v] = cur[v] + average(cur, v) - prev[v];
+        out[v] += a[i] * next[v];
+      }
+      std::swap(prev, cur);
+      std::swap(cur, next);
+    }
+  };
+  std::vector<Vec3> smoothed(n);
+  for (std::size_t round = 0; round < o.rounds; ++round) {
+    // Round 0 filters the positions; each later one filters what is left between them and the
+    // marching-cubes ones and adds it back (Tukey's twicing: gain 2F - F^2 after two), which
+    // flattens the pass band, so curved parts shrink less while the staircase stays filtered.
+    for (std::size_t v = 0; v < n; ++v)
+      input[v] = round == 0 ? Vec3(home[v]) : home[v] - pos[v];
+    filter(smoothed);
+    for (std::size_t v = 0; v < n; ++v)
+      pos[v] = round == 0 ? smoothed[v] : pos[v] + smoothed[v];
+    // Back into the band the voxels allow: along the way from its marching-cubes position (a
+    // point of the band), as far as the band goes.
+    clamped = 0;
+    for (std::size_t v = 0; v < n; ++v) {
+      if (in_band(pos[v])) continue;
+      ++clamped;
+      double lo = 0.0, hi = 1.0;
+      for (int it = 0; it < 12; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (in_band(home[v] + mid * (pos[v] - home[v])) ? lo : hi) = mid;
+      }
+      pos[v] = home[v] + lo * (pos[v] - home[v]);
+    }
+    if (o.smooth_progress) o.smooth_progress(round + 1, o.rounds);
+  }
+  stats.clamped_last = clamped;
+  stats.smooth_seconds = seconds_since(start);
+}
+
+IsoSurfaceOptions iso_options(const LabelSurfaceOptions& o) {
+  IsoSurfaceOptions iso;
+  iso.iso = 0.0F;
+  iso.placement = VertexPlacement::Linear;
+  iso.progress = o.progress;
+  iso.build_progress = o.build_progress;
+  return iso;
+}
+
+}  // namespace
+
+Grid<float> downsample_label(const Grid<float>& labels, float label,
+                             const std::array<int, 3>& factors) {
+  if (factors[0] < 1 || factors[1] < 1 || factors[2] < 1 || label == 0.0F) {
+    throw InputError("downsample_label: factors must be at least 1 and the label not 0");
+  }
+  const VolumeGeometry& g = labels.geometry;
+  Grid<float> out;
+  VolumeGeometry& c = out.geometry;
+  c.direction = g.direction;
+  glm::dvec3 shift(0.0);
+  for (int a = 0; a < 3; ++a) {
+    c.dims[a] = (g.dims[a] + factors[a] - 1) / factors[a] + 2;  // and a background border
+    c.spacing[a] = g.spacing[a] * factors[a];
+    shift[a] = 0.5 * g.spacing[a] * (factors[a] - 1) - c.spacing[a];
+  }
+  c.origin = g.origin + g.direction * shift;
+  out.values.resize(c.voxel_count());
+  std::vector<std::uint32_t> inside(c.voxel_count(), 0), total(c.voxel_count(), 0);
+  for (std::int64_t k = 0; k < g.dims[2]; ++k) {
+    for (std::int64_t j = 0; j < g.dims[1]; ++j) {
+      const float* row = labels.values.data() + g.linear_index(0, j, k);
+      const std::size_t base = c.linear_index(1, 1 + j / factors[1], 1 + k / factors[2]);
+      for (std::int64_t i = 0; i < g.dims[0]; ++i) {
+        const std::size_t b = base + static_cast<std::size_t>(i / factors[0]);
+        inside[b] += row[i] == label ? 1U : 0U;
+        ++total[b];
+      }
+    }
+  }
+  for (std::size_t b = 0; b < inside.size(); ++b)
+    out.values[b] = inside[b] > 0 && 2 * inside[b] >= total[b] ? label : 0.0F;
+  return out;
+}
+
+std::size_t label_voxel_count(const Grid<float>& labels, float label) {
+  return static_cast<std::size_t>(
+      std::count(labels.values.data(), labels.values.data() + labels.values.size(), label));
+}
+
+PolygonMesh extract_label_surface_mesh(const Grid<float>& labels, float label,
+                                       const LabelSurfaceOptions& options,
+                                       LabelSurfaceStats* stats) {
+  check_options(options);
+  LabelSurfaceStats local;
+  LabelSurfaceStats& s = stats ? *stats : local;
+  auto t = Clock::now();
+  Grid<float> band;
+  const Grid<float> field = label_field(labels, label, s.label_voxels, band);
+  s.indicator_seconds = seconds_since(t);
+  PolygonMesh mesh = extract_isosurface_mesh(field, iso_options(options), &s.extraction);
+  if (options.iterations > 0 && options.rounds > 0 && !mesh.positions.empty()) {
+    smooth_in_band({mesh.positions.data(), mesh.positions.size()}, neighbours_of(mesh), band,
+                   options, s);
+  }
+  return mesh;
+}
+
+Dlfl extract_label_surface(const Grid<float>& labels, float label,
+                           const LabelSurfaceOptions& options, LabelSurfaceStats* stats) {
+  check_options(options);
+  LabelSurfaceStats local;
+  LabelSurfaceStats& s = stats ? *stats : local;
+  auto t = Clock::now();
+  Grid<float> band;
+  const Grid<float> field = label_field(labels, label, s.label_voxels, band);
+  s.indicator_seconds = seconds_since(t);
+  Dlfl mesh = extract_isosurface(field, iso_options(options), &s.extraction);
+  if (options.iterations > 0 && options.rounds > 0 && mesh.vertex_capacity() > 0) {
+    auto& pos = mesh.positions();
+    smooth_in_band({pos.data(), mesh.vertex_capacity()}, neighbours_of(mesh), band, options, s);
+  }
+  return mesh;
+}
+
+}  // namespace bisturi

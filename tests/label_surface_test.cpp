@@ -1,0 +1,209 @@
+// Label surfaces without staircases: the constrained windowed-sinc surface of a voxelised solid
+// keeps the marching-cubes topology (closed, 2-manifold, same genus, thin parts kept), stays in
+// the band of cells the label's boundary crosses, and lies closer to the true shape with truer
+// normals than the terraced marching-cubes surface, at anisotropic spacing.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+
+#include "bisturi/scene/dlfl_queries.h"
+#include "bisturi/scene/dlfl_validate.h"
+#include "bisturi/scene/errors.h"
+#include "bisturi/scene/polygon_export.h"
+#include "bisturi/scene/volume/label_surface.h"
+
+namespace bisturi {
+namespace {
+
+using glm::dvec3;
+using Distance = std::function<double(const dvec3&)>;  // signed, negative inside
+
+constexpr float kLabel = 7.0F;
+
+Grid<float> voxelise(const Distance& d, dvec3 spacing, double half) {
+  Grid<float> g;
+  for (int a = 0; a < 3; ++a)
+    g.geometry.dims[a] = static_cast<std::int64_t>(std::ceil(2 * half / spacing[a])) + 1;
+  g.geometry.spacing = spacing;
+  g.geometry.origin = dvec3(-half);
+  g.values.resize(g.geometry.voxel_count());
+  for (std::int64_t k = 0; k < g.geometry.dims[2]; ++k)
+    for (std::int64_t j = 0; j < g.geometry.dims[1]; ++j)
+      for (std::int64_t i = 0; i < g.geometry.dims[0]; ++i)
+        g.at(i, j, k) = d(g.geometry.index_to_world(dvec3(i, j, k))) < 0 ? kLabel : 2.0F;
+  return g;
+}
+
+// A torus (R 14, r 5 mm) tilted about y, off the grid's centre.
+double torus(const dvec3& p) {
+  const double c = std::cos(0.4), s = std::sin(0.4);
+  const dvec3 q(c * p.x - s * p.z - 0.3, p.y + 0.2, s * p.x + c * p.z - 0.4);
+  return std::hypot(std::hypot(q.x, q.y) - 14.0, q.z) - 5.0;
+}
+
+struct Fit {
+  double rms_mm = 0;
+  double normal_rms_deg = 0;
+};
+
+Fit fit(const PolygonMesh& m, const Distance& d) {
+  Fit f;
+  for (const auto& p : m.positions)
+    f.rms_mm += d(p) * d(p);
+  f.rms_mm = std::sqrt(f.rms_mm / static_cast<double>(m.positions.size()));
+  double area = 0;
+  for (std::size_t t = 0; t < m.face_count(); ++t) {
+    const auto tri = m.face(t);
+    const dvec3 a = m.positions[tri[0]], b = m.positions[tri[1]], c = m.positions[tri[2]];
+    const dvec3 n = glm::cross(b - a, c - a);
+    const dvec3 x = (a + b + c) / 3.0;
+    constexpr double h = 1e-5;
+    const dvec3 grad(d(x + dvec3(h, 0, 0)) - d(x - dvec3(h, 0, 0)),
+                     d(x + dvec3(0, h, 0)) - d(x - dvec3(0, h, 0)),
+                     d(x + dvec3(0, 0, h)) - d(x - dvec3(0, 0, h)));
+    const double cosine = std::clamp(glm::dot(glm::normalize(n), glm::normalize(grad)), -1.0, 1.0);
+    const double deg = glm::degrees(std::acos(cosine));
+    f.normal_rms_deg += 0.5 * glm::length(n) * deg * deg;
+    area += 0.5 * glm::length(n);
+  }
+  f.normal_rms_deg = std::sqrt(f.normal_rms_deg / area);
+  return f;
+}
+
+TEST(LabelSurface, TorusAtThickSlicesIsSmoothClosedAndKeepsItsGenus) {
+  for (const dvec3 spacing : {dvec3(0.6, 0.6, 1.3), dvec3(1.0, 1.0, 3.0)}) {
+    SCOPED_TRACE(spacing.z);
+    const Grid<float> labels = voxelise(torus, spacing, 24.0);
+    // The terraced surface: marching cubes on the 0/1 indicator.
+    Grid<float> indicator;
+    indicator.geometry = labels.geometry;
+    indicator.values.resize(labels.values.size());
+    for (std::size_t i = 0; i < labels.values.size(); ++i)
+      indicator.values[i] = labels.values[i] == kLabel ? 1.0F : 0.0F;
+    IsoSurfaceOptions half;
+    half.iso = 0.5F;
+    const PolygonMesh terraced = extract_isosurface_mesh(indicator, half);
+    LabelSurfaceStats stats;
+    const PolygonMesh smooth = extract_label_surface_mesh(labels, kLabel, {}, &stats);
+    // The same crossed edges, so the same vertices and triangles, only placed better.
+    ASSERT_EQ(smooth.positions.size(), terraced.positions.size());
+    ASSERT_EQ(smooth.indices.size(), terraced.indices.size());
+    EXPECT_GT(stats.label_voxels, 0u);
+
+    const Fit before = fit(terraced, torus), after = fit(smooth, torus);
+    // The staircase: normals off by about 30 degrees RMS. Smoothed: a few degrees, and the
+    // vertices closer to the true surface.
+    EXPECT_GT(before.normal_rms_deg, 25.0);
+    EXPECT_LT(after.normal_rms_deg, 0.35 * before.normal_rms_deg);
+    EXPECT_LT(after.rms_mm, 0.7 * before.rms_mm);
+
+    const Dlfl solid = extract_label_surface(labels, kLabel);
+    EXPECT_TRUE(validate(solid).ok());
+    const MeshStatistics s = mesh_statistics(solid);
+    EXPECT_EQ(s.non_manifold_vertices, 0u);
+    EXPECT_EQ(s.non_manifold_edges, 0u);
+    ASSERT_EQ(s.parts.size(), 1u);
+    EXPECT_EQ(s.parts[0].rings, 0u);  // closed
+    EXPECT_EQ(s.parts[0].genus, 1);
+    // The Dlfl and the mesh are the same surface, vertex for vertex (up to the order in which
+    // neighbours are summed).
+    for (std::size_t v = 0; v < smooth.positions.size(); v += 97)
+      EXPECT_LT(glm::length(solid.positions()[v] - smooth.positions[v]), 1e-9) << "vertex " << v;
+  }
+}
+
+TEST(LabelSurface, ThinPartsStayInTheBandAndDoNotVanish) {
+  // A rod 1.2 mm in radius along x (two voxels across at 1 mm) and a sphere, at 1 x 1 x 3 mm:
+  // an unconstrained low-pass filter pulls the rod's cross-section in; the band keeps it.
+  const Distance rod_and_ball = [](const dvec3& p) {
+    const double rod = std::max(std::hypot(p.y - 6.2, p.z - 0.3) - 1.2, std::abs(p.x) - 12.0);
+    const double ball = glm::length(p - dvec3(0.4, -8.0, 0.2)) - 6.0;
+    return std::min(rod, ball);
+  };
+  const Grid<float> labels = voxelise(rod_and_ball, {1.0, 1.0, 3.0}, 18.0);
+  LabelSurfaceStats stats;
+  const Dlfl solid = extract_label_surface(labels, kLabel, {}, &stats);
+  EXPECT_TRUE(validate(solid).ok());
+  const MeshStatistics s = mesh_statistics(solid);
+  ASSERT_EQ(s.parts.size(), 2u);
+  for (const PartTopology& p : s.parts) {
+    EXPECT_EQ(p.rings, 0u);
+    EXPECT_EQ(p.genus, 0);
+  }
+  EXPECT_GT(stats.clamped_last, 0u);  // the constraint did act
+  // Every vertex in a cell with both inside and outside corners.
+  const auto& g = labels.geometry;
+  for (std::size_t v = 0; v < solid.vertex_capacity(); ++v) {
+    const dvec3 c = glm::floor(g.world_to_index(solid.positions()[v]));
+    float lo = 1e9F, hi = -1e9F;
+    for (int k = 0; k < 8; ++k) {
+      const float x = labels.at(static_cast<std::int64_t>(c.x) + (k & 1),
+                                static_cast<std::int64_t>(c.y) + ((k >> 1) & 1),
+                                static_cast<std::int64_t>(c.z) + (k >> 2));
+      lo = std::min(lo, x);
+      hi = std::max(hi, x);
+    }
+    ASSERT_NE(lo, hi) << "vertex " << v << " left the band";
+  }
+}
+
+// A label map resampled from thick slices by repeating each (as CGAL's liver repeats every third
+// slice): the repeats are interpolated, so the surface has no terraces two slices high.
+TEST(LabelSurface, RepeatedSlicesAreInterpolatedNotTerraced) {
+  const Distance ball = [](const dvec3& p) {
+    return glm::length(p - dvec3(0.2, -0.3, 0.4)) - 15.0;
+  };
+  const Grid<float> thick = voxelise(ball, {1.0, 1.0, 2.0}, 20.0);
+  Grid<float> repeated;
+  repeated.geometry = thick.geometry;
+  repeated.geometry.spacing.z = 1.0;
+  repeated.geometry.dims[2] = 2 * thick.geometry.dims[2];
+  repeated.geometry.origin.z -= 0.5;
+  repeated.values.resize(repeated.geometry.voxel_count());
+  for (std::int64_t k = 0; k < repeated.geometry.dims[2]; ++k)
+    for (std::int64_t j = 0; j < repeated.geometry.dims[1]; ++j)
+      for (std::int64_t i = 0; i < repeated.geometry.dims[0]; ++i)
+        repeated.at(i, j, k) = thick.at(i, j, k / 2);
+  const Fit thick_fit = fit(extract_label_surface_mesh(thick, kLabel), ball);
+  const Fit repeated_fit = fit(extract_label_surface_mesh(repeated, kLabel), ball);
+  // Nearly as good as the thick slices themselves give (4.2 against 3.1 degrees when written).
+  EXPECT_LT(repeated_fit.normal_rms_deg, 1.5 * thick_fit.normal_rms_deg);
+  EXPECT_LT(repeated_fit.normal_rms_deg, 6.0);
+  const Dlfl solid = extract_label_surface(repeated, kLabel);
+  const MeshStatistics s = mesh_statistics(solid);
+  ASSERT_EQ(s.parts.size(), 1u);
+  EXPECT_EQ(s.parts[0].rings, 0u);
+  EXPECT_EQ(s.parts[0].genus, 0);
+}
+
+TEST(LabelSurface, DownsampledLabelMapsGiveAClosedCoarseSurface) {
+  // The label reaches the map's edge: the background border closes it.
+  const Distance slab = [](const dvec3& p) { return std::abs(p.z) - 6.0; };
+  const Grid<float> labels = voxelise(slab, {1.0, 1.0, 2.0}, 12.0);
+  const Grid<float> coarse = downsample_label(labels, kLabel, {4, 4, 2});
+  EXPECT_EQ(coarse.geometry.dims[0], (labels.geometry.dims[0] + 3) / 4 + 2);
+  EXPECT_DOUBLE_EQ(coarse.geometry.spacing.x, 4.0);
+  EXPECT_DOUBLE_EQ(coarse.geometry.spacing.z, 4.0);
+  const MeshStatistics s = mesh_statistics(extract_label_surface(coarse, kLabel));
+  ASSERT_EQ(s.parts.size(), 1u);
+  EXPECT_EQ(s.parts[0].rings, 0u);
+  EXPECT_THROW(downsample_label(labels, kLabel, {0, 1, 1}), InputError);
+}
+
+TEST(LabelSurface, OptionsAreChecked) {
+  const Grid<float> labels = voxelise(torus, {1.0, 1.0, 3.0}, 24.0);
+  LabelSurfaceOptions o;
+  o.iterations = 1;
+  EXPECT_THROW(extract_label_surface_mesh(labels, kLabel, o), InputError);
+  o = {};
+  o.pass_band = 0.0;
+  EXPECT_THROW(extract_label_surface(labels, kLabel, o), InputError);
+  EXPECT_EQ(label_voxel_count(labels, 99.0F), 0u);
+  EXPECT_TRUE(extract_label_surface_mesh(labels, 99.0F).positions.empty());
+}
+
+}  // namespace
+}  // namespace bisturi
