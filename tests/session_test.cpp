@@ -45,14 +45,8 @@ TEST(SceneFile, DefaultSceneIsTheShippedFileAndParses) {
   const SceneDescription scene = default_scene();
   EXPECT_EQ(scene.name, "default");
   ASSERT_EQ(scene.solids.size(), 2u);
-  // The organ: the liver label of the embedded label map; the vessel: a phantom.
-  EXPECT_EQ(scene.solids[0].source, SolidDescription::Source::Volume);
-  EXPECT_TRUE(scene.solids[0].embedded);
-  EXPECT_EQ(scene.solids[0].path, "data/liver.nrrd");
-  EXPECT_EQ(scene.solids[0].label, 255u);
-  EXPECT_EQ(scene.solids[1].source, SolidDescription::Source::Phantom);
+  EXPECT_EQ(scene.solids[0].source, SolidDescription::Source::Phantom);
   EXPECT_EQ(scene.solids[1].anchors.size(), 2u);
-  ASSERT_TRUE(scene.procedure.has_value());
   ASSERT_EQ(scene.devices.size(), 2u);
   EXPECT_EQ(scene.devices[1].role, DeviceDescription::Role::HeadTracker);
   EXPECT_EQ(scene.devices[0].driver, "hid-glove");
@@ -60,6 +54,22 @@ TEST(SceneFile, DefaultSceneIsTheShippedFileAndParses) {
   ASSERT_EQ(scene.instruments.size(), 3u);
   EXPECT_EQ(scene.instruments[0].device, "glove");
   EXPECT_DOUBLE_EQ(scene.rates.haptic_hz, 1000.0);
+}
+
+TEST(SceneFile, LiverSceneIsAShippedFileAndParses) {
+  const SceneDescription scene =
+      read_scene_file(std::string(BISTURI_SOURCE_DIR) + "/config/liver.toml");
+  EXPECT_EQ(scene.name, "liver");
+  ASSERT_EQ(scene.solids.size(), 2u);
+  // The organ: the liver label of the label map beside the file; the vessel: a phantom.
+  EXPECT_EQ(scene.solids[0].source, SolidDescription::Source::Volume);
+  EXPECT_EQ(scene.solids[0].label, 255u);
+  EXPECT_EQ(scene.solids[1].source, SolidDescription::Source::Phantom);
+  EXPECT_EQ(scene.solids[1].anchors.size(), 2u);
+  ASSERT_TRUE(scene.procedure.has_value());
+  ASSERT_EQ(scene.devices.size(), 2u);
+  EXPECT_EQ(scene.devices[0].driver, "hid-glove");
+  ASSERT_EQ(scene.instruments.size(), 3u);
 }
 
 TEST(SceneFile, ErrorsNameTheFileLineAndKey) {
@@ -85,10 +95,10 @@ TEST(SceneFile, ErrorsNameTheFileLineAndKey) {
   EXPECT_NE(error_of("[simulation]\nfar_field = 8").find("unknown key"), std::string::npos);
 }
 
-TEST(SceneFile, TheShippedDefaultSceneFileReadsTheLabelMapBesideIt) {
-  // As a file on disk the default scene names config/data/liver.nrrd, not the embedded copy.
+TEST(SceneFile, TheShippedLiverSceneFileReadsTheLabelMapBesideIt) {
+  // As a file on disk the liver scene names config/data/liver.nrrd, not the embedded copy.
   const SceneDescription scene =
-      read_scene_file(std::string(BISTURI_SOURCE_DIR) + "/config/default.toml");
+      read_scene_file(std::string(BISTURI_SOURCE_DIR) + "/config/liver.toml");
   EXPECT_FALSE(scene.solids[0].embedded);
   EXPECT_TRUE(std::filesystem::exists(scene.solids[0].path));
   EXPECT_EQ(scene.solids[0].path.filename(), "liver.nrrd");
@@ -243,11 +253,12 @@ glm::dvec3 mm_of(const devices::Pose& pose) {
   return sim::sim_to_scene({pose.position_m.x, pose.position_m.y, pose.position_m.z});
 }
 
-// The default scene's organ is the liver of the embedded label map, small enough for the tissue
-// step, closed and of genus 0; its procedure goes where the scene file says, and the cut sweeps
-// across the vessel.
-TEST(DefaultScene, TheLiverIsBuiltAndTheProcedureFollowsTheScene) {
-  const SceneDescription scene = default_scene();
+// The liver scene's organ is the liver of the label map, small enough for the tissue step, closed
+// and of genus 0; its procedure goes where the scene file says, and the cut sweeps across the
+// vessel.
+TEST(LiverScene, TheLiverIsBuiltAndTheProcedureFollowsTheScene) {
+  const SceneDescription scene =
+      read_scene_file(std::string(BISTURI_SOURCE_DIR) + "/config/liver.toml");
   const std::vector<BuiltSolid> solids = build_solids(scene);
   ASSERT_EQ(solids.size(), 2u);
   const Dlfl& liver = solids[0].mesh;
