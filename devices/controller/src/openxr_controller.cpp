@@ -150,6 +150,10 @@ std::unique_ptr<Transport> ControllerFeed::open() {
   return std::move(pair.host);
 }
 
+std::unique_ptr<Transport> ControllerFeed::open_for(const DriverInfo& driver) {
+  return driver.name == kOpenXrControllerDriver ? open() : nullptr;
+}
+
 bool ControllerFeed::opened() const {
   std::lock_guard lock(mutex_);
   return device_side_ != nullptr;

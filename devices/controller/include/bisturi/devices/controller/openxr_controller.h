@@ -66,6 +66,9 @@ class ControllerFeed {
   // The transport for the driver (its descriptor names the driver), or nullptr when it has been
   // opened already.
   std::unique_ptr<Transport> open();
+  // open() when `driver` is this feed's (openxr-controller), else nullptr: the session's hook
+  // for drivers fed from inside the process.
+  std::unique_ptr<Transport> open_for(const DriverInfo& driver);
   [[nodiscard]] bool opened() const;
   void push(const ControllerSample& sample);
   // The newest vibration amplitude written since the last call (older ones are superseded).
