@@ -75,8 +75,8 @@ TEST(OpenXrController, RejectsMalformedReports) {
   EXPECT_THROW(rig.device->handle_report(encode_controller_report(bad_q)), ProtocolError);
   Bytes nan = good;
   const auto bits = std::bit_cast<std::uint32_t>(std::numeric_limits<float>::quiet_NaN());
-  for (int i = 0; i < 4; ++i) nan[12 + static_cast<std::size_t>(i)] =
-      static_cast<std::uint8_t>(bits >> (8 * i));
+  for (int i = 0; i < 4; ++i)
+    nan[12 + static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(bits >> (8 * i));
   EXPECT_THROW(rig.device->handle_report(nan), ProtocolError);
   EXPECT_EQ(rig.device->state().reports, 0u);  // none changed the state
   rig.device->handle_report(good);

@@ -218,9 +218,9 @@ void feed_controller(devices::ControllerFeed& feed, const render::HeadsetFrame& 
                      render::OpenXrSink& xr, double& last_amplitude) {
   const render::ControllerState& cs = frame.controller;
   devices::ControllerSample sample;
-  sample.t_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                    cs.sample_time.time_since_epoch())
-                    .count();
+  sample.t_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(cs.sample_time.time_since_epoch())
+          .count();
   sample.active = cs.active;
   const glm::dvec3 p_m = sim::scene_to_sim(cs.grip_mm);
   sample.position_m = {p_m.x, p_m.y, p_m.z};
@@ -358,8 +358,7 @@ void run_render_loop(const RenderLoopContext& c) {
         break;
       }
       if (!xr_frame.began) continue;
-      if (c.controller != nullptr)
-        feed_controller(*c.controller, xr_frame, *xr, last_amplitude);
+      if (c.controller != nullptr) feed_controller(*c.controller, xr_frame, *xr, last_amplitude);
     }
     const auto begin = std::chrono::steady_clock::now();
     handoff.take();
