@@ -6,6 +6,7 @@
 
 #include <string>
 
+#include "bisturi/devices/controller/openxr_controller.h"
 #include "bisturi/devices/registry.h"
 #include "bisturi/devices/simulated.h"
 #include "bisturi/devices/transport.h"
@@ -228,4 +229,50 @@ role = "head-tracker"
 }
 
 }  // namespace
+/// The headset controller's driver is on the virtual bus with no twin: the session's in-process
+/// hook gives its transport (the render thread's feed); without the hook it is refused, saying
+/// it has no hardware bus.
+TEST(SessionDevices, TheControllerOpensThroughTheInProcessHook) {
+  const SceneDescription scene = parse_scene(R"(
+[[devices]]
+name = "hand"
+driver = "openxr-controller"
+role = "haptic"
+simulated = false
+
+[[devices]]
+name = "head"
+driver = "hid-tracker"
+role = "head-tracker"
+)",
+                                             "scene.toml");
+  Procedure procedure;
+  procedure.head.motion.push_back({devices::Nanoseconds{0}, devices::Pose{}, {}});
+  devices::VirtualClock clock(devices::Nanoseconds{0});
+  const devices::Registry registry = devices::builtin_registry();
+  try {
+    SessionDevices none(scene, procedure, registry, clock, nullptr);
+    ADD_FAILURE() << "opened without a feed";
+  } catch (const SceneFileError& e) {
+    EXPECT_NE(std::string(e.what()).find("has no hardware bus"), std::string::npos) << e.what();
+  }
+  devices::ControllerFeed feed;
+  SessionDevices d(scene, procedure, registry, clock, nullptr,
+                   [&](const devices::DriverInfo& driver) { return feed.open_for(driver); });
+  EXPECT_TRUE(feed.opened());
+  EXPECT_EQ(d.haptic().driver_name(), "openxr-controller");
+  ASSERT_EQ(d.haptic_channels().size(), 1u);
+  EXPECT_EQ(d.haptic_channels()[0], (devices::ChannelRole{devices::ChannelUse::Finger, 0}));
+  devices::ControllerSample pulled;
+  pulled.active = true;
+  pulled.position_m = {0.01, 0.02, 0.03};
+  pulled.trigger = 1.0;
+  feed.push(pulled);
+  ASSERT_EQ(d.haptic().poll(std::chrono::microseconds(0)), 1u);
+  EXPECT_EQ(d.haptic().state().buttons, 1u);
+  EXPECT_NEAR(d.haptic().state().end_effector_poses[0].position_m.z, 0.03, 1e-6);
+  d.close();
+  EXPECT_EQ(feed.take_vibration(), 0.0);  // closing stops the vibration
+}
+
 }  // namespace bisturi::runtime

@@ -2,6 +2,7 @@
 
 #include <stdexcept>
 
+#include "bisturi/devices/controller/openxr_controller.h"
 #include "bisturi/devices/hid_drivers.h"
 #include "bisturi/devices/sample/sample_pinch.h"
 #include "bisturi/devices/vendor_arm.h"
@@ -97,6 +98,7 @@ void register_builtin_drivers(Registry& registry) {
   registry.add(hid_glove_driver_info());
   registry.add(hid_tracker_driver_info());
   registry.add(sample_pinch_driver_info());
+  registry.add(openxr_controller_driver_info());
 }
 
 Registry builtin_registry() {

@@ -4,6 +4,8 @@
 
 #include <chrono>
 #include <limits>
+#include <optional>
+#include <stdexcept>
 #include <thread>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -18,6 +20,7 @@
 #include "bisturi/runtime/render/openxr_sink.h"
 #include "bisturi/runtime/render/png_sink.h"
 #include "bisturi/scene/polygon_import.h"
+#include "bisturi/sim/units.h"
 
 namespace bisturi::runtime {
 
@@ -208,6 +211,30 @@ void report_headset(const render::OpenXrSink& xr, const render::StereoRenderer& 
   report.dropped_frames = h.dropped_frames;
 }
 
+/// The frame's controller into the haptic device's feed, and the newest vibration its driver wrote
+/// back onto the controller (each held for two display periods, so that a steady contact hums
+/// without gaps; a zero after a nonzero one stops it).
+void feed_controller(devices::ControllerFeed& feed, const render::HeadsetFrame& frame,
+                     render::OpenXrSink& xr, double& last_amplitude) {
+  const render::ControllerState& cs = frame.controller;
+  devices::ControllerSample sample;
+  sample.t_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(cs.sample_time.time_since_epoch())
+          .count();
+  sample.active = cs.active;
+  const glm::dvec3 p_m = sim::scene_to_sim(cs.grip_mm);
+  sample.position_m = {p_m.x, p_m.y, p_m.z};
+  const glm::dquat q = glm::normalize(cs.grip_orientation);
+  sample.orientation = {q.w, q.x, q.y, q.z};
+  sample.trigger = static_cast<double>(cs.trigger);
+  feed.push(sample);
+  const std::optional<double> amplitude = feed.take_vibration();
+  if (!amplitude || (*amplitude == 0.0 && last_amplitude == 0.0)) return;
+  const double hold_s = 2.0 * static_cast<double>(frame.display_period_ns) * 1e-9;
+  xr.vibrate(static_cast<float>(*amplitude), *amplitude > 0.0 ? hold_s : 0.0);
+  last_amplitude = *amplitude;
+}
+
 }  // namespace
 
 void run_render_loop(const RenderLoopContext& c) {
@@ -240,13 +267,20 @@ void run_render_loop(const RenderLoopContext& c) {
   std::unique_ptr<render::OpenXrSink> xr;
   if (options.openxr) {
     try {
-      xr = std::make_unique<render::OpenXrSink>(headset_options(scene, initial, report));
+      render::OpenXrSinkOptions xo = headset_options(scene, initial, report);
+      xo.controller = c.controller != nullptr;
+      xr = std::make_unique<render::OpenXrSink>(xo);
       report.sink = "openxr";
     } catch (const render::XrUnavailable& e) {
       report.sink_note =
           std::string("OpenXR unavailable (") + e.what() + "): frames go to the PNG sink";
     }
   }
+  if (c.controller != nullptr && !xr)
+    throw std::runtime_error(
+        "the scene's haptic device uses driver '" + std::string(devices::kOpenXrControllerDriver) +
+        "', which needs an OpenXR headset, and there is none (" +
+        (options.openxr ? report.sink_note : std::string("OpenXR is turned off")) + ")");
   std::unique_ptr<render::StereoRenderer> renderer_owner =
       xr ? std::make_unique<render::StereoRenderer>(ro, *xr)
          : std::make_unique<render::StereoRenderer>(ro);
@@ -309,6 +343,7 @@ void run_render_loop(const RenderLoopContext& c) {
   auto next = std::chrono::steady_clock::now();
   auto previous = next;
   bool first = true;
+  double last_amplitude = 0.0;  // the controller's vibration now
   // The first frame waits for the first snapshot (the haptic thread's start).
   while (!stop.load(std::memory_order_relaxed) && !handoff.take())
     std::this_thread::sleep_for(std::chrono::microseconds(200));
@@ -323,6 +358,7 @@ void run_render_loop(const RenderLoopContext& c) {
         break;
       }
       if (!xr_frame.began) continue;
+      if (c.controller != nullptr) feed_controller(*c.controller, xr_frame, *xr, last_amplitude);
     }
     const auto begin = std::chrono::steady_clock::now();
     handoff.take();

@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "bisturi/devices/clock.h"
+#include "bisturi/devices/controller/openxr_controller.h"
 #include "bisturi/devices/trace/trace_writer.h"
 #include "bisturi/runtime/render/headset.h"
 #include "bisturi/runtime/session/scene_description.h"
@@ -46,6 +47,10 @@ struct RenderLoopContext {
   /// The session's recording (null: none): with OpenXR each drawn frame's head pose, as the
   /// runtime located it, goes in as an "xr_head" note.
   devices::TraceWriter* writer = nullptr;
+  /// The haptic device is the headset's controller (driver openxr-controller; null: it is not):
+  /// each frame's grip pose and trigger go into it, and the vibration its driver writes back is
+  /// applied to the controller. It needs the OpenXR sink: without one the loop throws.
+  devices::ControllerFeed* controller = nullptr;
 };
 
 /// Runs until `stop`. Throws render::RenderError (no Vulkan device) and what the sinks throw.

@@ -17,6 +17,7 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtx/quaternion.hpp>
 
+#include "bisturi/devices/controller/openxr_controller.h"
 #include "bisturi/devices/force_guard.h"
 #include "bisturi/devices/registry.h"
 #include "bisturi/devices/simulated.h"
@@ -210,7 +211,11 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   std::unique_ptr<devices::TraceWriter> writer =
       open_session_trace(scene, options, clock, lag, first_ticks_per_step, report.tissue_threads);
   if (writer) report.trace = options.record;
-  SessionDevices session_devices(scene, procedure, registry, clock, writer.get());
+  // A hand controller the headset tracks is fed by the render thread (render_loop.h).
+  devices::ControllerFeed controller_feed;
+  SessionDevices session_devices(
+      scene, procedure, registry, clock, writer.get(),
+      [&](const devices::DriverInfo& driver) { return controller_feed.open_for(driver); });
   devices::HapticDevice* glove = &session_devices.haptic();
   devices::Tracker* head = &session_devices.head();
   const std::uint16_t glove_index = session_devices.haptic_trace_index();
@@ -262,7 +267,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   std::thread render_thread([&] {
     try {
       run_render_loop({scene, options, report, initial, handoff, head_handoff, stop, render_ready,
-                       frames, event_response, event_times, display_live, writer.get()});
+                       frames, event_response, event_times, display_live, writer.get(),
+                       controller_feed.opened() ? &controller_feed : nullptr});
     } catch (const std::exception& e) {
       render_error = e.what();
       render_ready.store(true);

@@ -129,8 +129,10 @@ devices::DeviceDescriptor find_real_device(const DeviceDescription& d,
 
 SessionDevices::SessionDevices(const SceneDescription& scene, const Procedure& procedure,
                                const devices::Registry& registry, devices::Clock& clock,
-                               devices::TraceWriter* writer)
-    : choice_(choose_session_devices(scene)), haptic_hz_(scene.rates.haptic_hz) {
+                               devices::TraceWriter* writer, InProcessTransports in_process)
+    : choice_(choose_session_devices(scene)),
+      haptic_hz_(scene.rates.haptic_hz),
+      in_process_(std::move(in_process)) {
   const std::string where = scene.file.empty() ? scene.name + " scene" : scene.file.string();
   try {
     haptic_device_ =
@@ -177,6 +179,11 @@ std::unique_ptr<devices::Device> SessionDevices::open_one(const DeviceDescriptio
     transport = std::move(pair.host);
     twins_.push_back(std::move(twin));
     summary_.push_back(d.name + ": " + driver->name + " (simulated)");
+  } else if (driver->bus == devices::TransportKind::Virtual && in_process_ &&
+             (transport = in_process_(*driver)) != nullptr) {
+    // Fed from inside the process (the render thread's headset controller).
+    summary_.push_back(d.name + ": " + driver->name + " (" +
+                       devices::describe(transport->descriptor()) + ")");
   } else {
     std::unique_ptr<devices::DeviceSource> source = source_for(*driver, d, registry);
     const devices::DeviceDescriptor found = find_real_device(d, registry, source->enumerate());

@@ -7,6 +7,7 @@
 // drivers, and through the trace writer when the session records.
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -39,15 +40,22 @@ devices::DeviceDescriptor find_real_device(const DeviceDescription& description,
                                            const devices::Registry& registry,
                                            const std::vector<devices::DeviceDescriptor>& listed);
 
+/// Where a device fed from inside the process comes from (a driver on the virtual bus that is not
+/// simulated, like the headset controller the render thread feeds): the transport for `driver`,
+/// or nullptr when this process has none for it.
+using InProcessTransports =
+    std::function<std::unique_ptr<devices::Transport>(const devices::DriverInfo& driver)>;
+
 class SessionDevices {
  public:
   /// Opens both devices (recording them into `writer` when it is not null). `procedure` scripts
   /// the simulated twins. Throws SceneFileError for a simulated driver without a twin or real
   /// hardware for a driver without a bus, and devices::DeviceError when real hardware is not
-  /// connected or cannot be opened.
+  /// connected or cannot be opened. `in_process` serves drivers on the virtual bus that are not
+  /// simulated.
   SessionDevices(const SceneDescription& scene, const Procedure& procedure,
                  const devices::Registry& registry, devices::Clock& clock,
-                 devices::TraceWriter* writer);
+                 devices::TraceWriter* writer, InProcessTransports in_process = {});
   ~SessionDevices();
   SessionDevices(const SessionDevices&) = delete;
   SessionDevices& operator=(const SessionDevices&) = delete;
@@ -79,6 +87,7 @@ class SessionDevices {
 
   DeviceChoice choice_;
   double haptic_hz_;
+  InProcessTransports in_process_;
   std::vector<std::unique_ptr<devices::SimulatedDevice>> twins_;
   std::unique_ptr<devices::Device> haptic_device_, head_device_;
   devices::HapticDevice* haptic_ = nullptr;
