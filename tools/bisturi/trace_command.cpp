@@ -1,5 +1,7 @@
 #include "trace_command.h"
 
+#include "hex_bytes.h"
+
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
@@ -19,17 +21,6 @@ using devices::TraceCorruptError;
 
 constexpr int kExitBadChunk = 2;
 constexpr int kExitMismatch = 3;
-
-std::string hex(const std::vector<std::uint8_t>& bytes) {
-  std::string out;
-  char cell[4];
-  for (std::size_t i = 0; i < bytes.size(); ++i) {
-    std::snprintf(cell, sizeof cell, "%02x", bytes[i]);
-    if (i > 0) out += ' ';
-    out += cell;
-  }
-  return out;
-}
 
 std::string hex16(std::uint16_t v) {
   char text[8];
@@ -227,8 +218,8 @@ int run_trace_replay(const TraceOptions& options) {
                   {"time_ns", m.time_ns},
                   {"time_s", seconds(m.time_ns - origin)},
                   {"reason", m.reason},
-                  {"expected", m.expected ? nlohmann::json(hex(*m.expected)) : nullptr},
-                  {"actual", m.actual ? nlohmann::json(hex(*m.actual)) : nullptr}};
+                  {"expected", m.expected ? nlohmann::json(hex_bytes(*m.expected)) : nullptr},
+                  {"actual", m.actual ? nlohmann::json(hex_bytes(*m.actual)) : nullptr}};
     }
     const nlohmann::json j = {{"file", options.input},
                               {"passed", r.passed()},
@@ -255,8 +246,8 @@ int run_trace_replay(const TraceOptions& options) {
       std::cout << "  first mismatch (" << r.mismatches << " in all): device " << m.device
                 << ", record " << m.record_index << ", output report " << m.output_index
                 << ", t = " << seconds(m.time_ns - origin) << " s: " << m.reason << "\n"
-                << "    expected: " << (m.expected ? hex(*m.expected) : "(none)") << "\n"
-                << "    actual:   " << (m.actual ? hex(*m.actual) : "(none)") << "\n";
+                << "    expected: " << (m.expected ? hex_bytes(*m.expected) : "(none)") << "\n"
+                << "    actual:   " << (m.actual ? hex_bytes(*m.actual) : "(none)") << "\n";
     }
     if (r.trace_error) {
       std::cout << "  bad chunk: " << r.trace_error->what() << "\n  (the " << r.records

@@ -13,6 +13,7 @@
 #include "bisturi/devices/trace/recording_transport.h"
 #include "bisturi/devices/trace/replay_transport.h"
 #include "bisturi/devices/trace/trace_reader.h"
+#include "hex_bytes.h"
 #include "hid_names.h"
 #include "trace_command.h"
 
@@ -24,17 +25,6 @@ namespace hid = devices::hid;
 using nlohmann::json;
 
 constexpr int kExitBadChunk = 2;
-
-std::string hex_bytes(const std::vector<std::uint8_t>& bytes) {
-  std::string out;
-  char cell[4];
-  for (std::size_t i = 0; i < bytes.size(); ++i) {
-    std::snprintf(cell, sizeof cell, "%02x", bytes[i]);
-    if (i > 0) out += ' ';
-    out += cell;
-  }
-  return out;
-}
 
 json vec3(const devices::Vec3& v) {
   return json::array({v.x, v.y, v.z});

@@ -112,31 +112,17 @@ class Replayer {
     // transport still takes them).
     close(d);
     ++s.stats.connects;
-    auto transport =
-        std::make_unique<ReplayTransport>(to_device_descriptor(s.stats.device), clock_);
-    s.link = transport->link();
-    const Nanoseconds now = clock_.now();
-    try {
-      s.device = registry_.open(std::move(transport), clock_);
-    } catch (const DeviceError&) {
-      // A driver that waits for the device's first report while it opens (the vendor arm's
-      // info packet): it opens again once the recording gives that report. What the failed
-      // open wrote is dropped and its wait undone.
-      (void)s.link->take_written();
-      clock_.set(now);
-      s.open_pending = true;
-      return;
-    }
-    guard_device(s);
+    s.link.reset();
+    s.device = open_replayed(registry_, to_device_descriptor(s.stats.device), clock_, s.link);
+    s.open_pending = s.device == nullptr;
+    if (s.device) guard_device(s);
   }
 
   /// Opens the driver again on the link (fed with the report it waited for).
   void open_with_link(Slot& s) {
-    s.open_pending = false;
-    s.device = registry_.open(
-        std::make_unique<ReplayTransport>(to_device_descriptor(s.stats.device), clock_, s.link),
-        clock_);
-    guard_device(s);
+    s.device = open_replayed(registry_, to_device_descriptor(s.stats.device), clock_, s.link);
+    s.open_pending = s.device == nullptr;
+    if (s.device) guard_device(s);
   }
 
   void guard_device(Slot& s) {
@@ -278,6 +264,22 @@ class Replayer {
 };
 
 }  // namespace
+
+std::unique_ptr<Device> open_replayed(const Registry& registry, const DeviceDescriptor& device,
+                                      VirtualClock& clock, std::shared_ptr<ReplayLink>& link) {
+  auto transport = link ? std::make_unique<ReplayTransport>(device, clock, link)
+                        : std::make_unique<ReplayTransport>(device, clock);
+  link = transport->link();
+  const Nanoseconds now = clock.now();
+  try {
+    return registry.open(std::move(transport), clock);
+  } catch (const DeviceError&) {
+    if (link->pending() > 0) throw;  // it had its first report: a real refusal
+    (void)link->take_written();
+    clock.set(now);
+    return nullptr;
+  }
+}
 
 TraceReplayResult replay_trace(TraceReader& reader, const TraceReplayOptions& options) {
   Replayer replayer(reader, options);

@@ -210,19 +210,21 @@ bool HapticLoop::zero_if_stalled(devices::Nanoseconds now, devices::Nanoseconds 
   // A tick stuck inside the device's own I/O holds the lock: the zero goes out when it returns.
   std::lock_guard lock(device_mutex_);
   if (zeroed_for_stall_.exchange(true, std::memory_order_acq_rel)) return false;
-  if (stopped_.load(std::memory_order_acquire) || lost_) return false;
-  parts_.haptic->guard().deadline_missed();
-  send_zero_locked("watchdog_zero");
-  ++counters_.supervisor_zeros;
-  return true;
+  return zero_for_stall_locked();
 }
 
 void HapticLoop::zero_now() noexcept {
   std::lock_guard lock(device_mutex_);
-  if (stopped_.load(std::memory_order_acquire) || lost_) return;
+  (void)zero_for_stall_locked();
+}
+
+bool HapticLoop::zero_for_stall_locked() noexcept {
+  if (stopped_.load(std::memory_order_acquire) || lost_) return false;
+  // Latched first, so the zero goes out at once (a zero command alone is rate-limited down).
   parts_.haptic->guard().deadline_missed();
   send_zero_locked("watchdog_zero");
   ++counters_.supervisor_zeros;
+  return true;
 }
 
 }  // namespace bisturi::runtime

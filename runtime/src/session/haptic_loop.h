@@ -157,6 +157,8 @@ class HapticLoop {
   void lose_device(devices::Nanoseconds t, const std::string& why) noexcept;
   /// Zero through the guard, with `note_text` first; device_mutex_ held.
   void send_zero_locked(const char* note_text) noexcept;
+  /// The supervisor's zero (guard latched on a missed deadline, then zero); device_mutex_ held.
+  bool zero_for_stall_locked() noexcept;
 
   HapticLoopParts parts_;
   StepSchedule schedule_;

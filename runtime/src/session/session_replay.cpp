@@ -141,8 +141,12 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
   std::vector<double> zeros;
 
   bool open_pending = false;
-  const auto open_glove = [&](std::unique_ptr<devices::Transport> transport) {
-    device = registry.open(std::move(transport), clock);
+  // Opens the glove's driver and everything that follows it; false while the driver waits for
+  // the recording's first report (devices::open_replayed).
+  const auto open_glove = [&]() -> bool {
+    device = devices::open_replayed(
+        registry, devices::to_device_descriptor(reader.devices().at(glove_index)), clock, link);
+    if (!device) return false;
     glove = devices::as_haptic(device.get());
     if (glove == nullptr)
       throw devices::TraceError(reader.name() + ": the recorded glove is not a haptic device");
@@ -166,6 +170,7 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
     parts.clock = &clock;
     loop = std::make_unique<HapticLoop>(std::move(parts), lag, ticks_per_step);
     zeros.assign(sim->command_size(), 0.0);
+    return true;
   };
   const auto compare = [&](const std::vector<double>& expected, const std::vector<double>& actual,
                            std::int64_t time_ns) {
@@ -223,28 +228,14 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
         if (device || open_pending)
           throw devices::TraceError(reader.name() +
                                     ": the glove connects twice; a session never reopens it");
-        auto transport = std::make_unique<devices::ReplayTransport>(
-            devices::to_device_descriptor(reader.devices().at(glove_index)), clock);
-        link = transport->link();
-        const devices::Nanoseconds now = clock.now();
-        try {
-          open_glove(std::move(transport));
-        } catch (const devices::DeviceError&) {
-          // A driver that waits for its device's first report while it opens (the vendor arm):
-          // it opens on that report (what this attempt wrote is dropped, its wait undone).
-          (void)link->take_written();
-          clock.set(now);
-          open_pending = true;
-        }
+        open_pending = !open_glove();
         break;
       }
       case devices::TraceRecordType::kReportIn:
         if (!link || (loop && loop->device_lost())) break;
         link->push_input(devices::Nanoseconds{r->time_ns}, r->payload);
         if (open_pending) {
-          open_pending = false;
-          open_glove(std::make_unique<devices::ReplayTransport>(
-              devices::to_device_descriptor(reader.devices().at(glove_index)), clock, link));
+          open_pending = !open_glove();
           break;
         }
         // Read at its own time, as the live driver did (its sample time feeds the guard).

@@ -3,6 +3,7 @@
 // the output reports the drivers write with the recorded ones, byte for byte.
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -84,5 +85,14 @@ struct TraceReplayResult {
 /// do not fit the devices (a force command of the wrong length, a report for a device never
 /// connected). A bad chunk does not throw: it ends the replay and is returned in trace_error.
 TraceReplayResult replay_trace(TraceReader& reader, const TraceReplayOptions& options = {});
+
+class ReplayLink;
+/// Opens the driver `registry` picks for a replayed `device` on a ReplayTransport over `link`
+/// (a new link when it is null; `link` then holds it). Returns nullptr when the driver waits for
+/// the device's first report while it opens (the vendor arm's info packet): what the attempt
+/// wrote is dropped and its wait on `clock` undone; call again once the recording's first report
+/// for the device is pushed into `link`. Throws what the driver throws otherwise.
+std::unique_ptr<Device> open_replayed(const Registry& registry, const DeviceDescriptor& device,
+                                      VirtualClock& clock, std::shared_ptr<ReplayLink>& link);
 
 }  // namespace bisturi::devices
