@@ -341,18 +341,29 @@ XrResult SyncActions(XrSession handle_, const XrActionsSyncInfo* info) {
   return XR_SUCCESS;
 }
 
-XrResult GetActionStateFloat(XrSession handle_, const XrActionStateGetInfo* info,
-                             XrActionStateFloat* state) {
-  Session* s = object<Session>(handle_);
+/// What every xrGetActionState* checks first: the session, its instance, the structures' types
+/// and the action (of `action_type`, for that subaction path).
+template <typename State>
+XrResult action_state_call(XrSession handle, const XrActionStateGetInfo* info, State* state,
+                           XrStructureType state_type, XrActionType action_type, Session** session,
+                           const Action** action) {
+  Session* s = object<Session>(handle);
   if (s == nullptr) return XR_ERROR_HANDLE_INVALID;
   if (instance_lost(s->instance)) return XR_ERROR_INSTANCE_LOST;
   if (info == nullptr || state == nullptr || info->type != XR_TYPE_ACTION_STATE_GET_INFO ||
-      state->type != XR_TYPE_ACTION_STATE_FLOAT) {
+      state->type != state_type) {
     return XR_ERROR_VALIDATION_FAILURE;
   }
+  *session = s;
+  return check_action(*s, info->action, info->subactionPath, action_type, action);
+}
+
+XrResult GetActionStateFloat(XrSession handle_, const XrActionStateGetInfo* info,
+                             XrActionStateFloat* state) {
+  Session* s = nullptr;
   const Action* action = nullptr;
-  if (const XrResult r =
-          check_action(*s, info->action, info->subactionPath, XR_ACTION_TYPE_FLOAT_INPUT, &action);
+  if (const XrResult r = action_state_call(handle_, info, state, XR_TYPE_ACTION_STATE_FLOAT,
+                                           XR_ACTION_TYPE_FLOAT_INPUT, &s, &action);
       XR_FAILED(r)) {
     return r;
   }
@@ -367,16 +378,10 @@ XrResult GetActionStateFloat(XrSession handle_, const XrActionStateGetInfo* info
 
 XrResult GetActionStatePose(XrSession handle_, const XrActionStateGetInfo* info,
                             XrActionStatePose* state) {
-  Session* s = object<Session>(handle_);
-  if (s == nullptr) return XR_ERROR_HANDLE_INVALID;
-  if (instance_lost(s->instance)) return XR_ERROR_INSTANCE_LOST;
-  if (info == nullptr || state == nullptr || info->type != XR_TYPE_ACTION_STATE_GET_INFO ||
-      state->type != XR_TYPE_ACTION_STATE_POSE) {
-    return XR_ERROR_VALIDATION_FAILURE;
-  }
+  Session* s = nullptr;
   const Action* action = nullptr;
-  if (const XrResult r =
-          check_action(*s, info->action, info->subactionPath, XR_ACTION_TYPE_POSE_INPUT, &action);
+  if (const XrResult r = action_state_call(handle_, info, state, XR_TYPE_ACTION_STATE_POSE,
+                                           XR_ACTION_TYPE_POSE_INPUT, &s, &action);
       XR_FAILED(r)) {
     return r;
   }
