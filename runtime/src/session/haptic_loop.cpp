@@ -24,10 +24,9 @@ HapticLoop::HapticLoop(HapticLoopParts parts, std::uint32_t lag, std::uint32_t t
       zeros_(parts_.sim->command_size(), 0.0) {
   counters_.max_ticks_per_step = ticks_per_step;
   const devices::Capabilities& caps = parts_.haptic->device().capabilities();
-  // Every state the loop copies is made in the device's shape now: a tick never allocates.
-  device_state_.end_effector_poses.resize(caps.end_effectors);
-  device_state_.finger_joint_angles_rad.resize(caps.finger_joints.size());
-  scene_state_ = device_state_;
+  // The state the loop copies is made in the device's shape now: a tick never allocates.
+  scene_state_.end_effector_poses.resize(caps.end_effectors);
+  scene_state_.finger_joint_angles_rad.resize(caps.finger_joints.size());
 }
 
 void HapticLoop::note(const std::string& text) noexcept {
@@ -88,21 +87,9 @@ void HapticLoop::poll_devices(devices::Nanoseconds t) noexcept {
     if (!head_lost_ && parts_.head_state) parts_.head_state(parts_.head->state());
   }
   // A lost device keeps its last state: the instrument holds where it was.
-  if (!lost_) {
-    const devices::HapticState& s = parts_.haptic->device().state();
-    device_state_.sample_time = s.sample_time;
-    device_state_.reports = s.reports;
-    device_state_.buttons = s.buttons;
-    std::copy_n(s.end_effector_poses.begin(),
-                std::min(s.end_effector_poses.size(), device_state_.end_effector_poses.size()),
-                device_state_.end_effector_poses.begin());
-    std::copy_n(
-        s.finger_joint_angles_rad.begin(),
-        std::min(s.finger_joint_angles_rad.size(), device_state_.finger_joint_angles_rad.size()),
-        device_state_.finger_joint_angles_rad.begin());
-    parts_.frame.to_scene(device_state_, scene_state_);
-  }
+  if (!lost_) parts_.frame.to_scene(parts_.haptic->device().state(), scene_state_);
 }
+
 
 void HapticLoop::hand_over(std::uint64_t k) noexcept {
   // A hand-over tick gives its state to the tissue as the next step (and may change the steps'

@@ -165,7 +165,6 @@ class HapticLoop {
   HapticLoopCounters counters_;
   std::vector<double> command_;
   std::vector<double> zeros_;
-  devices::HapticState device_state_;
   devices::HapticState scene_state_;
   const TickOutput* step_output_ = nullptr;
   bool lost_ = false;
