@@ -448,17 +448,35 @@ std::size_t label_voxel_count(const Grid<float>& labels, float label) {
       std::count(labels.values.data(), labels.values.data() + labels.values.size(), label));
 }
 
+namespace {
+
+/// The label's smooth indicator field and the band of cells its boundary crosses (both
+/// extractions start here).
+struct LabelIndicator {
+  Grid<float> field;
+  Grid<float> band;
+};
+
+LabelIndicator label_indicator(const Grid<float>& labels, float label,
+                               const LabelSurfaceOptions& options, LabelSurfaceStats& s) {
+  check_options(options);
+  const auto t = Clock::now();
+  LabelIndicator out;
+  out.field = label_field(labels, label, s.label_voxels, out.band);
+  s.indicator_seconds = seconds_since(t);
+  return out;
+}
+
+}  // namespace
+
 PolygonMesh extract_label_surface_mesh(const Grid<float>& labels, float label,
                                        const LabelSurfaceOptions& options,
                                        LabelSurfaceStats* stats) {
-  check_options(options);
   LabelSurfaceStats local;
   LabelSurfaceStats& s = stats ? *stats : local;
-  auto t = Clock::now();
-  Grid<float> band;
-  const Grid<float> field = label_field(labels, label, s.label_voxels, band);
-  s.indicator_seconds = seconds_since(t);
-  PolygonMesh mesh = extract_isosurface_mesh(field, iso_options(options), &s.extraction);
+  const LabelIndicator in = label_indicator(labels, label, options, s);
+  const Grid<float>& band = in.band;
+  PolygonMesh mesh = extract_isosurface_mesh(in.field, iso_options(options), &s.extraction);
   if (options.iterations > 0 && options.rounds > 0 && !mesh.positions.empty()) {
     smooth_in_band({mesh.positions.data(), mesh.positions.size()}, neighbours_of(mesh), band,
                    options, s);
@@ -468,14 +486,11 @@ PolygonMesh extract_label_surface_mesh(const Grid<float>& labels, float label,
 
 Dlfl extract_label_surface(const Grid<float>& labels, float label,
                            const LabelSurfaceOptions& options, LabelSurfaceStats* stats) {
-  check_options(options);
   LabelSurfaceStats local;
   LabelSurfaceStats& s = stats ? *stats : local;
-  auto t = Clock::now();
-  Grid<float> band;
-  const Grid<float> field = label_field(labels, label, s.label_voxels, band);
-  s.indicator_seconds = seconds_since(t);
-  Dlfl mesh = extract_isosurface(field, iso_options(options), &s.extraction);
+  const LabelIndicator in = label_indicator(labels, label, options, s);
+  const Grid<float>& band = in.band;
+  Dlfl mesh = extract_isosurface(in.field, iso_options(options), &s.extraction);
   if (options.iterations > 0 && options.rounds > 0 && mesh.vertex_capacity() > 0) {
     auto& pos = mesh.positions();
     smooth_in_band({pos.data(), mesh.vertex_capacity()}, neighbours_of(mesh), band, options, s);
