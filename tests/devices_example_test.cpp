@@ -1,5 +1,7 @@
-// The worked example of docs/adding-a-device.md: a one-finger "thimble" with a 1-D force, a new
-// driver, its simulated twin, and the test that runs the driver on the twin's bytes.
+// A driver written inside a test, the smallest one the device interfaces allow: a one-finger
+// "thimble" with a 1-D force, its simulated twin, and the driver run on the twin's bytes. It keeps
+// the 1-component force channel covered; the worked example of docs/adding-a-device.md is the
+// built template in devices/sample/.
 //
 // Protocol (raw USB interrupt packets, 8 bytes, little-endian):
 //   in  0x01: [0]=0x01 [1]=buttons [2..3]=joint angle, int16, 1e-4 rad [4..7]=reserved
