@@ -1,5 +1,5 @@
 // The multirate step's far field (IntegratorOptions::far_field_interval = N; docs/sim/
-// integrator.md, "Eleventh pass"): one single-rate step of N dt over the whole body, run on a
+// integrator.md, "Multirate stepping"): one single-rate step of N dt over the whole body, run on a
 // copy of it in a fiber, a slice of it per step, so that a step costs the near region's solve
 // and an N-th of the far one. A period of N steps:
 //

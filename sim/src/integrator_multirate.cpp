@@ -1,5 +1,5 @@
 // Multirate stepping for the implicit integrator (IntegratorOptions::far_field_interval,
-// docs/sim/integrator.md "Eleventh pass"): every step solves the near region (the aggregates
+// docs/sim/integrator.md "Multirate stepping"): every step solves the near region (the aggregates
 // around the loads) with dt, holding the rest, and runs a slice of the far field's job
 // (integrator_far_field.cpp). The near solve is the single-rate substep restricted to a region:
 // its springs, the triangles around its rows, its rows' check; the volume is kept as a sum of

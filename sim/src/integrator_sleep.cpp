@@ -1,5 +1,5 @@
-// Sleeping for the implicit integrator (integrator.h, docs/sim/integrator.md "Fourth performance
-// pass"): aggregates of the free system at rest are held fixed and leave the solve; the border
+// Sleeping for the implicit integrator (integrator.h, docs/sim/integrator.md "Sleeping"):
+// aggregates of the free system at rest are held fixed and leave the solve; the border
 // of the awake region, the pressure and the external loads wake them.
 
 #include <algorithm>

@@ -34,14 +34,13 @@
 // residual can exceed three tolerances: an external load on it (add_force, add_contact), the
 // springs to a moving awake neighbour (evaluated every step on the border of the awake region),
 // or a change of the pressure since it fell asleep (bounded per aggregate, no per-vertex work);
-// anchoring, grasping and cutting wake the whole body (docs/sim/integrator.md, "Fourth
-// performance pass").
+// anchoring, grasping and cutting wake the whole body (docs/sim/integrator.md, "Sleeping").
 //
 // Multirate (IntegratorOptions::far_field_interval, experimental): a step solves the region
 // around the loads with dt, the rest held, and a slice of one longer step over the whole body
 // that lands a period later; it costs a fraction of a full step, and its far field relaxes as a
 // body stepped with the longer step does (integrator_multirate.cpp, integrator_far_field.cpp;
-// docs/sim/integrator.md, "Eleventh pass").
+// docs/sim/integrator.md, "Multirate stepping").
 //
 // The guard: after a step, a state with a non-finite value, a vertex faster than max_speed, or
 // an energy rise larger than the work of the external forces plus a tolerance is a divergence.
@@ -73,8 +72,8 @@ enum class SpringHessian : std::uint8_t {
 struct IntegratorOptions {
   double dt_s = 1e-3;
   glm::dvec3 gravity_m_s2{0.0, 0.0, -9.81};
-  /// 6 two-level iterations leave a smaller residual than 12 Jacobi ones did (measured in
-  /// docs/sim/integrator.md); with cg_coarse_level off, use 12.
+  /// With the two-level preconditioner; with cg_coarse_level off (Jacobi alone, which leaves
+  /// the smooth modes to the CG), use 12.
   int max_cg_iterations = 6;
   /// Two-level preconditioner (Jacobi plus a coarse correction over aggregates of vertices,
   /// factored once per topology, set of free vertices and substep length); off: Jacobi alone.
@@ -82,9 +81,9 @@ struct IntegratorOptions {
   double cg_relative_tolerance = 1e-4;
   SpringHessian spring_hessian = SpringHessian::Clamped;
   /// Start the solve from the last step's velocity change instead of zero. Off: with the clamped
-  /// Hessian it saves nothing at 6 iterations (the solve runs to its cap either way), with 4 it
-  /// led to guard rollbacks, and before block Jacobi it kept a resting sphere buzzing at
-  /// 0.09 m/s (docs/sim/integrator.md). The bound Hessian converges from it in fewer iterations.
+  /// Hessian it saves nothing at 6 iterations (the solve runs to its cap either way) and with 4
+  /// it led to guard rollbacks (docs/sim/integrator.md). The bound Hessian converges from it in
+  /// fewer iterations.
   bool cg_warm_start = false;
   /// The solve also stops when the residual force is small in absolute terms: its RMS over the
   /// free vertices below cg_weight_fraction x the RMS of their weights (m |g|), or below
@@ -108,7 +107,7 @@ struct IntegratorOptions {
   /// of threads - 1 helpers). The parts are fixed by the thread count, so a run is bit-identical
   /// to another with the same count; different counts round differently (reductions split).
   unsigned threads = 1;
-  /// Multirate stepping (docs/sim/integrator.md, "Eleventh pass"). With far_field_interval =
+  /// Multirate stepping (docs/sim/integrator.md, "Multirate stepping"). With far_field_interval =
   /// N > 1 a step solves the near region - the aggregates with a loaded vertex (an external
   /// force or a contact), widened by near_rings rings of aggregates - with a step of dt, the
   /// rest of the body held. The far field is one single-rate step of N dt over the whole body,
@@ -120,9 +119,10 @@ struct IntegratorOptions {
   /// without a load for near_linger_steps steps, and leaves at a period's start. Sleeping is
   /// off in this mode, its solves run on the calling thread, and a body with kinematic vertices
   /// (a grasp) takes single-rate steps. 1 (the default): every free vertex every step.
-  /// Opt-in (a scene's [simulation] far_field_interval): N = 32 fits a 20k-vertex organ's step
-  /// in 1 ms on one core (docs/sim/integrator.md, "Twelfth pass"), at a cost: the far field lags
-  /// a period behind and relaxes as a body stepped with N dt does, more slowly than with dt.
+  /// Opt-in (a scene's [simulation] far_field_interval): N = 32 brings a 20k-vertex organ's
+  /// median step under 1 ms on one core, not its p99 (docs/sim/integrator.md, "Current
+  /// figures"), at a cost: the far field lags a period behind and relaxes as a body stepped with
+  /// N dt does, more slowly than with dt.
   int far_field_interval = 1;
   int near_rings = 1;
   int near_linger_steps = 1000;
