@@ -10,12 +10,14 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <memory>
 #include <type_traits>
 
 #include <glm/geometric.hpp>
 
 #include "cg_solver.h"
 #include "integrator_shared.h"
+#include "integrator_state.h"
 #include "spring_kernels.h"
 #include "step_threads.h"
 #include "volume_kernels.h"
@@ -40,7 +42,30 @@ glm::dvec3* member_array(std::vector<glm::dvec3>& first,
 
 }  // namespace
 
-void ImplicitIntegrator::free_mask(const SoftBody& body) {
+ImplicitIntegrator::ImplicitIntegrator() : impl_(std::make_unique<ImplicitEulerState>()) {}
+ImplicitIntegrator::~ImplicitIntegrator() = default;
+ImplicitIntegrator::ImplicitIntegrator(ImplicitIntegrator&&) noexcept = default;
+ImplicitIntegrator& ImplicitIntegrator::operator=(ImplicitIntegrator&&) noexcept = default;
+
+StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& options,
+                                   std::vector<SimEvent>& events, std::uint32_t body_index,
+                                   std::uint64_t step) {
+  return impl_->step(body, options, events, body_index, step);
+}
+void ImplicitIntegrator::prepare(SoftBody& body, const IntegratorOptions& options) {
+  impl_->prepare(body, options);
+}
+void ImplicitIntegrator::wake(const SoftBody& body) {
+  impl_->wake(body);
+}
+std::string ImplicitIntegrator::check_free_system(const SoftBody& body) {
+  return impl_->check_free_system(body);
+}
+std::uint64_t ImplicitIntegrator::systems_updated() const {
+  return impl_->systems_updated_;
+}
+
+void ImplicitEulerState::free_mask(const SoftBody& body) {
   const auto& m = body.masses();
   const std::size_t n = m.size();
   free_.resize(n);
@@ -50,7 +75,7 @@ void ImplicitIntegrator::free_mask(const SoftBody& body) {
   }
 }
 
-void ImplicitIntegrator::prepare(SoftBody& body, const IntegratorOptions& options) {
+void ImplicitEulerState::prepare(SoftBody& body, const IntegratorOptions& options) {
   body.refresh_topology();
   Structure& st = structure(body);
   free_mask(body);
@@ -72,7 +97,7 @@ void ImplicitIntegrator::prepare(SoftBody& body, const IntegratorOptions& option
   dbuf_.reserve(3 * n4);
 }
 
-StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& options,
+StepStats ImplicitEulerState::step(SoftBody& body, const IntegratorOptions& options,
                                    std::vector<SimEvent>& events, std::uint32_t body_index,
                                    std::uint64_t step_index) {
   StepStats stats;
@@ -152,7 +177,7 @@ StepStats ImplicitIntegrator::step(SoftBody& body, const IntegratorOptions& opti
   return stats;
 }
 
-std::string ImplicitIntegrator::check(const SoftBody& body, const IntegratorOptions& options,
+std::string ImplicitEulerState::check(const SoftBody& body, const IntegratorOptions& options,
                                       double energy_before, bool energy_check, double elastic_after,
                                       const std::vector<std::uint32_t>* only) const {
   const auto& x = body.positions();
@@ -208,7 +233,7 @@ std::string ImplicitIntegrator::check(const SoftBody& body, const IntegratorOpti
   return {};
 }
 
-void ImplicitIntegrator::update_diagonal(System& st, const SoftBody& body, double h,
+void ImplicitEulerState::update_diagonal(System& st, const SoftBody& body, double h,
                                          const double (&w)[4]) {
   System::Diagonal& dg = st.diagonal;
   if (dg.system == st.id && dg.h == h && dg.members == members()) return;
@@ -249,7 +274,7 @@ void ImplicitIntegrator::update_diagonal(System& st, const SoftBody& body, doubl
 }
 
 template <class T>
-const T* ImplicitIntegrator::solve(System& st, const std::vector<glm::dvec3>& warm, bool warm_start,
+const T* ImplicitEulerState::solve(System& st, const std::vector<glm::dvec3>& warm, bool warm_start,
                                    int max_iterations, double rel_tol2, double abs_tol2,
                                    StepStats& stats) {
   const std::size_t nf = st.vertex.size();
@@ -381,7 +406,7 @@ const T* ImplicitIntegrator::solve(System& st, const std::vector<glm::dvec3>& wa
   return d.dv;
 }
 
-double ImplicitIntegrator::fixed_energy(System& sys, const SoftBody& body) {
+double ImplicitEulerState::fixed_energy(System& sys, const SoftBody& body) {
   if (!sys.fixed_energy_valid) {
     const System::SpringSet& sx = sys.fixed;
     sys.fixed_energy = spring_energy(sx.a.data(), sx.b.data(), sx.rest.data(), sx.k.data(),
@@ -391,7 +416,7 @@ double ImplicitIntegrator::fixed_energy(System& sys, const SoftBody& body) {
   return sys.fixed_energy;
 }
 
-double ImplicitIntegrator::spring_pass(System& sys, const SoftBody& body, double h, bool energy) {
+double ImplicitEulerState::spring_pass(System& sys, const SoftBody& body, double h, bool energy) {
   const auto& x = body.positions();
   const auto& v = body.velocities();
   const double c = body.material().spring_damping_N_s_per_m;
@@ -436,7 +461,7 @@ double ImplicitIntegrator::spring_pass(System& sys, const SoftBody& body, double
   return elastic;
 }
 
-void ImplicitIntegrator::add_parts(std::vector<glm::dvec3>& into,
+void ImplicitEulerState::add_parts(std::vector<glm::dvec3>& into,
                                    const std::vector<std::vector<glm::dvec3>>& parts) {
   if (parts.empty()) return;  // one thread: `into` has everything
   // Each member a run of vertices; the arrays are added in member order.
@@ -450,7 +475,7 @@ void ImplicitIntegrator::add_parts(std::vector<glm::dvec3>& into,
   });
 }
 
-double ImplicitIntegrator::volume_pass(const SoftBody& body) {
+double ImplicitEulerState::volume_pass(const SoftBody& body) {
   const auto& x = body.positions();
   const std::uint32_t* idx = body.triangles().indices.data();
   const std::size_t nt = body.triangles().size();
@@ -469,7 +494,7 @@ double ImplicitIntegrator::volume_pass(const SoftBody& body) {
   return six_v;
 }
 
-double ImplicitIntegrator::end_pass(Structure& st, System& sys, const SoftBody& body,
+double ImplicitEulerState::end_pass(Structure& st, System& sys, const SoftBody& body,
                                     const IntegratorOptions& options) {
   // The passes the next step starts with, at the state it will start from: the guard's spring
   // and volume energies come out of them, and the next step need not take them again.
@@ -490,19 +515,19 @@ double ImplicitIntegrator::end_pass(Structure& st, System& sys, const SoftBody& 
   return elastic;
 }
 
-unsigned ImplicitIntegrator::members() const {
+unsigned ImplicitEulerState::members() const {
   return step_team_ != nullptr ? step_team_->size() : 1;
 }
 
-void ImplicitIntegrator::checkpoint() const {
+void ImplicitEulerState::checkpoint() const {
   if (step_team_ != nullptr) step_team_->checkpoint();
 }
 
-unsigned ImplicitIntegrator::array_members() const {
+unsigned ImplicitEulerState::array_members() const {
   return step_team_ != nullptr && !step_team_->sequential() ? step_team_->size() : 1;
 }
 
-StepThreads* ImplicitIntegrator::team(const IntegratorOptions& options) {
+StepThreads* ImplicitEulerState::team(const IntegratorOptions& options) {
   if (team_ && team_->sequential()) return team_.get();  // a far-field solver's, for good
   const unsigned want = std::min(options.threads, kMaxThreads);
   if (want <= 1) return nullptr;
@@ -510,7 +535,7 @@ StepThreads* ImplicitIntegrator::team(const IntegratorOptions& options) {
   return team_.get();
 }
 
-void ImplicitIntegrator::gather_contacts(const System& sys, const SoftBody& body, double h2,
+void ImplicitEulerState::gather_contacts(const System& sys, const SoftBody& body, double h2,
                                          std::vector<double>* step_residual, const Structure& st) {
   // Contacts: k n n^T blocks on the diagonal, their h^2 H v term on the right-hand side.
   const auto& v = body.velocities();
@@ -569,7 +594,7 @@ void invert_block(const double (&m)[6], T* out) {
 
 }  // namespace
 
-void ImplicitIntegrator::block_rows(System& sys) {
+void ImplicitEulerState::block_rows(System& sys) {
   // Each entry's block copied from its spring's (so the products read them in order), the held
   // springs' blocks listed for the diagonal, and per row the inverse of its 3 x 3 diagonal
   // block for block Jacobi: the mass part, its springs' blocks and its contacts' h^2 k n n^T.
@@ -633,7 +658,7 @@ void ImplicitIntegrator::block_rows(System& sys) {
   });
 }
 
-ImplicitIntegrator::System& ImplicitIntegrator::substep(SoftBody& body, Structure& st,
+ImplicitEulerState::System& ImplicitEulerState::substep(SoftBody& body, Structure& st,
                                                         const IntegratorOptions& options, double h,
                                                         double fraction, StepStats& stats,
                                                         double* energy_out, bool reuse_ahead) {

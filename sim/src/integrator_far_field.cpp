@@ -1,5 +1,5 @@
 // The multirate step's far field (IntegratorOptions::far_field_interval = N; docs/sim/
-// integrator.md, "Eleventh pass"): one single-rate step of N dt over the whole body, run on a
+// integrator.md, "Multirate stepping"): one single-rate step of N dt over the whole body, run on a
 // copy of it in a fiber, a slice of it per step, so that a step costs the near region's solve
 // and an N-th of the far one. A period of N steps:
 //
@@ -25,9 +25,9 @@
 #include <memory>
 #include <utility>
 
-#include "bisturi/sim/integrator.h"
 #include "fiber.h"
 #include "integrator_shared.h"
+#include "integrator_state.h"
 #include "step_threads.h"
 
 namespace bisturi::sim {
@@ -60,7 +60,7 @@ IntegratorOptions far_options(const IntegratorOptions& options) {
 
 }  // namespace
 
-struct ImplicitIntegrator::FarField {
+struct ImplicitEulerState::FarField {
   explicit FarField(const SoftBody& original) : body(original) {}
   /// A job part-way is run to its end while the members it uses are alive.
   ~FarField() {
@@ -79,7 +79,7 @@ struct ImplicitIntegrator::FarField {
   }
 
   SoftBody body;  ///< the copy the job advances
-  ImplicitIntegrator solver;
+  ImplicitEulerState solver;
   Fiber fiber;
   IntegratorOptions options;  ///< the caller's, single-rate, with dt_s = N dt
   int interval = 1;           ///< N
@@ -98,7 +98,7 @@ struct ImplicitIntegrator::FarField {
   double job_s = 0.0, estimate_s = 0.0;
 };
 
-void ImplicitIntegrator::far_reset(Structure& st, const SoftBody& body,
+void ImplicitEulerState::far_reset(Structure& st, const SoftBody& body,
                                    const IntegratorOptions& options) {
   auto ff = std::make_shared<FarField>(body);
   ff->generation = body.derived_generation();
@@ -113,7 +113,7 @@ void ImplicitIntegrator::far_reset(Structure& st, const SoftBody& body,
   st.multirate.far = std::move(ff);  // a job part-way in the old one is run to its end
 }
 
-bool ImplicitIntegrator::far_follow(Structure& st, const SoftBody& body,
+bool ImplicitEulerState::far_follow(Structure& st, const SoftBody& body,
                                     const IntegratorOptions& options, bool untouched) {
   FarField* ff = st.multirate.far.get();
   if (ff == nullptr || ff->generation != body.derived_generation() ||
@@ -135,7 +135,7 @@ bool ImplicitIntegrator::far_follow(Structure& st, const SoftBody& body,
   return false;
 }
 
-void ImplicitIntegrator::far_sync(FarField& ff, const SoftBody& body) {
+void ImplicitEulerState::far_sync(FarField& ff, const SoftBody& body) {
   finish_far_job(ff);
   ff.result = false;
   ff.events.clear();
@@ -146,14 +146,14 @@ void ImplicitIntegrator::far_sync(FarField& ff, const SoftBody& body) {
   ff.solver.wake(ff.body);
 }
 
-void ImplicitIntegrator::finish_far_job(FarField& ff) {
+void ImplicitEulerState::finish_far_job(FarField& ff) {
   ff.deadline = Clock::time_point::max();
   const Clock::time_point t0 = Clock::now();
   if (ff.fiber.part_way()) ff.fiber.resume();
   ff.job_s += std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-bool ImplicitIntegrator::far_finish(Structure& st, SoftBody& body, StepStats& stats,
+bool ImplicitEulerState::far_finish(Structure& st, SoftBody& body, StepStats& stats,
                                     std::vector<SimEvent>& events, std::uint32_t body_index,
                                     std::uint64_t step_index) {
   const Structure::Multirate& mr = st.multirate;
@@ -183,7 +183,7 @@ bool ImplicitIntegrator::far_finish(Structure& st, SoftBody& body, StepStats& st
   return true;
 }
 
-std::uint32_t ImplicitIntegrator::far_apply_aggregate(Structure& st, SoftBody& body,
+std::uint32_t ImplicitEulerState::far_apply_aggregate(Structure& st, SoftBody& body,
                                                       std::uint32_t a, bool from_copy) {
   Structure::Multirate& mr = st.multirate;
   FarField& ff = *mr.far;
@@ -210,7 +210,7 @@ std::uint32_t ImplicitIntegrator::far_apply_aggregate(Structure& st, SoftBody& b
   return st.agg_start[a + 1] - st.agg_start[a];
 }
 
-std::uint32_t ImplicitIntegrator::far_apply(Structure& st, SoftBody& body, std::size_t phase,
+std::uint32_t ImplicitEulerState::far_apply(Structure& st, SoftBody& body, std::size_t phase,
                                             std::size_t interval) {
   Structure::Multirate& mr = st.multirate;
   FarField& ff = *mr.far;
@@ -254,7 +254,7 @@ std::uint32_t ImplicitIntegrator::far_apply(Structure& st, SoftBody& body, std::
   return moved;
 }
 
-void ImplicitIntegrator::far_start(Structure& st, const SoftBody& body, std::uint64_t step_index) {
+void ImplicitEulerState::far_start(Structure& st, const SoftBody& body, std::uint64_t step_index) {
   const Structure::Multirate& mr = st.multirate;
   FarField& ff = *mr.far;
   // The copy takes the near region's state (its far vertices hold the result just applied) and
@@ -282,7 +282,7 @@ void ImplicitIntegrator::far_start(Structure& st, const SoftBody& body, std::uin
   });
 }
 
-void ImplicitIntegrator::far_slice(FarField& ff, std::size_t phase, std::size_t interval,
+void ImplicitEulerState::far_slice(FarField& ff, std::size_t phase, std::size_t interval,
                                    Clock::time_point step_start, double budget_s) {
   if (!ff.fiber.part_way()) return;
   if (phase + 1 >= interval) {

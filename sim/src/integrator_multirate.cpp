@@ -1,5 +1,5 @@
 // Multirate stepping for the implicit integrator (IntegratorOptions::far_field_interval,
-// docs/sim/integrator.md "Eleventh pass"): every step solves the near region (the aggregates
+// docs/sim/integrator.md "Multirate stepping"): every step solves the near region (the aggregates
 // around the loads) with dt, holding the rest, and runs a slice of the far field's job
 // (integrator_far_field.cpp). The near solve is the single-rate substep restricted to a region:
 // its springs, the triangles around its rows, its rows' check; the volume is kept as a sum of
@@ -14,9 +14,9 @@
 #include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
-#include "bisturi/sim/integrator.h"
 #include "cg_solver.h"
 #include "integrator_shared.h"
+#include "integrator_state.h"
 #include "morton.h"
 #include "spring_kernels.h"
 #include "volume_kernels.h"
@@ -26,14 +26,14 @@ namespace bisturi::sim {
 // The helpers the integrator's files share (integrator_shared.h).
 using namespace integrator_detail;  // NOLINT(google-build-using-namespace)
 
-double ImplicitIntegrator::MultirateGroups::total() const {
+double ImplicitEulerState::MultirateGroups::total() const {
   double sum = 0.0;
   for (const double g : six_v)
     sum += g;
   return sum;
 }
 
-void ImplicitIntegrator::MultirateGroups::update(const std::vector<std::uint32_t>& triangles,
+void ImplicitEulerState::MultirateGroups::update(const std::vector<std::uint32_t>& triangles,
                                                  const std::vector<std::uint32_t>& groups_to_sum,
                                                  const std::vector<std::uint32_t>& indices,
                                                  const std::vector<glm::dvec3>& x) {
@@ -46,7 +46,7 @@ void ImplicitIntegrator::MultirateGroups::update(const std::vector<std::uint32_t
   }
 }
 
-void ImplicitIntegrator::MultirateGroups::update_all(const std::vector<std::uint32_t>& indices,
+void ImplicitEulerState::MultirateGroups::update_all(const std::vector<std::uint32_t>& indices,
                                                      const std::vector<glm::dvec3>& x) {
   std::vector<std::uint32_t> all_groups(six_v.size());
   for (std::size_t g = 0; g < all_groups.size(); ++g)
@@ -54,7 +54,7 @@ void ImplicitIntegrator::MultirateGroups::update_all(const std::vector<std::uint
   update(tris, all_groups, indices, x);
 }
 
-void ImplicitIntegrator::make_multirate(Structure& st, const SoftBody& body) {
+void ImplicitEulerState::make_multirate(Structure& st, const SoftBody& body) {
   Structure::Multirate& mr = st.multirate;
   const System& full = st.full;
   const std::size_t nc = full.coarse_count;
@@ -171,7 +171,7 @@ void ImplicitIntegrator::make_multirate(Structure& st, const SoftBody& body) {
   mr.near_region.dirty = true;
 }
 
-void ImplicitIntegrator::update_near(Structure& st, const SoftBody& body,
+void ImplicitEulerState::update_near(Structure& st, const SoftBody& body,
                                      const IntegratorOptions& options) {
   Structure::Multirate& mr = st.multirate;
   const System& full = st.full;
@@ -208,7 +208,7 @@ void ImplicitIntegrator::update_near(Structure& st, const SoftBody& body,
   }
 }
 
-void ImplicitIntegrator::build_region(Structure& st, const SoftBody& body,
+void ImplicitEulerState::build_region(Structure& st, const SoftBody& body,
                                       Structure::Region& region,
                                       const std::vector<std::uint8_t>& flags) {
   const std::size_t n = st.free_mask.size();
@@ -250,7 +250,7 @@ void ImplicitIntegrator::build_region(Structure& st, const SoftBody& body,
   region.dirty = false;
 }
 
-double ImplicitIntegrator::region_elastic(const Structure& st, const Structure::Region& region,
+double ImplicitEulerState::region_elastic(const Structure& st, const Structure::Region& region,
                                           const SoftBody& body) const {
   const System::SpringSet& sa = region.sys.active;
   double elastic = spring_energy(sa.a.data(), sa.b.data(), sa.rest.data(), sa.k.data(), sa.a.size(),
@@ -260,7 +260,7 @@ double ImplicitIntegrator::region_elastic(const Structure& st, const Structure::
   return elastic;
 }
 
-void ImplicitIntegrator::region_substep(SoftBody& body, Structure& st, Structure::Region& region,
+void ImplicitEulerState::region_substep(SoftBody& body, Structure& st, Structure::Region& region,
                                         const IntegratorOptions& options, double h,
                                         StepStats& stats, double* energy_out) {
   System& sys = region.sys;
@@ -362,7 +362,7 @@ void ImplicitIntegrator::region_substep(SoftBody& body, Structure& st, Structure
   groups.update(region.tris, region.groups, idx, x);
 }
 
-bool ImplicitIntegrator::solve_region(SoftBody& body, Structure& st, Structure::Region& region,
+bool ImplicitEulerState::solve_region(SoftBody& body, Structure& st, Structure::Region& region,
                                       const IntegratorOptions& options, double h, StepStats& stats,
                                       std::vector<SimEvent>& events, std::uint32_t body_index,
                                       std::uint64_t step_index) {
@@ -411,7 +411,7 @@ bool ImplicitIntegrator::solve_region(SoftBody& body, Structure& st, Structure::
   return false;
 }
 
-std::optional<StepStats> ImplicitIntegrator::step_multirate(SoftBody& body, Structure& st,
+std::optional<StepStats> ImplicitEulerState::step_multirate(SoftBody& body, Structure& st,
                                                             const IntegratorOptions& options,
                                                             std::vector<SimEvent>& events,
                                                             std::uint32_t body_index,

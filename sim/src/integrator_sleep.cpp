@@ -1,5 +1,5 @@
-// Sleeping for the implicit integrator (integrator.h, docs/sim/integrator.md "Fourth performance
-// pass"): aggregates of the free system at rest are held fixed and leave the solve; the border
+// Sleeping for the implicit integrator (integrator.h, docs/sim/integrator.md "Sleeping"):
+// aggregates of the free system at rest are held fixed and leave the solve; the border
 // of the awake region, the pressure and the external loads wake them.
 
 #include <algorithm>
@@ -8,8 +8,8 @@
 
 #include <glm/geometric.hpp>
 
-#include "bisturi/sim/integrator.h"
 #include "integrator_shared.h"
+#include "integrator_state.h"
 
 namespace bisturi::sim {
 namespace {
@@ -28,7 +28,7 @@ constexpr double kWake2 = 9.0;
 
 }  // namespace
 
-double ImplicitIntegrator::tolerance2(const Structure& st, std::uint32_t aggregate,
+double ImplicitEulerState::tolerance2(const Structure& st, std::uint32_t aggregate,
                                       const IntegratorOptions& options) {
   const glm::dvec3 g = options.gravity_m_s2;
   const double frac = options.cg_weight_fraction, floor = options.cg_force_floor_N;
@@ -36,7 +36,7 @@ double ImplicitIntegrator::tolerance2(const Structure& st, std::uint32_t aggrega
   return frac * frac * glm::dot(g, g) * st.agg_mass2[aggregate] + floor * floor * count;
 }
 
-void ImplicitIntegrator::wake_all(Structure& st) {
+void ImplicitEulerState::wake_all(Structure& st) {
   if (st.asleep == 0) return;
   std::fill(st.awake.begin(), st.awake.end(), std::uint8_t{1});
   std::fill(st.quiet.begin(), st.quiet.end(), std::uint16_t{0});
@@ -44,7 +44,7 @@ void ImplicitIntegrator::wake_all(Structure& st) {
   st.part_dirty = true;
 }
 
-void ImplicitIntegrator::wake_aggregate(Structure& st, std::uint32_t aggregate) {
+void ImplicitEulerState::wake_aggregate(Structure& st, std::uint32_t aggregate) {
   if (st.awake[aggregate]) return;
   st.awake[aggregate] = 1;
   st.quiet[aggregate] = 0;
@@ -52,7 +52,7 @@ void ImplicitIntegrator::wake_aggregate(Structure& st, std::uint32_t aggregate) 
   st.part_dirty = true;
 }
 
-void ImplicitIntegrator::wake(const SoftBody& body) {
+void ImplicitEulerState::wake(const SoftBody& body) {
   for (Structure& st : structures_) {
     if (st.generation != body.derived_generation()) continue;
     wake_all(st);
@@ -60,7 +60,7 @@ void ImplicitIntegrator::wake(const SoftBody& body) {
   }
 }
 
-bool ImplicitIntegrator::sleeps_entirely(const Structure& st, const SoftBody& body) {
+bool ImplicitEulerState::sleeps_entirely(const Structure& st, const SoftBody& body) {
   if (st.asleep == 0 || st.asleep != st.awake.size()) return false;
   free_mask(body);
   if (free_ != st.free_mask) return false;
@@ -74,7 +74,7 @@ bool ImplicitIntegrator::sleeps_entirely(const Structure& st, const SoftBody& bo
   return true;
 }
 
-void ImplicitIntegrator::wake_loaded(Structure& st, const SoftBody& body) {
+void ImplicitEulerState::wake_loaded(Structure& st, const SoftBody& body) {
   const System& full = st.full;
   auto wake_vertex = [&](std::uint32_t i) {
     if (i < full.compact.size() && full.compact[i] != kNone) {
@@ -87,7 +87,7 @@ void ImplicitIntegrator::wake_loaded(Structure& st, const SoftBody& body) {
     wake_vertex(ct.vertex);
 }
 
-ImplicitIntegrator::System& ImplicitIntegrator::system(Structure& st, const SoftBody& body) {
+ImplicitEulerState::System& ImplicitEulerState::system(Structure& st, const SoftBody& body) {
   if (st.asleep == 0) return st.full;
   if (!st.part_dirty) return st.part;
   const std::size_t n = st.free_mask.size();
@@ -142,7 +142,7 @@ ImplicitIntegrator::System& ImplicitIntegrator::system(Structure& st, const Soft
   return part;
 }
 
-bool ImplicitIntegrator::wake_by_forces(Structure& st, const System& sys, const SoftBody& body,
+bool ImplicitEulerState::wake_by_forces(Structure& st, const System& sys, const SoftBody& body,
                                         const IntegratorOptions& options, double p6) {
   const System& full = st.full;
   const auto& m = body.masses();
@@ -175,7 +175,7 @@ bool ImplicitIntegrator::wake_by_forces(Structure& st, const System& sys, const 
   return woke;
 }
 
-void ImplicitIntegrator::update_sleep(Structure& st, SoftBody& body,
+void ImplicitEulerState::update_sleep(Structure& st, SoftBody& body,
                                       const IntegratorOptions& options) {
   auto& v = body.velocities();
   auto& warm = body.warm_start();

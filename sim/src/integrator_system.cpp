@@ -10,8 +10,8 @@
 #include <utility>
 
 #include "bisturi/sim/errors.h"
-#include "bisturi/sim/integrator.h"
 #include "cg_solver.h"
+#include "integrator_state.h"
 
 namespace bisturi::sim {
 namespace {
@@ -137,7 +137,7 @@ std::uint32_t find_class(double (&classes)[4], std::uint32_t& count, double k) {
 
 }  // namespace
 
-ImplicitIntegrator::Structure& ImplicitIntegrator::structure(const SoftBody& body) {
+ImplicitEulerState::Structure& ImplicitEulerState::structure(const SoftBody& body) {
   const std::uint64_t generation = body.derived_generation();
   for (Structure& s : structures_) {
     if (s.generation == generation) {
@@ -176,7 +176,7 @@ ImplicitIntegrator::Structure& ImplicitIntegrator::structure(const SoftBody& bod
   return structures_.back();
 }
 
-void ImplicitIntegrator::update_free_rows(Structure& st, const std::vector<std::uint8_t>& mask,
+void ImplicitEulerState::update_free_rows(Structure& st, const std::vector<std::uint8_t>& mask,
                                           const std::vector<double>& masses) {
   if (st.free_mask == mask && !st.full.prow.empty()) return;
   if (st.local_change && update_system(st, st.full, mask)) {
@@ -213,7 +213,7 @@ void ImplicitIntegrator::update_free_rows(Structure& st, const std::vector<std::
   st.part_dirty = true;
 }
 
-void ImplicitIntegrator::build_over_aggregates(Structure& st, System& sys,
+void ImplicitEulerState::build_over_aggregates(Structure& st, System& sys,
                                                const std::vector<std::uint8_t>& flags) {
   const System& full = st.full;
   const std::size_t nc = full.coarse_count;
@@ -233,7 +233,7 @@ void ImplicitIntegrator::build_over_aggregates(Structure& st, System& sys,
   sys.coarse_count = count;
 }
 
-void ImplicitIntegrator::build_system(Structure& st, System& sys,
+void ImplicitEulerState::build_system(Structure& st, System& sys,
                                       const std::vector<std::uint8_t>& mask) {
   start_build(sys);
   number_rows(mask, sys.vertex, sys.compact);
@@ -265,7 +265,7 @@ void ImplicitIntegrator::build_system(Structure& st, System& sys,
   map_entries(st, sys);
 }
 
-bool ImplicitIntegrator::update_system(Structure& st, System& sys,
+bool ImplicitEulerState::update_system(Structure& st, System& sys,
                                        const std::vector<std::uint8_t>& mask) {
   const std::vector<std::uint8_t>& old_mask = st.old_mask;
   const std::size_t n_old = old_mask.size(), n = mask.size();
@@ -353,7 +353,7 @@ bool ImplicitIntegrator::update_system(Structure& st, System& sys,
   return true;
 }
 
-std::string ImplicitIntegrator::check_free_system(const SoftBody& body) {
+std::string ImplicitEulerState::check_free_system(const SoftBody& body) {
   const auto held = std::find_if(structures_.begin(), structures_.end(), [&](const Structure& s) {
     return s.generation == body.derived_generation();
   });
@@ -382,7 +382,7 @@ std::string ImplicitIntegrator::check_free_system(const SoftBody& body) {
   return {};
 }
 
-std::size_t ImplicitIntegrator::count_entries(const std::vector<Spring>& springs, System& sys,
+std::size_t ImplicitEulerState::count_entries(const std::vector<Spring>& springs, System& sys,
                                               double (&classes)[4]) {
   std::fill(std::begin(classes), std::end(classes), kNoClass);
   std::uint32_t count = 0;
@@ -407,7 +407,7 @@ std::size_t ImplicitIntegrator::count_entries(const std::vector<Spring>& springs
 }
 
 template <bool AllRows>
-void ImplicitIntegrator::fill_entries(const std::vector<Spring>& springs, System& sys,
+void ImplicitEulerState::fill_entries(const std::vector<Spring>& springs, System& sys,
                                       const double (&classes)[4], const std::uint8_t* dirty) {
   // The two spring sets in spring order (those with a solved end and the others), and each
   // spring between solved vertices as an entry in both its rows.
@@ -446,7 +446,7 @@ void ImplicitIntegrator::fill_entries(const std::vector<Spring>& springs, System
   }
 }
 
-void ImplicitIntegrator::map_entries(const Structure& st, System& sys) {
+void ImplicitEulerState::map_entries(const Structure& st, System& sys) {
   // The entries of a row are grouped by class and in spring order within a class (fill_entries,
   // update_system): walking the active springs in order with a cursor per row and class meets
   // them in the same order. Each entry is checked against its neighbour; a row that does not
@@ -497,7 +497,7 @@ void ImplicitIntegrator::map_entries(const Structure& st, System& sys) {
   }
 }
 
-void ImplicitIntegrator::aggregate(System& sys) {
+void ImplicitEulerState::aggregate(System& sys) {
   const std::size_t nf = sys.vertex.size();
   const std::uint32_t* row = sys.prow.data();
   const std::uint32_t* col = sys.pcol.data();
@@ -566,7 +566,7 @@ void ImplicitIntegrator::aggregate(System& sys) {
   sys.coarse_count = count;
 }
 
-void ImplicitIntegrator::update_coarse(System& sys, const Structure& st, const SoftBody& body,
+void ImplicitEulerState::update_coarse(System& sys, const Structure& st, const SoftBody& body,
                                        double h) {
   if (sys.coarse_h == h) return;
   const std::size_t nc = sys.coarse_count;
@@ -604,7 +604,7 @@ void ImplicitIntegrator::update_coarse(System& sys, const Structure& st, const S
   sys.coarse_h = h;
 }
 
-void ImplicitIntegrator::collect_coarse(System& sys, const SoftBody& body, const double (&w)[4],
+void ImplicitEulerState::collect_coarse(System& sys, const SoftBody& body, const double (&w)[4],
                                         double h) {
   // P^T A P with P the aggregates' indicator: an aggregate sums its rows' diagonal parts that
   // are not a free neighbour's weight, and the weights of springs leaving it. The rows are taken
@@ -670,7 +670,7 @@ void ImplicitIntegrator::collect_coarse(System& sys, const SoftBody& body, const
   start[0] = 0;
 }
 
-std::size_t ImplicitIntegrator::assemble_coarse_row(System& sys, const double (&w)[4],
+std::size_t ImplicitEulerState::assemble_coarse_row(System& sys, const double (&w)[4],
                                                     std::size_t row) {
   double* out = sys.coarse_row.data();
   std::size_t lowest = row;
@@ -682,7 +682,7 @@ std::size_t ImplicitIntegrator::assemble_coarse_row(System& sys, const double (&
   return lowest;
 }
 
-void ImplicitIntegrator::factor_coarse_row(System& sys, std::size_t row, std::size_t first) {
+void ImplicitEulerState::factor_coarse_row(System& sys, std::size_t row, std::size_t first) {
   double* L = sys.coarse.data();
   const std::uint32_t* row_first = sys.coarse_first.data();
   const std::uint32_t* row_start = sys.coarse_start.data();
