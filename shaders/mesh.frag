@@ -16,19 +16,25 @@ layout(push_constant) uniform Draw {
   mat4 model;
   vec4 colour;
   vec4 material;  // ambient, diffuse, specular, shininess
+  vec4 interior;  // rgb: the inner side's colour (back faces of an open solid)
 } draw;
 
 layout(location = 0) out vec4 out_colour;
 
 void main() {
-  const vec3 n = normalize(v_normal);
+  // A back face is the inside of the tissue seen through an incision: its own colour, its
+  // normal turned to the viewer, no highlight (wet cut tissue reads matte at this scale).
+  const bool inside = !gl_FrontFacing;
+  const vec3 n = inside ? -normalize(v_normal) : normalize(v_normal);
+  const vec3 albedo = inside ? draw.interior.rgb : draw.colour.rgb;
+  const float shine = inside ? 0.0 : draw.material.z;
   const vec3 l = normalize(eyes.light_direction.xyz);
   const vec3 v = normalize(eyes.eye_position[gl_ViewIndex].xyz - v_world);
   const vec3 h = normalize(l + v);
   const float hemisphere = 0.5 + 0.5 * dot(n, l);
   const float diffuse = max(dot(n, l), 0.0);
   const float specular = diffuse > 0.0 ? pow(max(dot(n, h), 0.0), draw.material.w) : 0.0;
-  const vec3 c = draw.colour.rgb * (draw.material.x * hemisphere + draw.material.y * diffuse) +
-                 vec3(draw.material.z * specular);
+  const vec3 c = albedo * (draw.material.x * hemisphere + draw.material.y * diffuse) +
+                 vec3(shine * specular);
   out_colour = vec4(pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
 }

@@ -15,6 +15,7 @@ layout(push_constant) uniform Draw {
   mat4 model;      // identity for solids; the instrument's pose otherwise (rigid)
   vec4 colour;     // linear RGB, alpha unused
   vec4 material;   // ambient, diffuse, specular, shininess
+  vec4 interior;   // the inner side's colour (fragment stage)
 } draw;
 
 layout(location = 0) out vec3 v_normal;

@@ -218,7 +218,7 @@ TEST_F(RenderTest, LocatedEyesAreDrawnWithTheirOwnPosesAndFieldsOfView) {
   }
 }
 
-TEST_F(RenderTest, BackFacesAreCulled) {
+TEST_F(RenderTest, OpenSheetsShowTheirInteriorFromBehindAndClosedSolidsCullBackFaces) {
   auto r = make();
   REQUIRE_RENDERER(r);
   // A single-sided square facing +z, centred on the view axis 200 mm ahead.
@@ -253,7 +253,18 @@ TEST_F(RenderTest, BackFacesAreCulled) {
   EXPECT_GT(front_lit, 4000u);  // an 80 mm square at 200 mm: about 51 x 51 pixels per eye
   EXPECT_GE(front_stats.draw_calls, 1u);
   EXPECT_GE(back_stats.draw_calls, 1u);  // submitted, and dropped by the rasterizer
-  EXPECT_EQ(back_lit, 0u);
+  // The sheet is open (a boundary loop): from behind, its inner side in the interior colour.
+  EXPECT_EQ(back_lit, front_lit);
+  const std::size_t centre = (std::size_t{kSize / 2} * kSize + kSize / 2) * 4;
+  EXPECT_LT(sink.pixels[centre + 1], sink.pixels[centre] / 2) << "not the interior colour";
+
+  // From inside a closed cube every face is a back face: culled, nothing drawn.
+  auto closed = make();
+  closed->add_solid(build_oriented_manifold(cube_mesh({-50.0, -50.0, -50.0}, 100.0)));
+  closed->set_sink(&sink);
+  closed->render(origin_pose());
+  closed->flush();
+  EXPECT_EQ(lit_pixels(), 0u);
 }
 
 TEST_F(RenderTest, SolidOutsideTheFrustumCostsNoDrawCall) {

@@ -138,6 +138,9 @@ MeshPipeline::MeshPipeline(const Context& context, VkRenderPass render_pass, std
     info.subpass = 0;
     check(vkCreateGraphicsPipelines(device_, VK_NULL_HANDLE, 1, &info, nullptr, &pipeline_),
           "vkCreateGraphicsPipelines");
+    raster.cullMode = VK_CULL_MODE_NONE;
+    check(vkCreateGraphicsPipelines(device_, VK_NULL_HANDLE, 1, &info, nullptr, &two_sided_),
+          "vkCreateGraphicsPipelines");
   } catch (...) {
     if (vert != VK_NULL_HANDLE) vkDestroyShaderModule(device_, vert, nullptr);
     if (frag != VK_NULL_HANDLE) vkDestroyShaderModule(device_, frag, nullptr);
@@ -154,6 +157,8 @@ MeshPipeline::~MeshPipeline() {
 
 void MeshPipeline::release() {
   if (pipeline_ != VK_NULL_HANDLE) vkDestroyPipeline(device_, pipeline_, nullptr);
+  if (two_sided_ != VK_NULL_HANDLE) vkDestroyPipeline(device_, two_sided_, nullptr);
+  two_sided_ = VK_NULL_HANDLE;
   if (layout_ != VK_NULL_HANDLE) vkDestroyPipelineLayout(device_, layout_, nullptr);
   if (set_layout_ != VK_NULL_HANDLE) vkDestroyDescriptorSetLayout(device_, set_layout_, nullptr);
   pipeline_ = VK_NULL_HANDLE;

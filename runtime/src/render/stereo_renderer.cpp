@@ -13,6 +13,7 @@
 #include "gpu_buffer.h"
 #include "mesh_pipeline.h"
 #include "openxr_sink_impl.h"
+#include "solid_boundary.h"
 #include "stereo_target.h"
 #include "vulkan_context.h"
 
@@ -35,6 +36,7 @@ struct Solid {
   bool visible = true;
   std::vector<IndexBuffer> index_buffers;  ///< one per level
   int drawn_level = -1;
+  SolidBoundary boundary;  ///< open: drawn two-sided
 };
 
 struct FrameSlot {
@@ -246,6 +248,7 @@ struct StereoRenderer::Impl {
     s.instrument = instrument;
     s.pose = pose;
     s.index_buffers.resize(s.levels->level_count());
+    s.boundary.rebuild(mesh);
     solids.push_back(std::move(s));
     return SolidId{static_cast<std::uint32_t>(solids.size() - 1)};
   }
@@ -467,16 +470,22 @@ struct StereoRenderer::Impl {
     pass.clearValueCount = static_cast<std::uint32_t>(clear.size());
     pass.pClearValues = clear.data();
     vkCmdBeginRenderPass(cmd, &pass, VK_SUBPASS_CONTENTS_INLINE);
-    vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline->pipeline());
+    VkPipeline bound = VK_NULL_HANDLE;
     vkCmdBindDescriptorSets(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, pipeline->layout(), 0, 1,
                             &slot.descriptors, 0, nullptr);
     for (const PlannedDraw& d : draws) {
       const Solid& s = solids[d.solid];
+      const VkPipeline wanted = s.boundary.open() ? pipeline->two_sided() : pipeline->pipeline();
+      if (wanted != bound) {
+        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, wanted);
+        bound = wanted;
+      }
       vk::DrawConstants constants;
       constants.model = to_float(s.instrument ? s.pose : glm::dmat4(1.0));
       constants.colour = glm::vec4(s.material.colour, 1.0f);
       constants.material = {s.material.ambient, s.material.diffuse, s.material.specular,
                             s.material.shininess};
+      constants.interior = glm::vec4(s.material.interior_colour, 0.0f);
       vkCmdPushConstants(cmd, pipeline->layout(),
                          VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
                          sizeof(constants), &constants);
@@ -554,12 +563,18 @@ void StereoRenderer::update_solid(SolidId id, const Dlfl& mesh) {
   Solid& s = impl_->solid(id);
   s.levels->update(mesh);
   s.index_buffers.resize(s.levels->level_count());
+  if (mesh.topology_version() != s.boundary.topology_version()) {
+    s.boundary.rebuild(mesh);
+  } else {
+    s.boundary.refit(mesh);
+  }
 }
 
 void StereoRenderer::rebuild_levels(SolidId id, const Dlfl& mesh) {
   Solid& s = impl_->solid(id);
   s.levels->rebuild_derived_levels(mesh);
   s.index_buffers.resize(s.levels->level_count());
+  s.boundary.rebuild(mesh);
 }
 
 void StereoRenderer::set_pose(SolidId id, const glm::dmat4& pose) {

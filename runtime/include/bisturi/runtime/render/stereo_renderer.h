@@ -8,7 +8,9 @@
 // Per frame, for every solid: frustum culling of the solid's box against both eyes, a level of
 // detail picked by projected screen-space error, then culling of that level's chunk tree (a
 // culled chunk costs no draw call; neighbouring visible chunks are drawn as one range); back faces
-// are culled by the rasterizer (solids are consistently oriented, counter-clockwise outside).
+// are culled by the rasterizer (solids are consistently oriented, counter-clockwise outside) on
+// closed solids; a solid with an open boundary (an incision: labelled boundary faces) is drawn
+// two-sided, its back faces in the material's interior colour, so a cut reads as tissue.
 //
 // Streaming: vertex data of the drawn levels go every frame into a buffer owned by the frame in
 // flight (no stall on the previous frame); index buffers are rebuilt only when a level's indices
@@ -36,6 +38,9 @@ struct Material {
   float diffuse = 0.65f;
   float specular = 0.25f;
   float shininess = 32.0f;
+  /// The inner side of the surface (back faces, seen through an incision): a darker, redder
+  /// tissue colour, lit without specular highlight (matte), linear RGB.
+  glm::vec3 interior_colour{0.42f, 0.06f, 0.05f};
 };
 
 enum class DevicePreference : std::uint8_t { Any, Gpu, Cpu };
