@@ -332,7 +332,7 @@ TEST(SimMultirate, AnEditFromOutsideKeepsTheNearRegion) {
 TEST(SimMultirate, TheFarFieldSettlesWhereTheSingleRateBodyDoes) {
   // The far field's longer step relaxes the body's global shape more slowly (backward Euler
   // with the springs' bound Hessian moves less per unit of time with a longer step:
-  // docs/sim/integrator.md, "Eleventh pass"), to the same rest: after 16 s both rest in the
+  // docs/sim/integrator.md, "Multirate stepping"), to the same rest: after 16 s both rest in the
   // same sag.
   const std::vector<glm::dvec3> single = settled(1, 1e-3, 3000);
   EXPECT_LT(relative_difference(single, settled(kInterval, 1e-3, 16000), rest_positions()), 0.05);
