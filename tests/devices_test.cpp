@@ -1,4 +1,4 @@
-// Issue 8, device layer: HID descriptors and reports, the generic glove and tracker drivers on
+// The device layer: HID descriptors and reports, the generic glove and tracker drivers on
 // their simulated twins, the vendor arm on its twin, the force guard, hot-plug.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// extract_isosurface writes the DLFL straight from the cell tables (issue 5). It must give the
+// extract_isosurface writes the DLFL straight from the cell tables. It must give the
 // structure build_oriented_manifold makes from the same triangles: the same vertices in the same
 // order, triangle t as face t with the same corner cycle, the same edges, rotations and labelled
 // border loops, and a valid closed or bordered oriented 2-manifold.

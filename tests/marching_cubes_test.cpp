@@ -1,4 +1,4 @@
-// Marching cubes into the DLFL (issue 5, "Surfaces"): analytic volumes at 0.5 mm voxels with exact
+// Marching cubes into the DLFL: analytic volumes at 0.5 mm voxels with exact
 // part counts and genus, closed manifolds, area and enclosed volume within 1%; the asymptotic
 // decider on a single ambiguous cell both ways; random volumes; world orientation.
 

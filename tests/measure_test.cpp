@@ -1,4 +1,4 @@
-// Vessel measurement by plane cuts (issue 6): phantoms whose true sections are known exactly,
+// Vessel measurement by plane cuts: phantoms whose true sections are known exactly,
 // through the whole pipeline volume -> marching cubes (cubic vertex placement) -> DLFL -> cut ->
 // measures; meshes built so that vertices and edges lie exactly on the plane; open meshes; the
 // orthogonal-section search on a bent tube.

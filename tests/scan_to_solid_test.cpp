@@ -1,4 +1,4 @@
-// The whole scan-to-solid pipeline of issue 5, stage by stage as `bisturi segment` and
+// The whole scan-to-solid pipeline, stage by stage as `bisturi segment` and
 // `bisturi extract` run it: an analytic phantom written to a file and read back, segmented into
 // objects, each object extracted as its own solid, then decimated, smoothed and subdivided, with
 // the topology and the size of every solid checked against the phantom's.

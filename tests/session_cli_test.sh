@@ -1,5 +1,5 @@
 #!/bin/sh
-# The headset session from the command line (issue 10), as CTest runs it:
+# The headset session from the command line, as CTest runs it:
 #   session_cli_test.sh BISTURI WORKDIR run|replay|corrupt|scene-error|real-missing|stored|lockstep TRACE
 set -u
 bisturi="$1"

@@ -1,4 +1,4 @@
-// The session's devices (issue 10): which scene device drives the instruments, how real hardware
+// The session's devices: which scene device drives the instruments, how real hardware
 // is found among the devices a source lists (by driver, vendor/product id and serial), and that a
 // simulated haptic arm drives a session through the same registry as a glove.
 

@@ -1,4 +1,4 @@
-// The multi-rate lockstep of haptic ticks and tissue steps (issue 10, runtime/src/session/
+// The multi-rate lockstep of haptic ticks and tissue steps (runtime/src/session/
 // step_schedule.h): which ticks hand a step over, which step each tick sends, the rate
 // controller, and the trace notes that let a replay follow (lockstep_notes.h).
 

@@ -1,4 +1,4 @@
-// Session groundwork (issue 10): scene files and their errors, the embedded default scene, the
+// Session groundwork: scene files and their errors, the embedded default scene, the
 // lock-free hand-off between threads, timing summaries and the report's plots.
 
 #include <gtest/gtest.h>

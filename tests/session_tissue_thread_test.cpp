@@ -1,4 +1,4 @@
-// The tissue thread's lockstep with the haptic ticks (issue 10, runtime/src/session/
+// The tissue thread's lockstep with the haptic ticks (runtime/src/session/
 // tissue_thread.h): which step a tick uses, and that the threaded simulation
 // runs exactly the steps the inline one runs (same commands, same final state).
 

@@ -1,4 +1,4 @@
-// Plane cuts for vessel measurement (issue 6): time per cut and faces touched on a vessel mesh
+// Plane cuts for vessel measurement: time per cut and faces touched on a vessel mesh
 // of about 1M faces (a torus-shaped bent vessel, minor radius 12.5 mm, extracted at 0.25 mm),
 // through the edge hierarchy against a brute-force test of every edge, and with
 // BISTURI_BENCH_VTK against vtkCutter + vtkStripper on a vtkPolyData built from the same arrays.

@@ -1,4 +1,4 @@
-// Soft-tissue simulation (issue 7): one full haptic-rate step (haptic proxy force with its
+// Soft-tissue simulation: one full haptic-rate step (haptic proxy force with its
 // reaction, implicit integrator with the divergence guard, BVH refit) on closed spheres of about
 // 2k, 20k and 100k vertices (phantom + marching cubes, 1 mm voxels), single thread (Embree with
 // threads=1); p50 and p99 of the step time come out as counters, with the mean number of CG

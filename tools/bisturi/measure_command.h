@@ -1,6 +1,6 @@
 #pragma once
 // `bisturi measure MESH|VOLUME --plane PX PY PZ NX NY NZ [--plane ...] [--orthogonal]
-// [--iso VALUE] [--json]`: cross-sections of a vessel surface by planes (issue 6). A mesh file
+// [--iso VALUE] [--json]`: cross-sections of a vessel surface by planes. A mesh file
 // (.obj .ply .stl .off) is imported into the DLFL; a volume (NRRD, NIfTI, DICOM folder) is first
 // extracted at the iso value (default 0) with cubic vertex placement. Each plane is cut through
 // the DLFL and every loop measured: area centroid, area, perimeter, mean and equivalent

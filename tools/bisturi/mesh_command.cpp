@@ -1,5 +1,7 @@
 #include "mesh_command.h"
 
+#include "number_checks.h"
+
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
@@ -118,7 +120,7 @@ void add_mesh_command(CLI::App& app, MeshOptions& options, int (*&run)(const Mes
     cmd->add_flag("--weld", options.weld, "weld vertices at equal coordinates (STL always is)");
     cmd->add_option("--weld-tolerance", options.weld_tolerance,
                     "weld vertices closer than this distance, in model units")
-        ->check(CLI::NonNegativeNumber);
+        ->check(kNonNegative);
   };
 
   CLI::App* info = mesh->add_subcommand(

@@ -3,6 +3,7 @@
 #include <toml++/toml.h>
 
 #include <cmath>
+#include <filesystem>
 #include <initializer_list>
 #include <regex>
 #include <stdexcept>
@@ -206,6 +207,12 @@ std::array<double, 2> PipelinePlan::threshold_range() const {
 }
 
 PipelinePlan read_plan(const std::filesystem::path& file) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) {
+    throw std::runtime_error(file.string() + ": " +
+                             (std::filesystem::exists(file, ec) ? "not a regular file"
+                                                                : "no such file"));
+  }
   toml::table root;
   try {
     root = toml::parse_file(file.string());

@@ -52,8 +52,8 @@ void add_render_command(CLI::App& app, RenderOptions& options, int (*&run)(const
   CLI::App* cmd = app.add_subcommand(
       "render",
       "render a stereo orbit around a solid (Vulkan, both eyes in one pass) and write PNG frames; "
-      "SCENE files come with the session (issue 10): for now MESH is a mesh file (.obj .ply .stl "
-      ".off) or --phantom NAME");
+      "MESH is a mesh file (.obj .ply .stl .off) or --phantom NAME; a scene file's organs are "
+      "drawn by `bisturi run`");
   auto* input = cmd->add_option("MESH", options.input, "mesh file (OBJ, PLY, STL, OFF)")
                     ->check(CLI::ExistingFile);
   auto* phantom = cmd->add_option("--phantom", options.phantom,

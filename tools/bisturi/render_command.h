@@ -1,9 +1,9 @@
 #pragma once
-// `bisturi render SCENE|MESH --out DIR [--frames N] [--eye-width W --eye-height H] [--json]`:
+// `bisturi render MESH --out DIR [--frames N] [--eye-width W --eye-height H] [--json]`:
 // renders a fixed orbit around a solid with the stereo renderer (both eyes, one multiview pass)
 // and writes the frames as PNG files with their head poses (frames.csv), for checking by eye.
-// The solid comes from a mesh file (OBJ, PLY, STL, OFF) or an analytic phantom (--phantom);
-// scene files arrive with the session (issue 10).
+// The solid comes from a mesh file (OBJ, PLY, STL, OFF) or an analytic phantom (--phantom); a
+// scene file's organs are drawn by `bisturi run`.
 
 #include <cstdint>
 #include <string>

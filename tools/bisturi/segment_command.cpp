@@ -1,5 +1,7 @@
 #include "segment_command.h"
 
+#include "number_checks.h"
+
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <filesystem>
@@ -59,10 +61,10 @@ void add_segment_command(CLI::App& app, SegmentOptions& options,
   cmd->add_option("--connectivity", options.connectivity, "6 (faces) or 26 (faces, edges, corners)")
       ->check(CLI::IsMember({6, 26}));
   cmd->add_option("--min-voxels", options.min_voxels, "objects smaller than this become background")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cmd->add_option("--min-region-voxels", options.min_region_voxels,
                   "split-and-merge: smaller regions join their closest neighbour")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   cmd->add_option("--out", options.output, "label map to write (.nrrd or .nii / .nii.gz)")
       ->required();
   cmd->add_flag("--json", options.json, "write the objects as one JSON object on stdout");

@@ -1,5 +1,7 @@
 #include "tissue_command.h"
 
+#include "number_checks.h"
+
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>
@@ -200,18 +202,18 @@ void add_tissue_command(CLI::App& app, TissueIndentOptions& o,
                   "sphere (radius S on a rigid plane) or block (cube of side S)")
       ->check(CLI::IsMember({"sphere", "block"}));
   cmd->add_option("--size-mm", o.size_mm, "S: the sphere's radius or the block's side (mm)")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   auto* material = cmd->add_option("--material", o.material,
                                    "a tissue preset: liver, kidney, spleen, vessel-wall, fat");
   auto* youngs = cmd->add_option("--youngs-kPa", o.youngs_kPa, "Young's modulus (kPa)")
-                     ->check(CLI::PositiveNumber);
+                     ->check(kPositive);
   material->excludes(youngs);
   cmd->add_option("--poisson", o.poisson,
                   "Poisson's ratio in [0, 0.5) (default: the preset's, 0.45)");
   cmd->add_option("--probe-radius-mm", o.probe_radius_mm, "R: the rigid probe's radius (mm)")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   cmd->add_option("--depth-mm", o.depth_mm, "D: the deepest indentation (mm)")
-      ->check(CLI::PositiveNumber);
+      ->check(kPositive);
   cmd->add_option("--vertices", o.vertices, "about this many surface vertices (default 2000)")
       ->check(CLI::Range(std::size_t{50}, std::size_t{2000000}));
   cmd->add_option("--dt-s", o.dt_s, "the integrator's step (s, default 1e-3)")

@@ -1,5 +1,7 @@
 #include "trace_command.h"
 
+#include "number_checks.h"
+
 #include "hex_bytes.h"
 
 #include <CLI/CLI.hpp>
@@ -89,9 +91,9 @@ void add_trace_command(CLI::App& app, TraceOptions& options, int (*&run)(const T
   cut->add_option("TRACE", options.input, "trace file")->required()->check(CLI::ExistingFile);
   cut->add_option("--out", options.output, "trace to write")->required();
   cut->add_option("--from", options.from_s, "seconds after the trace's first record")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cut->add_option("--to", options.to_s, "seconds after the trace's first record")
-      ->check(CLI::NonNegativeNumber);
+      ->check(kNonNegative);
   cut->add_option("--from-chunk", options.from_chunk, "first chunk to keep");
   cut->add_option("--to-chunk", options.to_chunk, "last chunk to keep");
   cut->add_flag("--json", options.json, "write a JSON summary on stdout");

@@ -200,8 +200,16 @@ void write_series_png(const std::filesystem::path& file, const std::string& titl
   f.y1 = yhi + pad;
   cairo_t* cr = s.cr.get();
   cairo_set_line_width(cr, 1.2);
-  double legend_y = f.top + 14;
   cairo_set_font_size(cr, 11);
+  // The legend sits inside the frame's top right corner, as wide as its longest label.
+  double label_width = 0.0;
+  for (const Series& ser : series) {
+    cairo_text_extents_t extents;
+    cairo_text_extents(cr, ser.label.c_str(), &extents);
+    label_width = std::max(label_width, extents.x_advance);
+  }
+  const double legend_x = std::max(f.left + 4.0, f.left + f.width - label_width - 35.0);
+  double legend_y = f.top + 14;
   for (const Series& ser : series) {
     cairo_set_source_rgb(cr, ser.r, ser.g, ser.b);
     bool pen_down = false;
@@ -219,10 +227,10 @@ void write_series_png(const std::filesystem::path& file, const std::string& titl
       }
     }
     cairo_stroke(cr);
-    cairo_move_to(cr, f.left + f.width - 150, legend_y);
-    cairo_line_to(cr, f.left + f.width - 130, legend_y);
+    cairo_move_to(cr, legend_x, legend_y);
+    cairo_line_to(cr, legend_x + 20, legend_y);
     cairo_stroke(cr);
-    cairo_move_to(cr, f.left + f.width - 125, legend_y + 4);
+    cairo_move_to(cr, legend_x + 25, legend_y + 4);
     cairo_show_text(cr, ser.label.c_str());
     legend_y += 15;
   }
