@@ -7,6 +7,7 @@ set -euo pipefail
 
 packages=(
   build-essential cmake g++ pkg-config
+  ccache                             # compiler cache (CMake uses it when present)
   libglm-dev                         # vector maths (scene positions)
   libcli11-dev nlohmann-json3-dev    # command line, JSON reports
   libgtest-dev libgmock-dev          # tests
