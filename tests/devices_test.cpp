@@ -394,6 +394,22 @@ TEST(ForceGuard, ClampsAndLimitsTheRate) {
   EXPECT_GT(guard.clamp_count(), 0u);
 }
 
+TEST(ForceGuard, ACommandAtTheLimitCountsAsClamped) {
+  // The session clamps its commands to the scene's limit before the guard sees them: they
+  // arrive exactly at the limit, and the report must still count them.
+  bd::ForceGuardConfig config;
+  config.ramp_in = 0ms;
+  bd::ForceGuard guard({finger(3.0, 1e6)}, config);
+  double cmd = 0.0, out = 0.0;
+  guard.step(std::span(&cmd, 1), 1ms, std::span(&out, 1));
+  cmd = 2.999;
+  EXPECT_FALSE(guard.step(std::span(&cmd, 1), 2ms, std::span(&out, 1)).clamped);
+  cmd = 3.0;
+  EXPECT_TRUE(guard.step(std::span(&cmd, 1), 3ms, std::span(&out, 1)).clamped);
+  EXPECT_EQ(out, 3.0);
+  EXPECT_EQ(guard.clamp_count(), 1u);
+}
+
 TEST(ForceGuard, NanLatchesUntilRearm) {
   bd::ForceGuardConfig config;
   config.ramp_in = 0ms;

@@ -1,6 +1,6 @@
 #!/bin/sh
 # The headset session from the command line, as CTest runs it:
-#   session_cli_test.sh BISTURI WORKDIR run|replay|corrupt|scene-error|real-missing|stored|lockstep TRACE
+#   session_cli_test.sh BISTURI WORKDIR run|replay|corrupt|scene-error|real-missing|stored|lockstep|forces TRACE
 set -u
 bisturi="$1"
 work="$2"
@@ -154,6 +154,31 @@ TOML
     grep -q '"lowest_hz": 125.0' "$work/tissuemaxload0.001/report.json" ||
       fail "the low load limit did not bring the tissue rate down to an eighth"
     echo "lockstep: ok"
+    ;;
+  forces)
+    # What the default session's force commands do to the hand, read back from its recording
+    # with `bisturi trace forces` (the scene's limit is 3 N): no channel changes by more than the
+    # glove's rate limit in one tick (fault zeros apart), a command at the limit is counted as
+    # clamped in the report, and no channel chatters (rms about its 11-tick mean) above 30 mN.
+    rm -rf "$work/forces"
+    "$bisturi" run --duration 10 --eye-width 64 --eye-height 64 --no-openxr \
+      --out "$work/forces" --record "$work/forces.btrace" > "$work/forces.txt" 2>&1 ||
+      { cat "$work/forces.txt"; fail "bisturi run exited with $?"; }
+    "$bisturi" trace forces "$work/forces.btrace" --limit-N 3 --json > "$work/forces.json" ||
+      fail "trace forces exited with $?"
+    channels=$(grep -c '"steps_above_rate"' "$work/forces.json")
+    [ "$channels" -ge 6 ] || fail "expected the glove's 6 channels, found $channels"
+    above=$(grep -o '"steps_above_rate": [0-9]*' "$work/forces.json" | grep -vc ': 0$')
+    [ "$above" = 0 ] || { grep -E '"(channel|largest_step_N|largest_step_time_s|steps_above_rate)"' "$work/forces.json"; fail "$above channels changed faster than the rate limit"; }
+    at_limit=$(grep -o '"at_limit": [0-9]*' "$work/forces.json" | awk '{s += $2} END {print s + 0}')
+    clamped=$(grep -o '"clamped_forces": [0-9]*' "$work/forces/report.json" | awk '{print $2}')
+    if [ "$at_limit" -gt 0 ] && [ "$clamped" -eq 0 ]; then
+      fail "$at_limit commands at the limit, but the report counts no clamped forces"
+    fi
+    grep -o '"chatter_rms_N": [0-9.e-]*' "$work/forces.json" |
+      awk '{ if ($2 + 0 > 0.03) bad = 1 } END { exit bad }' ||
+      { grep -E '"(channel|chatter_rms_N|reversals)"' "$work/forces.json"; fail "a channel chatters"; }
+    echo "forces: ok ($channels channels, $at_limit commands at the limit, $clamped clamped)"
     ;;
   *) fail "unknown mode $mode" ;;
 esac

@@ -89,6 +89,34 @@ devices::Pose at_mm(const glm::dvec3& p_mm) {
   return pose;
 }
 
+/// The tissue's steps, which a test can hang: then no step is taken and every tick gets the
+/// last finished one, late (a tissue thread stuck in a step).
+class HangableSteps final : public TickSteps {
+ public:
+  explicit HangableSteps(TickSteps& inner) : inner_(inner) {}
+  TissueThread::Push push(const devices::HapticState& state, std::uint32_t ticks) override {
+    return hung ? TissueThread::Push::Behind : inner_.push(state, ticks);
+  }
+  TissueThread::TickStep step_for(std::uint64_t k, std::uint64_t due) override {
+    if (hung) {
+      TissueThread::TickStep old = last_;
+      old.late = true;
+      return old;
+    }
+    last_ = inner_.step_for(k, due);
+    return last_;
+  }
+  std::uint32_t ticks_per_step(std::uint64_t k, std::uint32_t n) override {
+    return inner_.ticks_per_step(k, n);
+  }
+  [[nodiscard]] std::uint64_t backlog() const override { return inner_.backlog(); }
+  bool hung = false;
+
+ private:
+  TickSteps& inner_;
+  TissueThread::TickStep last_;
+};
+
 /// A session's haptic side on a virtual clock: the scene's devices (twins), the guard, the
 /// tissue stepped inside the tick, and the loop.
 struct Rig {
@@ -119,9 +147,10 @@ struct Rig {
     tissue = std::make_unique<TissueThread>(
         *sim, shape, false, false, [](const TickOutput&, const devices::HapticState&, double) {});
     steps = std::make_unique<LiveTickSteps>(*tissue, false, TissueRateController(1, 1, 1.0));
+    hangable = std::make_unique<HangableSteps>(*steps);
     HapticLoopParts parts;
     parts.haptic = guarded.get();
-    parts.steps = steps.get();
+    parts.steps = hangable.get();
     parts.sim = sim.get();
     parts.frame = options.device_frame;
     parts.clock = &clock;
@@ -157,6 +186,7 @@ struct Rig {
   std::unique_ptr<SessionSim> sim;
   std::unique_ptr<TissueThread> tissue;
   std::unique_ptr<LiveTickSteps> steps;
+  std::unique_ptr<HangableSteps> hangable;
   std::unique_ptr<HapticLoop> loop;
 };
 
@@ -297,6 +327,43 @@ TEST(HapticLoop, ARealStallIsZeroedByTheSupervisorThread) {
               zero_after_ms);
   EXPECT_GE(zero_after_ms, 3.0) << "zeroed before the stall passed its limit";
   EXPECT_EQ(rig.loop->counters().supervisor_zeros, 1u);
+}
+
+TEST(HapticLoop, AHungTissueFadesTheForceToZeroAndItComesBackRamped) {
+  const SceneDescription scene = arm_scene("[0.0, 0.0, 0.0]");
+  Rig rig(scene, pressing_arm(DeviceFrame{}));
+  rig.run_to(milliseconds(1000));
+  ASSERT_GT(glm::length(rig.applied()), 0.01) << "pressing before the hang";
+  // The tissue hangs while the hand presses: a spring to the frozen surface would follow the
+  // hand wherever it went. Within the margin (4 ticks) and the fade (10 ticks) the
+  // command is zero, and it stays zero.
+  rig.hangable->hung = true;
+  const std::uint32_t margin = 4;
+  for (std::uint32_t i = 0; i < margin + HapticLoop::kStaleFadeTicks + 1; ++i) {
+    rig.clock.advance(milliseconds(1));
+    (void)rig.loop->tick(rig.clock.now());
+  }
+  for (double c : rig.loop->command())
+    EXPECT_EQ(c, 0.0);
+  rig.run_to(rig.clock.now() + milliseconds(100));
+  for (double c : rig.loop->command())
+    EXPECT_EQ(c, 0.0);
+  EXPECT_GE(rig.loop->counters().stale_ticks, 100u);
+  EXPECT_GE(rig.loop->counters().longest_stale_run, 100u);
+  // The tissue comes back: the force returns as a ramp, never more per tick than the device's
+  // rate allows.
+  rig.hangable->hung = false;
+  const double step_N = rig.arm->capabilities().force_channels.at(0).max_force_rate_N_per_s * 1e-3;
+  std::vector<double> last = rig.loop->command();
+  for (int i = 0; i < 300; ++i) {
+    rig.clock.advance(milliseconds(1));
+    (void)rig.loop->tick(rig.clock.now());
+    const std::vector<double>& now = rig.loop->command();
+    const glm::dvec3 change(now[0] - last[0], now[1] - last[1], now[2] - last[2]);
+    EXPECT_LE(glm::length(change), step_N + 1e-9) << "tick " << i;
+    last = now;
+  }
+  EXPECT_GT(glm::length(glm::dvec3(last[0], last[1], last[2])), 0.01) << "the force came back";
 }
 
 TEST(HapticLoop, StopSendsZeroAndLatches) {

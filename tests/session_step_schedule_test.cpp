@@ -43,6 +43,21 @@ TEST(StepSchedule, ALongerStepGetsAsMuchMoreTime) {
   EXPECT_EQ(due[19], 3u);  // tick 20: step 3 (tick 12) due at 18, step 4 (16) at 22
 }
 
+TEST(StepSchedule, ADroppedHandOverNeverComesDueAndTheNextTakesItsNumber) {
+  // Lag 2, one tick per step: ticks 1..10 hand over; the tissue cannot take tick 5's step.
+  StepSchedule s(2, 1);
+  std::vector<std::uint64_t> due;
+  for (std::uint64_t k = 1; k <= 10; ++k) {
+    ASSERT_TRUE(s.hands_over(k));
+    if (k == 5) s.forget_hand_over();
+    due.push_back(s.due(k));
+  }
+  EXPECT_EQ(s.steps(), 9u);
+  // Steps 1-4 from ticks 1-4 are due at 3-6; tick 5's step never comes; step 5 (from tick 6) is
+  // due at tick 8: ticks 7 and 8 both send step 4, then 5, 6.
+  EXPECT_EQ(due, (std::vector<std::uint64_t>{0, 0, 1, 2, 3, 4, 4, 5, 6, 7}));
+}
+
 TEST(StepSchedule, RateChangesKeepTheScheduleConsistent) {
   // Random changes among 1, 2, 4 and 8 ticks per step at hand-over ticks: every tick is covered
   // by exactly one step, each step is due no earlier than lag ticks after its hand-over, and

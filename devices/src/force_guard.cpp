@@ -198,7 +198,8 @@ GuardStep ForceGuard::step(std::span<const double> command_N, Nanoseconds now,
     const std::size_t n = channel.components;
     const double magnitude = norm(command_N.data() + offset, n);
     const double scale = magnitude > channel.max_force_N ? channel.max_force_N / magnitude : 1.0;
-    if (scale < 1.0) result.clamped = true;
+    // At the limit counts too: a command clamped upstream arrives exactly there.
+    if (magnitude >= channel.max_force_N) result.clamped = true;
     if (magnitude >= config_.engage_threshold_N) all_small = false;
     for (std::size_t i = 0; i < n; ++i)
       scratch_[offset + i] = command_N[offset + i] * scale;

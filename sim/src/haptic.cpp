@@ -63,7 +63,7 @@ HapticOutput HapticProxy::update(const glm::dvec3& device, std::span<const Touch
   SurfacePoint best;
   std::int32_t best_body = -1;
   for (std::size_t b = 0; b < targets.size(); ++b) {
-    if (targets[b].body->frozen()) continue;
+    if (targets[b].body->frozen() || !targets[b].touchable) continue;
     const SurfacePoint sp = targets[b].bvh->closest_point(*targets[b].body, device);
     if (sp.found && (!best.found || sp.distance_m < best.distance_m)) {
       best = sp;

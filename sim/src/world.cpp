@@ -43,7 +43,7 @@ HapticOutput SimWorld::step(const glm::dvec3& device_m) {
   std::vector<TouchTarget> targets;
   targets.reserve(bodies_.size());
   for (std::size_t i = 0; i < bodies_.size(); ++i)
-    targets.push_back({&bodies_[i], &bvhs_[i]});
+    targets.push_back({&bodies_[i], &bvhs_[i], static_cast<std::int32_t>(i) != held_body_});
   proxy_.set_options(options_.haptic);
   HapticOutput out = proxy_.update(device_m, targets, options_.integrator.dt_s);
   if (options_.contact.enabled && bodies_.size() > 1) tissue_contacts();

@@ -291,6 +291,10 @@ int run_run(const RunOptions& options) {
         {"divergence_events", r.divergence_events},
         {"dropped_tissue_steps", r.dropped_tissue_steps},
         {"supervisor_zeros", r.supervisor_zeros},
+        {"stale_ticks", r.stale_ticks},
+        {"longest_stale_run", r.longest_stale_run},
+        {"stale_margin_ticks", r.stale_margin_ticks},
+        {"slewed_ticks", r.slewed_ticks},
         {"events", r.events.size()}}},
       {"ending", r.ending},
       {"error", r.error.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.error)},
@@ -329,7 +333,8 @@ int run_run(const RunOptions& options) {
               << "  motion-to-photon p50 " << mtp.p50 << " ms, p99 " << mtp.p99
               << " ms; action-to-response p50 " << atr.p50 << " ms, max " << atr.max << " ms ("
               << atr.count << " events)\n"
-              << "  " << r.clamped_forces << " clamped forces, " << r.dropped_frames
+              << "  " << r.clamped_forces << " clamped forces, " << r.stale_ticks
+              << " ticks on a stale step (faded), " << r.dropped_frames
               << " dropped frames; sink " << r.sink
               << (r.sink_note.empty() ? "" : " (" + r.sink_note + ")") << "\n"
               << "  report, plots and frames in " << out.string() << "\n";

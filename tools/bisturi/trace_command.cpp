@@ -109,6 +109,19 @@ void add_trace_command(CLI::App& app, TraceOptions& options, int (*&run)(const T
                    "only this device: its index, driver name, serial or product");
   dump->add_flag("--json", options.json, "write one JSON object on stdout");
   dump->callback([&run] { run = run_trace_dump; });
+
+  CLI::App* forces = trace->add_subcommand(
+      "forces",
+      "what the recorded force commands did, per channel: the largest force, commands at the "
+      "limit, the largest change in one tick against the device's rate limit, reversals and "
+      "chatter (fault zeros counted apart)");
+  forces->add_option("TRACE", options.input, "trace file")->required()->check(CLI::ExistingFile);
+  forces->add_option("--limit-N", options.limit_N,
+                     "the session's force limit (the scene's max_force_N), when below a "
+                     "channel's own")
+      ->check(kPositive);
+  forces->add_flag("--json", options.json, "write one JSON object on stdout");
+  forces->callback([&run] { run = run_trace_forces; });
 }
 
 int run_trace_inspect(const TraceOptions& options) {

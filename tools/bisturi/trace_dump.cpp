@@ -15,6 +15,7 @@
 #include "bisturi/devices/trace/trace_reader.h"
 #include "hex_bytes.h"
 #include "hid_names.h"
+#include "trace_devices.h"
 #include "trace_command.h"
 
 namespace bisturi::cli {
@@ -34,39 +35,6 @@ json pose_json(const devices::Pose& p) {
   return {{"position_m", vec3(p.position_m)},
           {"orientation_wxyz",
            json::array({p.orientation.w, p.orientation.x, p.orientation.y, p.orientation.z})}};
-}
-
-// One recorded device, with its driver rebuilt on a transport that is fed nothing but what the
-// trace holds: reports are handed to handle_report one by one.
-struct DecodedDevice {
-  devices::TraceDevice trace;
-  devices::VirtualClock clock;
-  std::unique_ptr<devices::Device> driver;
-  std::string driver_error;
-  std::optional<hid::ReportCodec> codec;
-};
-
-void open_driver(DecodedDevice& d, const devices::Registry& registry,
-                 const std::vector<std::pair<std::int64_t, std::vector<std::uint8_t>>>& inputs) {
-  if (!d.trace.report_descriptor.empty()) {
-    try {
-      d.codec.emplace(hid::parse_report_descriptor(d.trace.report_descriptor, d.trace.product),
-                      d.trace.product);
-    } catch (const devices::ProtocolError&) {
-    }
-  }
-  auto transport =
-      std::make_unique<devices::ReplayTransport>(devices::to_device_descriptor(d.trace), d.clock);
-  // A driver that asks the device something when it opens (the arm's info packet) finds the
-  // recorded answers queued, as in replay.
-  for (const auto& [t, bytes] : inputs)
-    transport->push_input(devices::Nanoseconds(t), bytes);
-  if (!inputs.empty()) d.clock.set(devices::Nanoseconds(inputs.front().first));
-  try {
-    d.driver = registry.open(std::move(transport), d.clock);
-  } catch (const std::exception& e) {
-    d.driver_error = e.what();
-  }
 }
 
 json hid_fields(const DecodedDevice& d, hid::ReportType type,
@@ -149,27 +117,7 @@ std::string text_of(const json& record) {
 
 int run_trace_dump(const TraceOptions& options) {
   const devices::Registry registry = devices::builtin_registry();
-  // First pass: every device and its input reports (a driver that talks when it opens gets them).
-  std::vector<devices::TraceDevice> trace_devices;
-  std::map<std::uint16_t, std::vector<std::pair<std::int64_t, std::vector<std::uint8_t>>>> inputs;
-  {
-    devices::TraceReader reader(options.input);
-    try {
-      while (auto r = reader.next()) {
-        if (r->type == devices::TraceRecordType::kReportIn)
-          inputs[r->device].emplace_back(r->time_ns, r->payload);
-      }
-    } catch (const devices::TraceCorruptError&) {
-    }
-    trace_devices = reader.devices();
-  }
-  std::vector<std::unique_ptr<DecodedDevice>> decoded;
-  for (std::size_t i = 0; i < trace_devices.size(); ++i) {
-    auto d = std::make_unique<DecodedDevice>();
-    d->trace = trace_devices[i];
-    open_driver(*d, registry, inputs[static_cast<std::uint16_t>(i)]);
-    decoded.push_back(std::move(d));
-  }
+  std::vector<std::unique_ptr<DecodedDevice>> decoded = decode_trace_devices(options.input, registry);
   const auto wanted = [&](std::uint16_t index) {
     if (options.device.empty()) return true;
     if (index >= decoded.size()) return false;

@@ -20,6 +20,7 @@ double seconds(devices::Nanoseconds t) {
 HapticLoop::HapticLoop(HapticLoopParts parts, std::uint32_t lag, std::uint32_t ticks_per_step)
     : parts_(std::move(parts)),
       schedule_(lag, ticks_per_step),
+      slew_(parts_.haptic->guard().channels(), parts_.sim->haptic_period_ms() * 1e-3),
       command_(parts_.sim->command_size(), 0.0),
       zeros_(parts_.sim->command_size(), 0.0) {
   counters_.max_ticks_per_step = ticks_per_step;
@@ -99,7 +100,10 @@ void HapticLoop::hand_over(std::uint64_t k) noexcept {
     case TissueThread::Push::Queued:
       break;
     case TissueThread::Push::Behind:
+      // Never taken: the steps after it keep the tissue's own numbering, so they come due.
       ++counters_.dropped_steps;
+      note(dropped_step_note(k, schedule_.steps()));
+      schedule_.forget_hand_over();
       break;
     case TissueThread::Push::Failed:
       counters_.tissue_failed = true;
@@ -154,6 +158,7 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
   } else {
     std::fill(command_.begin(), command_.end(), 0.0);
   }
+  fade_if_stale(k, use.late);
   // No force the trainee cannot see the cause of: while the headset shows nothing, zero.
   if (parts_.display_live != nullptr) {
     const bool held = !parts_.display_live->load(std::memory_order_acquire);
@@ -162,7 +167,10 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
   }
   if (display_held_) {
     std::fill(command_.begin(), command_.end(), 0.0);
+    slew_.reset();
     ++counters_.display_held_ticks;
+  } else if (slew_.apply(command_)) {
+    ++counters_.slewed_ticks;
   }
   const bool was_lost = lost_;
   if (!lost_) send(t);
@@ -170,6 +178,23 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
   if (was_lost) note("tick");
   if (stopped_.load(std::memory_order_acquire)) return TickStatus::Stopped;
   return lost_ ? TickStatus::DeviceLost : TickStatus::Sent;
+}
+
+void HapticLoop::fade_if_stale(std::uint64_t k, bool late) noexcept {
+  if (!late) fresh_k_ = k;
+  const bool stale = late && k - fresh_k_ > parts_.stale_margin_ticks;
+  if (stale) {
+    ++counters_.stale_ticks;
+    counters_.longest_stale_run = std::max(counters_.longest_stale_run, ++stale_run_);
+  } else {
+    stale_run_ = 0;
+  }
+  constexpr double kFadeStep = 1.0 / kStaleFadeTicks;
+  stale_gain_ = std::clamp(stale_gain_ + (stale ? -kFadeStep : kFadeStep), 0.0, 1.0);
+  if (stale_gain_ < 1.0) {
+    for (double& c : command_)
+      c *= stale_gain_;
+  }
 }
 
 void HapticLoop::send_zero_locked(const char* note_text) noexcept {

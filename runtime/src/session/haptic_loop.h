@@ -24,6 +24,7 @@
 #include "bisturi/devices/trace/trace_writer.h"
 #include "bisturi/runtime/session/device_frame.h"
 #include "bisturi/runtime/session/session_sim.h"
+#include "command_slew.h"
 #include "step_schedule.h"
 #include "tissue_thread.h"
 
@@ -83,6 +84,11 @@ struct HapticLoopCounters {
   std::uint64_t guard_latches = 0;     ///< steps on which the guard latched
   std::uint64_t supervisor_zeros = 0;  ///< stalls the supervisor zeroed the output for
   std::uint64_t display_held_ticks = 0;  ///< ticks held at zero: the headset showed nothing
+  /// Ticks whose step was older than its due step by more than the staleness margin (their
+  /// force faded towards zero), and the longest such run.
+  std::uint64_t stale_ticks = 0;
+  std::uint64_t longest_stale_run = 0;
+  std::uint64_t slewed_ticks = 0;  ///< ticks on which the command slew held a channel back
   /// Session time when the haptic device / head tracker was lost (-1: never), and why.
   double haptic_lost_s = -1.0;
   std::string haptic_lost_reason;
@@ -115,10 +121,15 @@ struct HapticLoopParts {
   /// send zero then, and each change is noted ("display_hold", "display_live") for the replay.
   /// Null: always shown (files, the replay, which follows the notes: hold_display).
   const std::atomic<bool>* display_live = nullptr;
+  /// Ticks a tick may go on using an older step than the due one before its force fades to zero
+  /// (over kStaleFadeTicks): a hung tissue thread never leaves a spring to a frozen surface.
+  std::uint32_t stale_margin_ticks = 4;
 };
 
 class HapticLoop {
  public:
+  /// Ticks over which a stale step's force fades to zero (and comes back once steps are due).
+  static constexpr std::uint32_t kStaleFadeTicks = 10;
   /// `lag`: ticks between a hand-over and the tick that uses its step (step_schedule.h).
   HapticLoop(HapticLoopParts parts, std::uint32_t lag, std::uint32_t ticks_per_step);
 
@@ -160,8 +171,15 @@ class HapticLoop {
   /// The supervisor's zero (guard latched on a missed deadline, then zero); device_mutex_ held.
   bool zero_for_stall_locked() noexcept;
 
+  /// The stale-step fade on command_ (tick k, `late`: the step used is not the due one).
+  void fade_if_stale(std::uint64_t k, bool late) noexcept;
+
   HapticLoopParts parts_;
   StepSchedule schedule_;
+  CommandSlew slew_;
+  std::uint64_t fresh_k_ = 0;      ///< the last tick that used its due step
+  std::uint64_t stale_run_ = 0;    ///< ticks in the current run past the margin
+  double stale_gain_ = 1.0;        ///< 1: fresh; falls to 0 while stale, rises again after
   HapticLoopCounters counters_;
   std::vector<double> command_;
   std::vector<double> zeros_;

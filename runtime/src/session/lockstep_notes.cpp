@@ -44,4 +44,14 @@ std::optional<TissueRateChange> parse_tissue_rate_note(const std::string& text) 
   return TissueRateChange{(*f)[0], static_cast<std::uint32_t>((*f)[1])};
 }
 
+std::string dropped_step_note(std::uint64_t tick, std::uint64_t step) {
+  return nlohmann::json{{"dropped_step", {{"tick", tick}, {"step", step}}}}.dump();
+}
+
+std::optional<DroppedStep> parse_dropped_step_note(const std::string& text) {
+  const auto f = two_fields(text, "dropped_step", "tick", "step");
+  if (!f) return std::nullopt;
+  return DroppedStep{(*f)[0], (*f)[1]};
+}
+
 }  // namespace bisturi::runtime

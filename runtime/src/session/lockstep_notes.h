@@ -29,4 +29,13 @@ struct TissueRateChange {
 /// The change a note's text holds, if it is one (ticks_per_step 1 to 1000).
 std::optional<TissueRateChange> parse_tissue_rate_note(const std::string& text);
 
+/// A hand-over the tissue could not queue (its ring full): {"dropped_step": {"tick": k,
+/// "step": j}}: step j was never taken, and the steps after it take its number.
+std::string dropped_step_note(std::uint64_t tick, std::uint64_t step);
+struct DroppedStep {
+  std::uint64_t tick = 0;
+  std::uint64_t step = 0;
+};
+std::optional<DroppedStep> parse_dropped_step_note(const std::string& text);
+
 }  // namespace bisturi::runtime

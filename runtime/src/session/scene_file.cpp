@@ -37,9 +37,11 @@ class SceneReader {
       scene.rates.display_hz = positive(*t, "rates", "display_hz", scene.rates.display_hz);
     }
     if (const toml::table* t = table_at(root, "", "simulation")) {
-      only_keys(*t, "simulation", {"far_field_interval"});
+      only_keys(*t, "simulation", {"far_field_interval", "stale_margin_ticks"});
       scene.simulation.far_field_interval = static_cast<int>(integer(
           *t, "simulation", "far_field_interval", scene.simulation.far_field_interval, 1, 256));
+      scene.simulation.stale_margin_ticks = static_cast<int>(integer(
+          *t, "simulation", "stale_margin_ticks", scene.simulation.stale_margin_ticks, 1, 1000));
     }
     if (const toml::table* t = table_at(root, "", "headset")) read_headset(*t, scene.headset);
     for_each_table(root, "solids", [&](const toml::table& t, const std::string& path) {

@@ -104,6 +104,9 @@ void add_loop_counters(const HapticLoop& loop, SessionReport& report) {
   report.guard_latches = c.guard_latches;
   report.dropped_tissue_steps = c.dropped_steps;
   report.supervisor_zeros = c.supervisor_zeros;
+  report.stale_ticks = c.stale_ticks;
+  report.longest_stale_run = c.longest_stale_run;
+  report.slewed_ticks = c.slewed_ticks;
   report.haptic_device_lost_s = c.haptic_lost_s;
   report.haptic_device_lost_reason = c.haptic_lost_reason;
   report.head_tracker_lost_s = c.head_lost_s;
@@ -222,14 +225,14 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   report.devices = session_devices.summary();
   devices::ForceGuardConfig guard_config = devices::force_guard_config_from_json(
       session_trace_config("", {}, scene.rates.haptic_hz, 0, lag));
-  devices::ForceGuard guard(glove->capabilities().force_channels, guard_config);
-  devices::GuardedHaptic guarded(*glove, guard, clock, writer.get(), glove_index);
   report.max_force_N = choice.haptic->max_force_N;
 
   sim_options.device_frame = device_frame_of(*choice.haptic);
   sim_options.device_spec = glove->capabilities().spec;
   sim_options.channel_roles = session_devices.haptic_channels();
   SessionSim sim(scene, std::move(solids), glove->capabilities().force_channels, sim_options);
+  devices::ForceGuard guard(sim.guard_channels(), guard_config);
+  devices::GuardedHaptic guarded(*glove, guard, clock, writer.get(), glove_index);
 
   // ---- The hand-off ----
   const Snapshot initial = initial_snapshot(sim);
@@ -288,6 +291,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                       TissueRateController(first_ticks_per_step, options.max_tissue_ticks_per_step,
                                            ms(period), options.tissue_max_load));
   HapticLoopParts parts;
+  parts.stale_margin_ticks = static_cast<std::uint32_t>(scene.simulation.stale_margin_ticks);
+  report.stale_margin_ticks = parts.stale_margin_ticks;
   parts.haptic = &guarded;
   parts.steps = &steps;
   parts.sim = &sim;

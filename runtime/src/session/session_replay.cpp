@@ -41,6 +41,10 @@ class ReplayTickSteps final : public TickSteps {
  public:
   explicit ReplayTickSteps(SessionSim& sim) : sim_(sim) {}
   TissueThread::Push push(const devices::HapticState& state, std::uint32_t ticks) override {
+    if (dropped) {  // the live tissue could not take this one (its note precedes the push)
+      dropped.reset();
+      return TissueThread::Push::Behind;
+    }
     queued_.emplace_back(state, ticks);
     ++pushed_;
     return TissueThread::Push::Queued;
@@ -62,6 +66,7 @@ class ReplayTickSteps final : public TickSteps {
 
   std::optional<LateTick> late;
   std::optional<TissueRateChange> rate;
+  std::optional<DroppedStep> dropped;
 
  private:
   void run_to(std::uint64_t j) {
@@ -150,9 +155,6 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
     glove = devices::as_haptic(device.get());
     if (glove == nullptr)
       throw devices::TraceError(reader.name() + ": the recorded glove is not a haptic device");
-    guard = std::make_unique<devices::ForceGuard>(glove->capabilities().force_channels,
-                                                  guard_config);
-    guarded = std::make_unique<devices::GuardedHaptic>(*glove, *guard, clock);
     SessionSimOptions sim_options;
     sim_options.tissue_threads = tissue_threads;
     sim_options.device_frame = device_frame_of(*choice.haptic);
@@ -161,8 +163,11 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
       sim_options.channel_roles = driver->layout.roles(glove->capabilities());
     sim = std::make_unique<SessionSim>(scene, std::move(solids),
                                        glove->capabilities().force_channels, sim_options);
+    guard = std::make_unique<devices::ForceGuard>(sim->guard_channels(), guard_config);
+    guarded = std::make_unique<devices::GuardedHaptic>(*glove, *guard, clock);
     steps = std::make_unique<ReplayTickSteps>(*sim);
     HapticLoopParts parts;
+    parts.stale_margin_ticks = static_cast<std::uint32_t>(scene.simulation.stale_margin_ticks);
     parts.haptic = guarded.get();
     parts.steps = steps.get();
     parts.sim = sim.get();
@@ -211,6 +216,8 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
         if (steps) steps->late = l;
       } else if (auto c = parse_tissue_rate_note(text)) {
         if (steps) steps->rate = c;
+      } else if (auto d = parse_dropped_step_note(text)) {
+        if (steps) steps->dropped = d;
       } else {
         const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
         if (!j.is_discarded() && j.is_object() && j.contains("session_end")) {

@@ -120,6 +120,15 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   }
   out_.command_N.assign(command_size_, 0.0);
   out_.finger_contact_N.assign(fingers_, 0.0);
+  finger_touch_.assign(fingers_, FingerTouch{});
+}
+
+std::vector<devices::ForceChannel> SessionSim::guard_channels() const {
+  std::vector<devices::ForceChannel> channels = channels_;
+  for (devices::ForceChannel& c : channels) {
+    if (!c.unitless) c.max_force_N = std::min(c.max_force_N, max_force_N_);
+  }
+  return channels;
 }
 
 glm::dvec3 SessionSim::tip_of(const devices::HapticState& state) {
@@ -199,6 +208,7 @@ const TickOutput& SessionSim::tick(const devices::HapticState& state, std::uint3
     }
   }
   if (grasp_body_ >= 0) grasp_.drag(world_.body(static_cast<std::uint32_t>(grasp_body_)), tip_m);
+  world_.set_held_body(grasp_body_);
 
   // Probe, tissue contact and the soft-tissue step. While the scalpel cuts, the blade parts the
   // tissue instead of pushing it (no reaction on the surface; the hand still feels it).
@@ -264,15 +274,46 @@ void SessionSim::finger_contacts(const glm::dvec3& tip_m, const glm::dquat& hand
   constexpr double kReach_m = 0.02;  // deeper than any finger presses
   for (std::size_t f = 0; f < std::min(fingers_, tips.size()); ++f) {
     const glm::dvec3 p = sim::scene_to_sim(tips[f]);
+    FingerTouch& touch = finger_touch_[f];
     double depth = 0.0;
+    sim::SurfacePoint deepest;
     for (std::size_t b = 0; b < world_.body_count(); ++b) {
       const auto i = static_cast<std::uint32_t>(b);
       const sim::SurfacePoint c = world_.bvh(i).closest_point(world_.body(i), p, kReach_m);
-      // Inside the tissue when the closest surface point lies out along its outward normal.
-      if (c.found) depth = std::max(depth, glm::dot(c.point_m - p, c.normal));
+      const double d = c.found ? penetration_depth(c, p) : 0.0;
+      if (d > depth) {
+        depth = d;
+        deepest = c;
+      }
     }
+    if (depth > 0.0) {
+      // A touch begins at the surface: a fingertip first found deep inside got there through
+      // an opening or a jump of the hand, and pressing it out at once would kick the finger.
+      if (!touch.touching && depth > kFingerEntryDepth_m) depth = 0.0;
+      touch.plane_point_m = deepest.point_m;
+      touch.plane_normal = deepest.normal;
+      touch.depth_m = depth;
+      touch.held_steps = 0;
+    } else if (touch.touching && touch.held_steps < kFingerHoldSteps) {
+      // The closest point turned sideways (a dent's rim, an edge between faces) while the
+      // finger still presses: for a few steps it stays on the plane it touched last, no deeper
+      // than it was, so its force does not flicker to zero and back from one step to the next.
+      depth = std::clamp(glm::dot(touch.plane_point_m - p, touch.plane_normal), 0.0, touch.depth_m);
+      ++touch.held_steps;
+    }
+    touch.touching = depth > 0.0;
     out_.finger_contact_N[f] = finger_stiffness_N_per_m_ * depth;
   }
+}
+
+double SessionSim::penetration_depth(const sim::SurfacePoint& closest, const glm::dvec3& p_m) {
+  // Inside the tissue when the closest surface point lies out along its outward normal, straight
+  // ahead: a closest point off to the side (on an open rim, a cut's edge) says nothing about
+  // inside, since the rim's face normal points across the opening.
+  const glm::dvec3 to_surface = closest.point_m - p_m;
+  const double along = glm::dot(to_surface, closest.normal);
+  if (along <= 0.0 || along < kStraightAhead * glm::length(to_surface)) return 0.0;
+  return along;
 }
 
 void SessionSim::command_for(const TickOutput& step, const glm::dvec3& tip_now_m,

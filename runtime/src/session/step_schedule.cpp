@@ -18,6 +18,12 @@ bool StepSchedule::hands_over(std::uint64_t k) {
   return true;
 }
 
+void StepSchedule::forget_hand_over() {
+  if (due_ticks_.empty()) return;
+  due_ticks_.pop_back();
+  --steps_;
+}
+
 void StepSchedule::set_ticks_per_step(std::uint64_t k, std::uint32_t n) {
   n_ = std::max(1u, n);
   next_hand_over_ = k + n_;

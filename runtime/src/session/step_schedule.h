@@ -29,6 +29,9 @@ class StepSchedule {
   /// the next step, whose length (ticks) is then handed_over_ticks().
   bool hands_over(std::uint64_t k);
   [[nodiscard]] std::uint32_t handed_over_ticks() const { return handed_over_ticks_; }
+  /// The step handed over at this tick was not taken (the tissue's queue was full): it never
+  /// becomes due, and the next hand-over takes its number. The hand-over ticks stay as they were.
+  void forget_hand_over();
   /// At hand-over tick k: the steps after this one cover n ticks each (n >= 1).
   void set_ticks_per_step(std::uint64_t k, std::uint32_t n);
   [[nodiscard]] std::uint32_t ticks_per_step() const { return n_; }

@@ -64,7 +64,7 @@ Fault classify_exception(const std::exception& error);
 
 struct GuardStep {
   GuardState state = GuardState::WaitingForSmallCommand;
-  bool clamped = false;         // some channel was above max_force_N
+  bool clamped = false;         // some channel was at or above max_force_N
   bool rate_limited = false;    // some channel changed faster than allowed
   Fault latched = Fault::None;  // set on the step that latched
 };

@@ -48,6 +48,7 @@ struct HapticOutput {
 struct TouchTarget {
   SoftBody* body;
   const SurfaceBvh* bvh;
+  bool touchable = true;  ///< false: the probe passes it (tissue the instrument's jaws hold)
 };
 
 class HapticProxy {

@@ -60,6 +60,9 @@ class SimWorld {
 
   /// One full step with the device (probe tip) at device_m; returns the force for the device.
   HapticOutput step(const glm::dvec3& device_m);
+  /// The body the instrument holds (-1: none): the probe does not touch it, since its held
+  /// vertices follow the instrument and a contact with them would only flicker.
+  void set_held_body(std::int32_t body) { held_body_ = body; }
   /// Cuts body i along blade contact points and rebuilds its BVH.
   CutResult cut(std::uint32_t i, std::span<const glm::dvec3> points_m,
                 const CutOptions& options = {});
@@ -73,6 +76,7 @@ class SimWorld {
   WorldOptions& options() { return options_; }
 
  private:
+  std::int32_t held_body_ = -1;
   void tissue_contacts();
 
   WorldOptions options_;

@@ -140,6 +140,10 @@ struct SimulationDescription {
   /// haptic period (a 20k-vertex organ at 1 kHz wants 32); the far field then lags as many
   /// periods behind (docs/sim/integrator.md).
   int far_field_interval = 1;
+  /// Haptic ticks a tick may go on rendering from an older tissue step than the due one before
+  /// its force fades to zero (a hung or slow tissue thread never holds the hand on a spring to a
+  /// frozen surface).
+  int stale_margin_ticks = 4;
 };
 
 /// Targets of the scripted procedure (approach, palpate, grasp, cut) in scene millimetres, so a

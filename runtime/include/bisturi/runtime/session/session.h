@@ -178,6 +178,13 @@ struct SessionReport {
   std::uint64_t dropped_tissue_steps = 0;
   /// Stalled ticks whose output the supervisor zeroed (LoopWatchdog: period + guard margin).
   std::uint64_t supervisor_zeros = 0;
+  /// Ticks whose step was older than the due one by more than stale_margin_ticks: their force
+  /// faded to zero. The longest such run, in ticks.
+  std::uint64_t stale_ticks = 0;
+  std::uint64_t longest_stale_run = 0;
+  std::uint32_t stale_margin_ticks = 0;
+  /// Ticks on which the command slew held a channel to the device's rate limit.
+  std::uint64_t slewed_ticks = 0;
   /// Session time the haptic device / head tracker was lost (-1: never) and why. A lost haptic
   /// device's force is zero and its instrument holds its pose; a lost tracker's view holds.
   double haptic_device_lost_s = -1.0;

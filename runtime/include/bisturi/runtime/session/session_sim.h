@@ -116,6 +116,10 @@ class SessionSim {
   static glm::dvec3 tip_of(const devices::HapticState& state);
   /// Number of force components of the glove's command.
   [[nodiscard]] std::size_t command_size() const { return command_size_; }
+  /// The glove's force channels as the session limits them (each no stronger than the scene's
+  /// max_force_N): what the force guard checks, so a command at the scene's limit counts as
+  /// clamped there.
+  [[nodiscard]] std::vector<devices::ForceChannel> guard_channels() const;
 
   [[nodiscard]] std::size_t body_count() const { return world_.body_count(); }
   sim::SimWorld& world() { return world_; }
@@ -149,6 +153,24 @@ class SessionSim {
   std::size_t fingers_ = 0;  ///< finger actuators (1-component channels with a force unit)
   void finger_contacts(const glm::dvec3& tip_m, const glm::dquat& hand,
                        const std::vector<double>& joints_rad);
+  /// How deep p lies inside the tissue behind its closest surface point (0: outside, or the
+  /// closest point is not straight ahead along its normal).
+  static double penetration_depth(const sim::SurfacePoint& closest, const glm::dvec3& p_m);
+  /// A fingertip's touch begins no deeper than this (a normal press at 1 m/s over a 4 ms step).
+  static constexpr double kFingerEntryDepth_m = 0.004;
+  /// cos 60 degrees: how far off the normal the closest point may lie for an inside point.
+  static constexpr double kStraightAhead = 0.5;
+  /// A finger's contact at the last step: whether it touched, and the tangent plane it pressed.
+  struct FingerTouch {
+    bool touching = false;
+    glm::dvec3 plane_point_m{0.0};
+    glm::dvec3 plane_normal{0.0};
+    double depth_m = 0.0;         ///< at the last step the closest point was straight ahead
+    std::uint32_t held_steps = 0;  ///< steps since then
+  };
+  /// Steps a touching finger keeps its last plane while the closest point lies sideways.
+  static constexpr std::uint32_t kFingerHoldSteps = 8;
+  std::vector<FingerTouch> finger_touch_;  ///< one per finger
   std::size_t command_size_ = 0;
   double jaw_radius_mm_ = 1.5;
   sim::Grasp grasp_;
