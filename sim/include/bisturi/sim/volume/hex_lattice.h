@@ -1,0 +1,64 @@
+#pragma once
+// A lattice of hexahedral cells filling a closed surface: the volume under a tissue solid's DLFL.
+// The lattice is rectilinear (each axis has its own node coordinates), graded towards a focus
+// (the cells are finest there and grow geometrically away from it), so the resolution sits
+// where an instrument touches and the rest stays coarse without hanging nodes: every cell is a
+// box, and neighbouring boxes share their faces whole. A cell is kept when any of it lies inside
+// the surface (its fill, the share of its volume inside, weights its stiffness, as SOFA's
+// SparseGridTopology does) or when a surface vertex lies in it, so every surface vertex can be
+// embedded (volume/embedding.h).
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <glm/vec3.hpp>
+
+namespace bisturi::sim {
+
+struct LatticeOptions {
+  double finest_m = 0.001;      ///< cell size at the focus
+  double coarsest_m = 0.004;    ///< the largest cell size grading reaches
+  double growth = 1.3;          ///< ratio of neighbouring cell sizes away from the fine region
+  glm::dvec3 focus_m{0.0};      ///< where the cells are finest
+  double fine_half_width_m = 0.0;  ///< cells stay finest within this distance of the focus
+  int fill_samples = 3;         ///< per axis and cell, for the inside share
+};
+
+struct HexLattice {
+  /// Node coordinates along x, y and z (rest, metres): node (i, j, k) is at
+  /// (axis[0][i], axis[1][j], axis[2][k]).
+  std::array<std::vector<double>, 3> axis;
+  std::vector<glm::dvec3> rest;  ///< the nodes the kept cells use
+  /// Each kept cell's 8 nodes; corner c is at offset (c & 1, (c >> 1) & 1, (c >> 2) & 1).
+  std::vector<std::array<std::uint32_t, 8>> cells;
+  std::vector<std::array<std::uint32_t, 3>> cell_ijk;  ///< the cell's lattice position
+  std::vector<double> fill;  ///< share of each cell's volume inside the surface, (0, 1]
+  /// The kept cell at lattice position (i, j, k), or -1: cell_at[(k * ny + j) * nx + i].
+  std::vector<std::int32_t> cell_at;
+
+  [[nodiscard]] std::array<std::size_t, 3> cell_dims() const {
+    return {axis[0].size() - 1, axis[1].size() - 1, axis[2].size() - 1};
+  }
+  /// The lattice cell (kept or not) containing p, clamped to the lattice's bounds.
+  [[nodiscard]] std::array<std::uint32_t, 3> locate(const glm::dvec3& p) const;
+  /// The kept cell containing p, or -1.
+  [[nodiscard]] std::int32_t kept_cell(const glm::dvec3& p) const;
+};
+
+/// Node coordinates from lo to hi: cells of `finest` within fine_half_width of `centre`, then
+/// each `growth` times the last up to `coarsest`; the ends land exactly on lo and hi.
+std::vector<double> graded_axis(double lo, double hi, double centre, double finest,
+                                double fine_half_width, double growth, double coarsest);
+
+/// The lattice filling the closed, consistently oriented triangle surface (any winding: inside
+/// is decided by ray parity). Throws std::invalid_argument on an empty surface or bad options.
+/// Cells holding a surface vertex or one of `also_embed` (points on the surface to embed besides
+/// the vertices, e.g. contact samples) are kept too.
+HexLattice build_hex_lattice(std::span<const glm::dvec3> vertices,
+                             std::span<const std::array<std::uint32_t, 3>> triangles,
+                             const LatticeOptions& options,
+                             std::span<const glm::dvec3> also_embed = {});
+
+}  // namespace bisturi::sim

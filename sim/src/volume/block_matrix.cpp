@@ -1,0 +1,123 @@
+#include "block_matrix.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include <glm/geometric.hpp>
+#include <glm/matrix.hpp>
+
+namespace bisturi::sim {
+
+BlockMatrix::BlockMatrix(std::size_t nodes, std::span<const std::array<std::uint32_t, 8>> cells) {
+  std::vector<std::vector<std::uint32_t>> neighbours(nodes);
+  for (const auto& cell : cells)
+    for (std::uint32_t a : cell)
+      for (std::uint32_t b : cell)
+        neighbours[a].push_back(b);
+  row_start_.assign(nodes + 1, 0);
+  for (std::size_t i = 0; i < nodes; ++i) {
+    std::vector<std::uint32_t>& n = neighbours[i];
+    if (n.empty()) n.push_back(static_cast<std::uint32_t>(i));  // a node in no cell: held alone
+    std::sort(n.begin(), n.end());
+    n.erase(std::unique(n.begin(), n.end()), n.end());
+    row_start_[i + 1] = row_start_[i] + static_cast<std::uint32_t>(n.size());
+  }
+  columns_.reserve(row_start_.back());
+  diagonal_.resize(nodes);
+  for (std::size_t i = 0; i < nodes; ++i) {
+    for (std::uint32_t j : neighbours[i]) {
+      if (j == i) diagonal_[i] = static_cast<std::uint32_t>(columns_.size());
+      columns_.push_back(j);
+    }
+  }
+  values_.assign(columns_.size(), glm::dmat3(0.0));
+  cell_slots_.resize(cells.size());
+  for (std::size_t c = 0; c < cells.size(); ++c)
+    for (std::size_t a = 0; a < 8; ++a)
+      for (std::size_t b = 0; b < 8; ++b)
+        cell_slots_[c][a * 8 + b] = slot(cells[c][a], cells[c][b]);
+  r_.resize(nodes);
+  z_.resize(nodes);
+  p_.resize(nodes);
+  q_.resize(nodes);
+  inv_diag_.resize(nodes);
+}
+
+void BlockMatrix::set_zero() {
+  std::fill(values_.begin(), values_.end(), glm::dmat3(0.0));
+}
+
+std::uint32_t BlockMatrix::slot(std::uint32_t i, std::uint32_t j) const {
+  const auto begin = columns_.begin() + row_start_[i], end = columns_.begin() + row_start_[i + 1];
+  const auto it = std::lower_bound(begin, end, j);
+  if (it == end || *it != j) throw std::logic_error("block matrix: nodes share no cell");
+  return static_cast<std::uint32_t>(it - columns_.begin());
+}
+
+void BlockMatrix::multiply(std::span<const glm::dvec3> x, std::span<glm::dvec3> y) const {
+  const std::size_t n = nodes();
+  for (std::size_t i = 0; i < n; ++i) {
+    glm::dvec3 sum(0.0);
+    for (std::uint32_t s = row_start_[i]; s < row_start_[i + 1]; ++s)
+      sum += values_[s] * x[columns_[s]];
+    y[i] = sum;
+  }
+}
+
+BlockMatrix::SolveStats BlockMatrix::solve(std::span<const glm::dvec3> b, std::span<glm::dvec3> x,
+                                           std::span<const std::uint8_t> fixed, double tolerance,
+                                           int max_iterations) {
+  const std::size_t n = nodes();
+  const auto dot = [&](const std::vector<glm::dvec3>& u, const std::vector<glm::dvec3>& v) {
+    double s = 0.0;
+    for (std::size_t i = 0; i < n; ++i)
+      s += glm::dot(u[i], v[i]);
+    return s;
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    const glm::dmat3& d = values_[diagonal_[i]];
+    inv_diag_[i] = fixed[i] || std::abs(glm::determinant(d)) < 1e-300 ? glm::dmat3(0.0)
+                                                                       : glm::inverse(d);
+    if (fixed[i]) x[i] = glm::dvec3(0.0);
+  }
+  multiply(x, r_);
+  double b_norm = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    r_[i] = fixed[i] ? glm::dvec3(0.0) : b[i] - r_[i];
+    if (!fixed[i]) b_norm += glm::dot(b[i], b[i]);
+  }
+  b_norm = std::sqrt(b_norm);
+  SolveStats stats;
+  if (b_norm == 0.0) return stats;
+  for (std::size_t i = 0; i < n; ++i)
+    p_[i] = z_[i] = inv_diag_[i] * r_[i];
+  double rz = dot(r_, z_);
+  for (int it = 0; it < max_iterations; ++it) {
+    const double r_norm = std::sqrt(dot(r_, r_));
+    stats.iterations = it;
+    stats.relative_residual = r_norm / b_norm;
+    if (r_norm <= tolerance * b_norm) return stats;
+    multiply(p_, q_);
+    for (std::size_t i = 0; i < n; ++i)
+      if (fixed[i]) q_[i] = glm::dvec3(0.0);
+    const double pq = dot(p_, q_);
+    if (!(pq > 0.0)) break;  // not positive definite along p: stop with what there is
+    const double alpha = rz / pq;
+    for (std::size_t i = 0; i < n; ++i) {
+      x[i] += alpha * p_[i];
+      r_[i] -= alpha * q_[i];
+      z_[i] = inv_diag_[i] * r_[i];
+    }
+    const double rz_next = dot(r_, z_);
+    const double beta = rz_next / rz;
+    rz = rz_next;
+    for (std::size_t i = 0; i < n; ++i)
+      p_[i] = z_[i] + beta * p_[i];
+  }
+  stats.iterations = max_iterations;
+  stats.relative_residual = std::sqrt(dot(r_, r_)) / b_norm;
+  return stats;
+}
+
+}  // namespace bisturi::sim

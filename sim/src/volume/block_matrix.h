@@ -1,0 +1,53 @@
+#pragma once
+// A symmetric matrix of 3 x 3 blocks with the sparsity of a hexahedral lattice (node i and j
+// coupled when they share a cell), and a conjugate-gradient solve preconditioned by its inverted
+// diagonal blocks. Nodes marked fixed are held: the solve leaves their entries zero.
+
+#include <array>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include <glm/mat3x3.hpp>
+#include <glm/vec3.hpp>
+
+namespace bisturi::sim {
+
+class BlockMatrix {
+ public:
+  /// The pattern of `nodes` nodes coupled by `cells` (8 nodes each).
+  BlockMatrix(std::size_t nodes, std::span<const std::array<std::uint32_t, 8>> cells);
+
+  void set_zero();
+  /// The slot of block (i, j) in values(); i and j must share a cell.
+  [[nodiscard]] std::uint32_t slot(std::uint32_t i, std::uint32_t j) const;
+  /// Cell c's 64 slots, [a * 8 + b] for its corners a and b.
+  [[nodiscard]] const std::array<std::uint32_t, 64>& cell_slots(std::size_t c) const {
+    return cell_slots_[c];
+  }
+  std::vector<glm::dmat3>& values() { return values_; }
+  [[nodiscard]] std::size_t nodes() const { return row_start_.size() - 1; }
+
+  /// y = A x.
+  void multiply(std::span<const glm::dvec3> x, std::span<glm::dvec3> y) const;
+
+  struct SolveStats {
+    int iterations = 0;
+    double relative_residual = 0.0;
+  };
+  /// Solves A x = b over the nodes not fixed (x starts from its given value; fixed entries of
+  /// x are set to zero) until |r| <= tolerance |b| or max_iterations.
+  SolveStats solve(std::span<const glm::dvec3> b, std::span<glm::dvec3> x,
+                   std::span<const std::uint8_t> fixed, double tolerance, int max_iterations);
+
+ private:
+  std::vector<std::uint32_t> row_start_;  ///< CSR over nodes
+  std::vector<std::uint32_t> columns_;
+  std::vector<std::uint32_t> diagonal_;   ///< each row's own block
+  std::vector<glm::dmat3> values_;
+  std::vector<std::array<std::uint32_t, 64>> cell_slots_;
+  std::vector<glm::dvec3> r_, z_, p_, q_;  // solver scratch
+  std::vector<glm::dmat3> inv_diag_;
+};
+
+}  // namespace bisturi::sim

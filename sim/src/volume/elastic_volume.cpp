@@ -1,0 +1,158 @@
+#include "bisturi/sim/volume/elastic_volume.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include <glm/geometric.hpp>
+#include <glm/gtx/norm.hpp>
+#include <glm/matrix.hpp>
+
+#include "block_matrix.h"
+#include "hex_element.h"
+
+namespace bisturi::sim {
+
+struct ElasticVolume::Solver {
+  explicit Solver(const HexLattice& lattice)
+      : matrix(lattice.rest.size(), lattice.cells),
+        force(lattice.rest.size()),
+        step(lattice.rest.size()) {}
+  BlockMatrix matrix;
+  std::vector<glm::dvec3> force;
+  std::vector<glm::dvec3> step;
+  HexStiffness k{};
+};
+
+ElasticVolume::ElasticVolume(HexLattice lattice, const ElasticMaterial& material)
+    : lattice_(std::move(lattice)) {
+  check_elastic(material);
+  const double e = material.youngs_modulus_kPa * 1e3, nu = material.poisson_ratio;
+  mu_ = e / (2.0 * (1.0 + nu));
+  lambda_ = e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+  x_ = lattice_.rest;
+  held_.assign(x_.size(), 0);
+  solver_ = std::make_unique<Solver>(lattice_);
+}
+
+ElasticVolume::~ElasticVolume() = default;
+ElasticVolume::ElasticVolume(ElasticVolume&&) noexcept = default;
+ElasticVolume& ElasticVolume::operator=(ElasticVolume&&) noexcept = default;
+
+void ElasticVolume::hold(std::uint32_t node) {
+  held_.at(node) = 1;
+  x_[node] = lattice_.rest[node];
+}
+
+std::size_t ElasticVolume::held_count() const {
+  return static_cast<std::size_t>(std::count(held_.begin(), held_.end(), std::uint8_t{1}));
+}
+
+PressResult ElasticVolume::press_sphere(std::span<const EmbeddedPoint> points,
+                                        const glm::dvec3& centre, double radius,
+                                        const PressOptions& o) {
+  Solver& s = *solver_;
+  const std::size_t n = x_.size();
+  if (multipliers_.size() != points.size()) multipliers_.assign(points.size(), 0.0);
+  // The penalty, unless given: twenty times what one finest cell resists with (E h). The
+  // multipliers carry the contact force; the penalty sets how fast they get there, and a stiffer
+  // one makes the contact set flip between Newton steps.
+  double finest = INFINITY;
+  for (const auto& axis : lattice_.axis)
+    for (std::size_t i = 0; i + 1 < axis.size(); ++i)
+      finest = std::min(finest, axis[i + 1] - axis[i]);
+  const double e = mu_ * (3.0 * lambda_ + 2.0 * mu_) / (lambda_ + mu_);
+  const double penalty = o.penalty_N_per_m > 0.0 ? o.penalty_N_per_m : 20.0 * e * finest;
+
+  PressResult result;
+  for (int it = 0; it < o.max_newton; ++it) {
+    result.newton_iterations = it + 1;
+    // Elements: corotated forces and stiffness.
+    s.matrix.set_zero();
+    std::fill(s.force.begin(), s.force.end(), glm::dvec3(0.0));
+    std::vector<glm::dmat3>& values = s.matrix.values();
+    for (std::size_t c = 0; c < lattice_.cells.size(); ++c) {
+      const auto& cell = lattice_.cells[c];
+      const auto& ijk = lattice_.cell_ijk[c];
+      const glm::dvec3 h(lattice_.axis[0][ijk[0] + 1] - lattice_.axis[0][ijk[0]],
+                         lattice_.axis[1][ijk[1] + 1] - lattice_.axis[1][ijk[1]],
+                         lattice_.axis[2][ijk[2] + 1] - lattice_.axis[2][ijk[2]]);
+      box_stiffness(h, mu_, lambda_, lattice_.fill[c], s.k);
+      const std::array<glm::dvec3, 8> g = centre_gradients(h);
+      glm::dmat3 f(0.0);
+      for (std::size_t a = 0; a < 8; ++a)
+        f += glm::outerProduct(x_[cell[a]], g[a]);
+      const glm::dmat3 r = polar_rotation(f);
+      const glm::dmat3 rt = glm::transpose(r);
+      std::array<glm::dvec3, 8> u;
+      for (std::size_t a = 0; a < 8; ++a)
+        u[a] = rt * x_[cell[a]] - lattice_.rest[cell[a]];
+      const auto& slots = s.matrix.cell_slots(c);
+      for (std::size_t a = 0; a < 8; ++a) {
+        glm::dvec3 local(0.0);
+        for (std::size_t b = 0; b < 8; ++b) {
+          local += s.k[a][b] * u[b];
+          values[slots[a * 8 + b]] += r * s.k[a][b] * rt;
+        }
+        s.force[cell[a]] -= r * local;
+      }
+    }
+    // Contact: each surface point inside the probe (or holding a multiplier) pushed out along
+    // the probe's normal, F = max(0, multiplier - penalty * gap).
+    glm::dvec3 probe(0.0);
+    double penetration = 0.0;
+    std::size_t contacts = 0;
+    for (std::size_t p = 0; p < points.size(); ++p) {
+      const EmbeddedPoint& ep = points[p];
+      const glm::dvec3 at = embedded_position(lattice_, x_, ep);
+      const glm::dvec3 d = at - centre;
+      const double dist = glm::length(d);
+      if (dist <= 0.0) continue;
+      const double gap = dist - radius;
+      const double push = multipliers_[p] - penalty * gap;
+      if (push <= 0.0) continue;
+      ++contacts;
+      penetration = std::max(penetration, -gap);
+      const glm::dvec3 normal = d / dist;
+      const glm::dmat3 nn = glm::outerProduct(normal, normal) * penalty;
+      const auto& cell = lattice_.cells[ep.cell];
+      const auto& slots = s.matrix.cell_slots(ep.cell);
+      for (std::size_t a = 0; a < 8; ++a) {
+        s.force[cell[a]] += ep.weights[a] * push * normal;
+        for (std::size_t b = 0; b < 8; ++b)
+          values[slots[a * 8 + b]] += (ep.weights[a] * ep.weights[b]) * nn;
+      }
+      probe -= push * normal;
+    }
+    result.probe_force_N = probe;
+    result.contacts = contacts;
+    result.max_penetration_m = penetration;
+    double residual = 0.0;
+    for (std::size_t i = 0; i < n; ++i)
+      if (!held_[i]) residual = std::max(residual, glm::length(s.force[i]));
+    const double scale = std::max(glm::length(probe), 1e-12);
+    if (residual <= o.force_tolerance * scale) {
+      // Equilibrium for these multipliers: take the contact forces as the new multipliers, and
+      // stop once what they leave inside the probe is small.
+      if (penetration <= o.penetration_tolerance_m) {
+        result.converged = true;
+        break;
+      }
+      for (std::size_t p = 0; p < points.size(); ++p) {
+        const glm::dvec3 at = embedded_position(lattice_, x_, points[p]);
+        multipliers_[p] =
+            std::max(0.0, multipliers_[p] - penalty * (glm::length(at - centre) - radius));
+      }
+      continue;
+    }
+    std::fill(s.step.begin(), s.step.end(), glm::dvec3(0.0));
+    const BlockMatrix::SolveStats cg =
+        s.matrix.solve(s.force, s.step, held_, o.cg_tolerance, o.max_cg);
+    result.cg_iterations += cg.iterations;
+    for (std::size_t i = 0; i < n; ++i)
+      if (!held_[i]) x_[i] += s.step[i];
+  }
+  return result;
+}
+
+}  // namespace bisturi::sim

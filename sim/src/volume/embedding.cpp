@@ -1,0 +1,47 @@
+#include "bisturi/sim/volume/embedding.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <string>
+
+namespace bisturi::sim {
+
+std::vector<EmbeddedPoint> embed_points(const HexLattice& lattice,
+                                        std::span<const glm::dvec3> points) {
+  std::vector<EmbeddedPoint> out;
+  out.reserve(points.size());
+  for (std::size_t p = 0; p < points.size(); ++p) {
+    const std::int32_t cell = lattice.kept_cell(points[p]);
+    if (cell < 0) {
+      throw std::invalid_argument("embed_points: point " + std::to_string(p) +
+                                  " lies in no cell of the lattice");
+    }
+    const auto& ijk = lattice.cell_ijk[static_cast<std::size_t>(cell)];
+    glm::dvec3 t;
+    for (int a = 0; a < 3; ++a) {
+      const std::vector<double>& x = lattice.axis[static_cast<std::size_t>(a)];
+      const std::size_t i = ijk[static_cast<std::size_t>(a)];
+      t[a] = std::clamp((points[p][a] - x[i]) / (x[i + 1] - x[i]), 0.0, 1.0);
+    }
+    EmbeddedPoint e;
+    e.cell = static_cast<std::uint32_t>(cell);
+    for (int c = 0; c < 8; ++c) {
+      e.weights[static_cast<std::size_t>(c)] = ((c & 1) ? t.x : 1.0 - t.x) *
+                                               (((c >> 1) & 1) ? t.y : 1.0 - t.y) *
+                                               (((c >> 2) & 1) ? t.z : 1.0 - t.z);
+    }
+    out.push_back(e);
+  }
+  return out;
+}
+
+glm::dvec3 embedded_position(const HexLattice& lattice, std::span<const glm::dvec3> nodes,
+                             const EmbeddedPoint& point) {
+  glm::dvec3 p(0.0);
+  const auto& cell = lattice.cells[point.cell];
+  for (std::size_t c = 0; c < 8; ++c)
+    p += point.weights[c] * nodes[cell[c]];
+  return p;
+}
+
+}  // namespace bisturi::sim
