@@ -101,7 +101,9 @@ TEST(GradedAxis, EndsExactFinestAtTheCentreGrowingAway) {
     finest = std::min(finest, h);
     coarsest = std::max(coarsest, h);
     // Near the centre the cells are the finest ones (up to the side's rescale).
-    if (std::abs(0.5 * (x[i] + x[i + 1]) - 0.01) < 0.003) EXPECT_LT(h, 0.0012);
+    if (std::abs(0.5 * (x[i] + x[i + 1]) - 0.01) < 0.003) {
+      EXPECT_LT(h, 0.0012);
+    }
   }
   EXPECT_GT(coarsest, 4.0 * finest);
   EXPECT_LT(coarsest, 0.0075);
@@ -192,7 +194,7 @@ TEST(PolarRotation, RecoversTheRotationOfAStretchedRotatedGradient) {
 
 /// A 20 mm cube of tissue on a rigid plane, pressed at its top centre by a 5 mm probe.
 struct PressedBlock {
-  explicit PressedBlock(double youngs_kPa) {
+  explicit PressedBlock(double youngs_kPa, ElasticLaw law = ElasticLaw::NeoHookean) {
     const Surface s = box(glm::dvec3(0.0), glm::dvec3(0.02), 24);
     LatticeOptions o;
     o.finest_m = 0.001;
@@ -202,7 +204,7 @@ struct PressedBlock {
     ElasticMaterial m;
     m.youngs_modulus_kPa = youngs_kPa;
     m.poisson_ratio = 0.45;
-    volume.emplace(build_hex_lattice(s.vertices, s.triangles, o), m);
+    volume.emplace(build_hex_lattice(s.vertices, s.triangles, o), m, law);
     points = embed_points(volume->lattice(), s.vertices);
     for (std::uint32_t i = 0; i < volume->positions().size(); ++i)
       if (volume->lattice().rest[i].z <= 0.0) volume->hold(i);
@@ -232,6 +234,18 @@ TEST(ElasticVolume, ThePressingForceGrowsWithDepthAndIsLinearInTheModulus) {
     EXPECT_LE(a.max_penetration_m, 1e-3 * depth + 1e-12);
     EXPECT_GT(a.contacts, 3u);
   }
+}
+
+TEST(ElasticVolume, NeoHookeanAgreesWithCorotatedAtSmallStrainAndStiffensInCompression) {
+  PressedBlock hyper(4.0, ElasticLaw::NeoHookean), linear(4.0, ElasticLaw::Corotational);
+  const PressResult a = hyper.press(0.0002), b = linear.press(0.0002);
+  ASSERT_TRUE(a.converged);
+  ASSERT_TRUE(b.converged);
+  EXPECT_NEAR(a.probe_force_N.z / b.probe_force_N.z, 1.0, 0.03) << "the same law at 1 % strain";
+  const PressResult c = hyper.press(0.004), d = linear.press(0.004);
+  ASSERT_TRUE(c.converged);
+  ASSERT_TRUE(d.converged);
+  EXPECT_GT(c.probe_force_N.z, 1.15 * d.probe_force_N.z) << "neo-Hookean stiffens at 4 mm";
 }
 
 }  // namespace

@@ -88,16 +88,30 @@ IndentCurve indent_volume(const TissueIndentOptions& o, double youngs_kPa, doubl
   sim::ElasticMaterial material;
   material.youngs_modulus_kPa = youngs_kPa;
   material.poisson_ratio = poisson;
+  // The sphere stands on a rigid plane through its bottom cap (a fiftieth of its height): the
+  // solid is cut there and the cut held, cells next to it a third of the cap's radius.
+  const double hold_z = sphere ? lo.z + 0.02 * (hi.z - lo.z) : lo.z;
+  const double cap_radius = sphere ? std::sqrt(std::max(0.0, std::pow(0.5 * (hi.z - lo.z), 2) -
+                                                                 std::pow(hold_z - 0.5 * (hi.z + lo.z), 2)))
+                                   : INFINITY;
+  if (sphere) {
+    lattice.floor_z_m = hold_z;
+    lattice.floor_cell_m = cap_radius / 3.0;
+  }
   const double spacing = 0.5 * lattice.finest_m;
-  const std::vector<glm::dvec3> samples =
+  std::vector<glm::dvec3> samples =
       contact_samples(vertices, triangles, top, 2.0 * lattice.fine_half_width_m, spacing);
+  std::erase_if(samples, [&](const glm::dvec3& p) { return p.z < hold_z; });
   sim::ElasticVolume volume(sim::build_hex_lattice(vertices, triangles, lattice, samples),
                             material);
   const std::vector<sim::EmbeddedPoint> points = sim::embed_points(volume.lattice(), samples);
-  // The rigid plane: the sphere's bottom cap (a fiftieth of its height), the block's bottom.
-  const double hold_z = sphere ? lo.z + 0.02 * (hi.z - lo.z) : lo.z;
-  for (std::uint32_t i = 0; i < volume.positions().size(); ++i)
-    if (volume.lattice().rest[i].z <= hold_z) volume.hold(i);
+  // The rigid plane: the sphere's cut (its nodes within the cap), the block's bottom.
+  const double floor_z = volume.lattice().axis[2].front();
+  for (std::uint32_t i = 0; i < volume.positions().size(); ++i) {
+    const glm::dvec3& p = volume.lattice().rest[i];
+    const double off_axis = std::hypot(p.x - top.x, p.y - top.y);
+    if (sphere ? (p.z <= floor_z && off_axis <= cap_radius) : p.z <= hold_z) volume.hold(i);
+  }
 
   IndentCurve curve;
   curve.vertices = vertices.size();
@@ -117,6 +131,8 @@ IndentCurve indent_volume(const TissueIndentOptions& o, double youngs_kPa, doubl
     // Penetration left by the contact: a thousandth of the depth moves the force by about as
     // much (Hertz: F ~ d^1.5).
     press_options.penetration_tolerance_m = 1e-3 * depth;
+    press_options.cg_tolerance = 1e-2;  // an inexact Newton step: the next one corrects it
+    press_options.max_newton = 100;
     // The penalty as a pressure stiffness of 20 E / h over each sample's share of the surface
     // (its spacing squared): the multipliers carry the contact force, the penalty only how fast
     // they get there; stiffer, and the contact set flips from one Newton step to the next.

@@ -21,11 +21,12 @@ struct ElasticVolume::Solver {
   BlockMatrix matrix;
   std::vector<glm::dvec3> force;
   std::vector<glm::dvec3> step;
+  std::vector<glm::dvec3> start;
   HexStiffness k{};
 };
 
-ElasticVolume::ElasticVolume(HexLattice lattice, const ElasticMaterial& material)
-    : lattice_(std::move(lattice)) {
+ElasticVolume::ElasticVolume(HexLattice lattice, const ElasticMaterial& material, ElasticLaw law)
+    : lattice_(std::move(lattice)), law_(law) {
   check_elastic(material);
   const double e = material.youngs_modulus_kPa * 1e3, nu = material.poisson_ratio;
   mu_ = e / (2.0 * (1.0 + nu));
@@ -65,76 +66,21 @@ PressResult ElasticVolume::press_sphere(std::span<const EmbeddedPoint> points,
   const double penalty = o.penalty_N_per_m > 0.0 ? o.penalty_N_per_m : 20.0 * e * finest;
 
   PressResult result;
+  const auto residual_norm = [&] {
+    double r = 0.0;
+    for (std::size_t i = 0; i < n; ++i)
+      if (!held_[i]) r = std::max(r, glm::length(s.force[i]));
+    return r;
+  };
   for (int it = 0; it < o.max_newton; ++it) {
     result.newton_iterations = it + 1;
-    // Elements: corotated forces and stiffness.
-    s.matrix.set_zero();
-    std::fill(s.force.begin(), s.force.end(), glm::dvec3(0.0));
-    std::vector<glm::dmat3>& values = s.matrix.values();
-    for (std::size_t c = 0; c < lattice_.cells.size(); ++c) {
-      const auto& cell = lattice_.cells[c];
-      const auto& ijk = lattice_.cell_ijk[c];
-      const glm::dvec3 h(lattice_.axis[0][ijk[0] + 1] - lattice_.axis[0][ijk[0]],
-                         lattice_.axis[1][ijk[1] + 1] - lattice_.axis[1][ijk[1]],
-                         lattice_.axis[2][ijk[2] + 1] - lattice_.axis[2][ijk[2]]);
-      box_stiffness(h, mu_, lambda_, lattice_.fill[c], s.k);
-      const std::array<glm::dvec3, 8> g = centre_gradients(h);
-      glm::dmat3 f(0.0);
-      for (std::size_t a = 0; a < 8; ++a)
-        f += glm::outerProduct(x_[cell[a]], g[a]);
-      const glm::dmat3 r = polar_rotation(f);
-      const glm::dmat3 rt = glm::transpose(r);
-      std::array<glm::dvec3, 8> u;
-      for (std::size_t a = 0; a < 8; ++a)
-        u[a] = rt * x_[cell[a]] - lattice_.rest[cell[a]];
-      const auto& slots = s.matrix.cell_slots(c);
-      for (std::size_t a = 0; a < 8; ++a) {
-        glm::dvec3 local(0.0);
-        for (std::size_t b = 0; b < 8; ++b) {
-          local += s.k[a][b] * u[b];
-          values[slots[a * 8 + b]] += r * s.k[a][b] * rt;
-        }
-        s.force[cell[a]] -= r * local;
-      }
-    }
-    // Contact: each surface point inside the probe (or holding a multiplier) pushed out along
-    // the probe's normal, F = max(0, multiplier - penalty * gap).
-    glm::dvec3 probe(0.0);
-    double penetration = 0.0;
-    std::size_t contacts = 0;
-    for (std::size_t p = 0; p < points.size(); ++p) {
-      const EmbeddedPoint& ep = points[p];
-      const glm::dvec3 at = embedded_position(lattice_, x_, ep);
-      const glm::dvec3 d = at - centre;
-      const double dist = glm::length(d);
-      if (dist <= 0.0) continue;
-      const double gap = dist - radius;
-      const double push = multipliers_[p] - penalty * gap;
-      if (push <= 0.0) continue;
-      ++contacts;
-      penetration = std::max(penetration, -gap);
-      const glm::dvec3 normal = d / dist;
-      const glm::dmat3 nn = glm::outerProduct(normal, normal) * penalty;
-      const auto& cell = lattice_.cells[ep.cell];
-      const auto& slots = s.matrix.cell_slots(ep.cell);
-      for (std::size_t a = 0; a < 8; ++a) {
-        s.force[cell[a]] += ep.weights[a] * push * normal;
-        for (std::size_t b = 0; b < 8; ++b)
-          values[slots[a * 8 + b]] += (ep.weights[a] * ep.weights[b]) * nn;
-      }
-      probe -= push * normal;
-    }
-    result.probe_force_N = probe;
-    result.contacts = contacts;
-    result.max_penetration_m = penetration;
-    double residual = 0.0;
-    for (std::size_t i = 0; i < n; ++i)
-      if (!held_[i]) residual = std::max(residual, glm::length(s.force[i]));
-    const double scale = std::max(glm::length(probe), 1e-12);
+    assemble(points, centre, radius, penalty, true, result);
+    const double residual = residual_norm();
+    const double scale = std::max(glm::length(result.probe_force_N), 1e-12);
     if (residual <= o.force_tolerance * scale) {
       // Equilibrium for these multipliers: take the contact forces as the new multipliers, and
       // stop once what they leave inside the probe is small.
-      if (penetration <= o.penetration_tolerance_m) {
+      if (result.max_penetration_m <= o.penetration_tolerance_m) {
         result.converged = true;
         break;
       }
@@ -149,10 +95,109 @@ PressResult ElasticVolume::press_sphere(std::span<const EmbeddedPoint> points,
     const BlockMatrix::SolveStats cg =
         s.matrix.solve(s.force, s.step, held_, o.cg_tolerance, o.max_cg);
     result.cg_iterations += cg.iterations;
-    for (std::size_t i = 0; i < n; ++i)
-      if (!held_[i]) x_[i] += s.step[i];
+    // Backtracking: the Newton matrix is the corotated linear one, softer than neo-Hookean
+    // tissue in compression, so a full step may overshoot; halve it while the residual grows.
+    s.start.assign(x_.begin(), x_.end());
+    double fraction = 1.0;
+    for (int tries = 0; tries < 4; ++tries) {
+      for (std::size_t i = 0; i < n; ++i)
+        if (!held_[i]) x_[i] = s.start[i] + fraction * s.step[i];
+      if (tries == 3) break;
+      PressResult probe_only;
+      assemble(points, centre, radius, penalty, false, probe_only);
+      const double next = residual_norm();
+      if (std::isfinite(next) && next <= residual) break;
+      fraction *= 0.5;
+    }
   }
   return result;
+}
+
+void ElasticVolume::assemble(std::span<const EmbeddedPoint> points, const glm::dvec3& centre,
+                             double radius, double penalty, bool with_matrix, PressResult& out) {
+  Solver& s = *solver_;
+  if (with_matrix) s.matrix.set_zero();
+  std::fill(s.force.begin(), s.force.end(), glm::dvec3(0.0));
+  std::vector<glm::dmat3>& values = s.matrix.values();
+  for (std::size_t c = 0; c < lattice_.cells.size(); ++c) {
+    const auto& cell = lattice_.cells[c];
+    const auto& ijk = lattice_.cell_ijk[c];
+    const glm::dvec3 h(lattice_.axis[0][ijk[0] + 1] - lattice_.axis[0][ijk[0]],
+                       lattice_.axis[1][ijk[1] + 1] - lattice_.axis[1][ijk[1]],
+                       lattice_.axis[2][ijk[2] + 1] - lattice_.axis[2][ijk[2]]);
+    const std::array<glm::dvec3, 8> g = centre_gradients(h);
+    glm::dmat3 f(0.0);
+    for (std::size_t a = 0; a < 8; ++a)
+      f += glm::outerProduct(x_[cell[a]], g[a]);
+    // Cells mostly outside the surface stay corotated: they are little tissue and may be
+    // crushed flat, which neo-Hookean cannot take.
+    const bool hyper = law_ == ElasticLaw::NeoHookean && lattice_.fill[c] >= 0.5;
+    if (with_matrix || !hyper) {
+      box_stiffness(h, mu_, lambda_, lattice_.fill[c], s.k);
+      const glm::dmat3 r = polar_rotation(f);
+      const glm::dmat3 rt = glm::transpose(r);
+      std::array<glm::dvec3, 8> u;
+      for (std::size_t a = 0; a < 8; ++a)
+        u[a] = rt * x_[cell[a]] - lattice_.rest[cell[a]];
+      const auto& slots = s.matrix.cell_slots(c);
+      for (std::size_t a = 0; a < 8; ++a) {
+        glm::dvec3 local(0.0);
+        for (std::size_t b = 0; b < 8; ++b) {
+          local += s.k[a][b] * u[b];
+          if (with_matrix) values[slots[a * 8 + b]] += r * s.k[a][b] * rt;
+        }
+        if (!hyper) s.force[cell[a]] -= r * local;
+      }
+    }
+    if (hyper) {
+      // f_a = -integral of P grad N_a: the isochoric stress at the Gauss points, the volumetric
+      // one at the centre.
+      const double volume = h.x * h.y * h.z * lattice_.fill[c];
+      const auto gq = gauss_gradients(h);
+      for (std::size_t q = 0; q < 8; ++q) {
+        glm::dmat3 fq(0.0);
+        for (std::size_t a = 0; a < 8; ++a)
+          fq += glm::outerProduct(x_[cell[a]], gq[q][a]);
+        const glm::dmat3 p = neo_hookean_isochoric_stress(fq, mu_) * (0.125 * volume);
+        for (std::size_t a = 0; a < 8; ++a)
+          s.force[cell[a]] -= p * gq[q][a];
+      }
+      const glm::dmat3 p = neo_hookean_volumetric_stress(f, lambda_ + 2.0 * mu_ / 3.0) * volume;
+      for (std::size_t a = 0; a < 8; ++a)
+        s.force[cell[a]] -= p * g[a];
+    }
+  }
+  // Contact: each surface point inside the probe (or holding a multiplier) pushed out along the
+  // probe's normal, F = max(0, multiplier - penalty * gap).
+  glm::dvec3 probe(0.0);
+  double penetration = 0.0;
+  std::size_t contacts = 0;
+  for (std::size_t p = 0; p < points.size(); ++p) {
+    const EmbeddedPoint& ep = points[p];
+    const glm::dvec3 at = embedded_position(lattice_, x_, ep);
+    const glm::dvec3 d = at - centre;
+    const double dist = glm::length(d);
+    if (dist <= 0.0) continue;
+    const double gap = dist - radius;
+    const double push = multipliers_[p] - penalty * gap;
+    if (push <= 0.0) continue;
+    ++contacts;
+    penetration = std::max(penetration, -gap);
+    const glm::dvec3 normal = d / dist;
+    const glm::dmat3 nn = glm::outerProduct(normal, normal) * penalty;
+    const auto& cell = lattice_.cells[ep.cell];
+    const auto& slots = s.matrix.cell_slots(ep.cell);
+    for (std::size_t a = 0; a < 8; ++a) {
+      s.force[cell[a]] += ep.weights[a] * push * normal;
+      if (!with_matrix) continue;
+      for (std::size_t b = 0; b < 8; ++b)
+        values[slots[a * 8 + b]] += (ep.weights[a] * ep.weights[b]) * nn;
+    }
+    probe -= push * normal;
+  }
+  out.probe_force_N = probe;
+  out.contacts = contacts;
+  out.max_penetration_m = penetration;
 }
 
 }  // namespace bisturi::sim

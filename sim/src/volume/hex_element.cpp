@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include <glm/geometric.hpp>
 #include <glm/matrix.hpp>
 
 namespace bisturi::sim {
@@ -88,6 +89,51 @@ std::array<glm::dvec3, 8> centre_gradients(const glm::dvec3& h) {
   for (int c = 0; c < 8; ++c)
     g[static_cast<std::size_t>(c)] = unit_gradient(c, glm::dvec3(0.5)) / h;
   return g;
+}
+
+std::array<std::array<glm::dvec3, 8>, 8> gauss_gradients(const glm::dvec3& h) {
+  const double g = 0.5 / std::sqrt(3.0);
+  std::array<std::array<glm::dvec3, 8>, 8> out;
+  for (int q = 0; q < 8; ++q) {
+    const glm::dvec3 xi(0.5 + ((q & 1) ? g : -g), 0.5 + (((q >> 1) & 1) ? g : -g),
+                        0.5 + (((q >> 2) & 1) ? g : -g));
+    for (int c = 0; c < 8; ++c)
+      out[static_cast<std::size_t>(q)][static_cast<std::size_t>(c)] = unit_gradient(c, xi) / h;
+  }
+  return out;
+}
+
+namespace {
+
+/// det F, floored where the element collapses, and F^-T computed from that floor.
+double safe_det(const glm::dmat3& f, glm::dmat3& inv_t) {
+  double j = glm::determinant(f);
+  if (j > 1e-2) {
+    inv_t = glm::transpose(glm::inverse(f));
+    return j;
+  }
+  // Collapsed: the stress of a small positive J along F's own directions.
+  inv_t = glm::transpose(glm::inverse(f + glm::dmat3(1e-2)));
+  return 1e-2;
+}
+
+}  // namespace
+
+glm::dmat3 neo_hookean_isochoric_stress(const glm::dmat3& f, double mu) {
+  glm::dmat3 inv_t;
+  const double j = safe_det(f, inv_t);
+  double i1 = 0.0;
+  for (int c = 0; c < 3; ++c)
+    i1 += glm::dot(f[c], f[c]);
+  // d/dF of (mu/2)(J^-2/3 I1 - 3) = mu J^-2/3 (F - I1/3 F^-T)
+  return mu * std::pow(j, -2.0 / 3.0) * (f - (i1 / 3.0) * inv_t);
+}
+
+glm::dmat3 neo_hookean_volumetric_stress(const glm::dmat3& f, double bulk) {
+  glm::dmat3 inv_t;
+  const double j = safe_det(f, inv_t);
+  // d/dF of (K/2)(J - 1)^2 = K (J - 1) J F^-T
+  return bulk * (j - 1.0) * j * inv_t;
 }
 
 glm::dmat3 polar_rotation(const glm::dmat3& f) {

@@ -24,6 +24,17 @@ void box_stiffness(const glm::dvec3& h, double mu, double lambda, double scale, 
 /// element is sum_i x_i (x) grad_i.
 std::array<glm::dvec3, 8> centre_gradients(const glm::dvec3& h);
 
+/// The shape functions' gradients (1/m) at the 2 x 2 x 2 Gauss points: [point][corner].
+std::array<std::array<glm::dvec3, 8>, 8> gauss_gradients(const glm::dvec3& h);
+
+/// The first Piola-Kirchhoff stress (Pa) of compressible neo-Hookean tissue (CalculiX's
+/// *HYPERELASTIC, NEO HOOKE: W = C10 (J^-2/3 I1 - 3) + (J - 1)^2 / D1, C10 = mu / 2,
+/// D1 = 2 / K), split as selective reduced integration wants it: the isochoric part for the Gauss
+/// points, the volumetric part for the centre. A collapsed or inverted F (J <= 0) gives the
+/// stress of a J of 0.01, pushing it back open.
+glm::dmat3 neo_hookean_isochoric_stress(const glm::dmat3& f, double mu);
+glm::dmat3 neo_hookean_volumetric_stress(const glm::dmat3& f, double bulk);
+
 /// The rotation of F's polar decomposition F = R S (F not inverted; a degenerate F gives the
 /// identity).
 glm::dmat3 polar_rotation(const glm::dmat3& f);

@@ -11,7 +11,8 @@
 namespace bisturi::sim {
 
 std::vector<double> graded_axis(double lo, double hi, double centre, double finest,
-                                double fine_half_width, double growth, double coarsest) {
+                                double fine_half_width, double growth, double coarsest,
+                                double lo_cell) {
   if (!(hi > lo) || !(finest > 0.0) || !(growth >= 1.0) || !(coarsest >= finest))
     throw std::invalid_argument("graded_axis: need hi > lo, finest > 0, growth >= 1, coarsest >= finest");
   // A centre within a cell of an end moves onto it: no sliver cell at the end.
@@ -19,13 +20,18 @@ std::vector<double> graded_axis(double lo, double hi, double centre, double fine
   if (centre - lo < finest) centre = lo;
   if (hi - centre < finest) centre = hi;
   // Sizes going outwards from the centre on one side, until the side's length is covered.
-  const auto side = [&](double length) {
+  // `end_cell`: cells no larger than end_cell + (growth - 1) x their distance from the side's
+  // end (0: no such limit).
+  const auto side = [&](double length, double end_cell) {
     std::vector<double> sizes;
     double covered = 0.0, h = finest;
     while (covered < length - 1e-12 * (hi - lo)) {
       if (covered >= fine_half_width) h = std::min(h * growth, coarsest);
-      sizes.push_back(h);
-      covered += h;
+      double cell = h;
+      if (end_cell > 0.0)
+        cell = std::max(std::min(h, end_cell + (growth - 1.0) * (length - covered - h)), end_cell);
+      sizes.push_back(std::min(cell, length - covered + 1e-15));
+      covered += sizes.back();
     }
     // Scale the last cells so the side ends exactly at its end (the last one alone could be a
     // sliver).
@@ -36,7 +42,7 @@ std::vector<double> graded_axis(double lo, double hi, double centre, double fine
     }
     return sizes;
   };
-  const std::vector<double> down = side(centre - lo), up = side(hi - centre);
+  const std::vector<double> down = side(centre - lo, lo_cell), up = side(hi - centre, 0.0);
   std::vector<double> x;
   x.reserve(down.size() + up.size() + 1);
   x.push_back(lo);
@@ -85,11 +91,13 @@ HexLattice build_hex_lattice(std::span<const glm::dvec3> vertices,
   // A margin of a tenth of the finest cell: no surface vertex on the lattice's outer faces.
   lo -= glm::dvec3(0.1 * o.finest_m);
   hi += glm::dvec3(0.1 * o.finest_m);
+  if (o.floor_z_m > lo.z) lo.z = o.floor_z_m;
+  if (!(hi.z > lo.z)) throw std::invalid_argument("hex lattice: the floor is above the solid");
   HexLattice lattice;
   for (int a = 0; a < 3; ++a) {
     lattice.axis[static_cast<std::size_t>(a)] =
         graded_axis(lo[a], hi[a], o.focus_m[a], o.finest_m, o.fine_half_width_m, o.growth,
-                    std::max(o.coarsest_m, o.finest_m));
+                    std::max(o.coarsest_m, o.finest_m), a == 2 ? o.floor_cell_m : 0.0);
   }
   const auto d = lattice.cell_dims();
   const std::size_t n_cells = d[0] * d[1] * d[2];
@@ -123,6 +131,7 @@ HexLattice build_hex_lattice(std::span<const glm::dvec3> vertices,
   // embedded in them. Their stiffness then counts at least one sample's share.
   for (const auto& points : {vertices, also_embed}) {
     for (const glm::dvec3& v : points) {
+      if (v.z < lo.z) continue;  // below the floor: cut away
       const auto [i, j, k] = lattice.locate(v);
       double& f = fill[(k * d[1] + j) * d[0] + i];
       f = std::max(f, per_sample);

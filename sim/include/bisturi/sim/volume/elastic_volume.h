@@ -1,10 +1,10 @@
 #pragma once
-// A tissue solid's volume: corotational trilinear hexahedra (Nesme, Payan and Faure 2005;
-// Mueller and Gross 2004 for the corotation) on a HexLattice, straight from the material's
-// Young's modulus and Poisson's ratio, with no spring constant to calibrate. Each element's
-// rotation comes from the polar decomposition of its deformation gradient at the centre; its
-// stiffness is linear elasticity with selective reduced integration (no volumetric locking near
-// incompressibility), weighted by the cell's inside share.
+// A tissue solid's volume: trilinear hexahedra on a HexLattice, straight from the material's
+// Young's modulus and Poisson's ratio, with no spring constant to calibrate: corotated linear
+// elasticity (Nesme, Payan and Faure 2005; the rotation of Mueller and Gross 2004, from the
+// polar decomposition of each element's deformation gradient at its centre) or compressible
+// neo-Hookean, both with selective reduced integration (the volumetric part at the centre: no
+// locking near incompressibility), weighted by the cell's inside share.
 //
 // This stage solves for static equilibrium: a rigid spherical probe pressed into the embedded
 // surface (`bisturi tissue indent --model volume`), contact by an augmented Lagrangian on the
@@ -45,9 +45,21 @@ struct PressResult {
   bool converged = false;
 };
 
+/// How the elements resist: both from E and nu, identical at small strains.
+enum class ElasticLaw : std::uint8_t {
+  /// Linear elasticity in each element's rotated frame: large rotations, small strains.
+  Corotational,
+  /// Compressible neo-Hookean (CalculiX's NEO HOOKE, C10 = mu / 2, D1 = 2 / K): finite strains;
+  /// a tissue stiffens in compression as it should. Its equilibrium is found with the
+  /// corotated linear stiffness as the Newton matrix (exact at small strains), so each step
+  /// still solves a symmetric positive definite system.
+  NeoHookean,
+};
+
 class ElasticVolume {
  public:
-  ElasticVolume(HexLattice lattice, const ElasticMaterial& material);
+  ElasticVolume(HexLattice lattice, const ElasticMaterial& material,
+                ElasticLaw law = ElasticLaw::NeoHookean);
   ~ElasticVolume();
   ElasticVolume(ElasticVolume&&) noexcept;
   ElasticVolume& operator=(ElasticVolume&&) noexcept;
@@ -66,7 +78,12 @@ class ElasticVolume {
 
  private:
   struct Solver;
+  /// The forces at the current positions (elements and contact, into the solver's force) and,
+  /// with_matrix, the Newton matrix; the probe's force, contacts and penetration into `out`.
+  void assemble(std::span<const EmbeddedPoint> points, const glm::dvec3& centre, double radius,
+                double penalty, bool with_matrix, PressResult& out);
   HexLattice lattice_;
+  ElasticLaw law_;
   double mu_ = 0.0, lambda_ = 0.0;
   std::vector<glm::dvec3> x_;
   std::vector<std::uint8_t> held_;

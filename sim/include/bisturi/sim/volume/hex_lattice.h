@@ -9,6 +9,7 @@
 // embedded (volume/embedding.h).
 
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -24,6 +25,10 @@ struct LatticeOptions {
   glm::dvec3 focus_m{0.0};      ///< where the cells are finest
   double fine_half_width_m = 0.0;  ///< cells stay finest within this distance of the focus
   int fill_samples = 3;         ///< per axis and cell, for the inside share
+  /// The solid is cut at this height: no cell below it (a rigid plane it stands on).
+  double floor_z_m = -INFINITY;
+  /// Cells next to the floor no taller than this, growing away from it (0: no limit).
+  double floor_cell_m = 0.0;
 };
 
 struct HexLattice {
@@ -48,9 +53,11 @@ struct HexLattice {
 };
 
 /// Node coordinates from lo to hi: cells of `finest` within fine_half_width of `centre`, then
-/// each `growth` times the last up to `coarsest`; the ends land exactly on lo and hi.
+/// each `growth` times the last up to `coarsest`; with lo_cell > 0 the cells shrink again
+/// towards lo, to lo_cell there. The ends land exactly on lo and hi.
 std::vector<double> graded_axis(double lo, double hi, double centre, double finest,
-                                double fine_half_width, double growth, double coarsest);
+                                double fine_half_width, double growth, double coarsest,
+                                double lo_cell = 0.0);
 
 /// The lattice filling the closed, consistently oriented triangle surface (any winding: inside
 /// is decided by ray parity). Throws std::invalid_argument on an empty surface or bad options.
