@@ -159,7 +159,8 @@ TOML
     # What the default session's force commands do to the hand, read back from its recording
     # with `bisturi trace forces` (the scene's limit is 3 N): no channel changes by more than the
     # glove's rate limit in one tick (fault zeros apart), a command at the limit is counted as
-    # clamped in the report, and no channel chatters (rms about its 11-tick mean) above 30 mN.
+    # clamped in the report, and no channel chatters (rms about its 11-tick mean) above 50 mN
+    # (it was 60 to 95 mN before the kicks' causes were removed, 25 to 30 mN since).
     rm -rf "$work/forces"
     "$bisturi" run --duration 10 --eye-width 64 --eye-height 64 --no-openxr \
       --out "$work/forces" --record "$work/forces.btrace" > "$work/forces.txt" 2>&1 ||
@@ -176,7 +177,7 @@ TOML
       fail "$at_limit commands at the limit, but the report counts no clamped forces"
     fi
     grep -o '"chatter_rms_N": [0-9.e-]*' "$work/forces.json" |
-      awk '{ if ($2 + 0 > 0.03) bad = 1 } END { exit bad }' ||
+      awk '{ if ($2 + 0 > 0.05) bad = 1 } END { exit bad }' ||
       { grep -E '"(channel|chatter_rms_N|reversals)"' "$work/forces.json"; fail "a channel chatters"; }
     echo "forces: ok ($channels channels, $at_limit commands at the limit, $clamped clamped)"
     ;;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include <glm/geometric.hpp>
 
@@ -50,12 +51,58 @@ glm::dvec3 contact_patch(const SoftBody& body, const SurfaceBvh& bvh, const Surf
   return normal;
 }
 
+/// Whether the segment's box meets the box [lo, hi] grown by pad (a cheap test before a sweep).
+bool segment_box_overlap(const glm::dvec3& a, const glm::dvec3& b,
+                         const std::pair<glm::dvec3, glm::dvec3>& box, double pad) {
+  for (int k = 0; k < 3; ++k) {
+    if (std::max(a[k], b[k]) < box.first[k] - pad || std::min(a[k], b[k]) > box.second[k] + pad)
+      return false;
+  }
+  return true;
+}
+
+/// The first face the path from -> to enters from its front side, over the live bodies; a
+/// path leaving a body first (a back face) enters nothing.
+SurfacePoint first_entry(const glm::dvec3& from, const glm::dvec3& to,
+                         std::span<const TouchTarget> targets, double pad,
+                         std::int32_t& entered_body) {
+  SurfacePoint best;
+  entered_body = -1;
+  const glm::dvec3 path = to - from;
+  for (std::size_t b = 0; b < targets.size(); ++b) {
+    const TouchTarget& t = targets[b];
+    if (t.body->frozen() || !t.touchable || !segment_box_overlap(from, to, t.bvh->bounds(), pad))
+      continue;
+    const SurfacePoint hit = t.bvh->ray(*t.body, from, to);
+    if (!hit.found || glm::dot(path, hit.normal) >= 0.0) continue;
+    if (!best.found || hit.distance_m < best.distance_m) {
+      best = hit;
+      entered_body = static_cast<std::int32_t>(b);
+    }
+  }
+  return best;
+}
+
 }  // namespace
+
+bool HapticProxy::steady_contact(const SurfacePoint& best, std::int32_t body,
+                                 const glm::dvec3& motion) const {
+  if (!contact_ || body != contact_body_ || glm::dot(best.normal, contact_normal_) <= 0.5)
+    return false;
+  // The closest point must stay near last tick's footprint (the proxy's foot on the surface):
+  // within the device's slide since, the probe radius and last tick's depth (a deep press on
+  // soft tissue has its closest point off to the side of the dent).
+  const double r = options_.probe_radius_m;
+  const glm::dvec3 footprint = proxy_ - r * contact_normal_;
+  const glm::dvec3 slide = motion - glm::dot(motion, contact_normal_) * contact_normal_;
+  return glm::length(best.point_m - footprint) <= glm::length(slide) + r + contact_depth_;
+}
 
 HapticOutput HapticProxy::update(const glm::dvec3& device, std::span<const TouchTarget> targets,
                                  double dt_s) {
   if (!initialised_) {
     proxy_ = device;
+    last_device_ = device;
     initialised_ = true;
   }
   const double r = options_.probe_radius_m;
@@ -68,6 +115,18 @@ HapticOutput HapticProxy::update(const glm::dvec3& device, std::span<const Touch
     if (sp.found && (!best.found || sp.distance_m < best.distance_m)) {
       best = sp;
       best_body = static_cast<std::int32_t>(b);
+    }
+  }
+  // The sweep: from last tick's proxy (on the free side of every surface) to the device. Paths
+  // shorter than a tenth of the probe radius cannot cross what the closest point misses.
+  const glm::dvec3 path = device - proxy_;
+  if (options_.continuous && glm::length(path) > 0.1 * r &&
+      !(best.found && steady_contact(best, best_body, device - last_device_))) {
+    std::int32_t entered = -1;
+    const SurfacePoint entry = first_entry(proxy_, device, targets, r, entered);
+    if (entry.found) {
+      best = entry;
+      best_body = entered;
     }
   }
   HapticOutput out;
@@ -101,6 +160,10 @@ HapticOutput HapticProxy::update(const glm::dvec3& device, std::span<const Touch
   }
   proxy_ = target_proxy;
   contact_ = contact;
+  contact_body_ = contact ? best_body : -1;
+  contact_normal_ = n;
+  last_device_ = device;
+  contact_depth_ = contact ? out.depth_m : 0.0;
 
   const glm::dvec3 force = limited(options_.coupling_N_per_m * (proxy_ - device), dt_s);
 

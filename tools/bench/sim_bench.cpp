@@ -8,7 +8,8 @@
 // step, a cut tick and the step after it). BM_Refit: the Embree refit of a sphere on its own;
 // BM_RefitPart: the same when only a region of it moves. BM_MakeBody: a SoftBody made from its
 // solid. BM_Multirate*: multirate stepping's time and fidelity; BM_ForceConvergence: how the
-// haptic force depends on the step length.
+// haptic force depends on the step length. BM_FastTip: what the haptic sweep (continuous
+// collision) costs a step under a 1 m/s gesture.
 // Run by hand: build/bin/sim_bench [--benchmark_filter=...]. Goal: p99 <= 1 ms at 20k.
 
 #include <benchmark/benchmark.h>
@@ -562,6 +563,50 @@ void BM_MakeBody(benchmark::State& state) {
   state.counters["springs"] = double(springs);
 }
 BENCHMARK(BM_MakeBody)->Arg(2000)->Arg(20000)->Arg(100000)->Unit(benchmark::kMillisecond);
+
+// A fast gesture: the tip plunges from 2 mm above the sphere's top to 6 mm into it and back at
+// 1 m/s (1 mm per tick, a triangle wave), with the haptic sweep on (second argument 1) or off
+// (0) in the same run: what continuous collision costs a full step, single thread.
+void BM_FastTip(benchmark::State& state) {
+  const Shape& shape = sphere(radius_for(state.range(0)));
+  WorldOptions options;
+  options.embree_threads = 1;
+  options.integrator.threads = 1;
+  options.haptic.continuous = state.range(1) != 0;
+  SimWorld world(options);
+  add_bench_sphere(world, shape);
+  const double c = shape.centre_mm * 1e-3, r = shape.radius_mm * 1e-3;
+  std::uint64_t s = 0;
+  auto device = [&] {
+    const int phase = static_cast<int>(s % 16);  // 8 ticks down, 8 up
+    const double depth = 1e-3 * (phase < 8 ? phase : 16 - phase) - 0.002;
+    return glm::dvec3(c, c, c + r - depth);
+  };
+  for (int w = 0; w < 64; ++w, ++s)
+    world.step(device());
+  std::vector<double> samples;
+  for (auto _ : state) {
+    const glm::dvec3 d = device();
+    const auto t0 = std::chrono::steady_clock::now();
+    const HapticOutput out = world.step(d);
+    const auto t1 = std::chrono::steady_clock::now();
+    benchmark::DoNotOptimize(out);
+    const double sec = std::chrono::duration<double>(t1 - t0).count();
+    state.SetIterationTime(sec);
+    samples.push_back(sec * 1e6);
+    ++s;
+  }
+  state.counters["p50_us"] = percentile(samples, 0.50);
+  state.counters["p99_us"] = percentile(samples, 0.99);
+}
+BENCHMARK(BM_FastTip)
+    ->Args({2000, 1})
+    ->Args({2000, 0})
+    ->Args({20000, 1})
+    ->Args({20000, 0})
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond)
+    ->Iterations(2000);
 
 }  // namespace
 
