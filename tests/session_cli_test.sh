@@ -1,6 +1,6 @@
 #!/bin/sh
 # The headset session from the command line, as CTest runs it:
-#   session_cli_test.sh BISTURI WORKDIR run|replay|corrupt|scene-error|real-missing|stored|lockstep|forces TRACE
+#   session_cli_test.sh BISTURI WORKDIR run|replay|corrupt|scene-error|real-missing|stored|lockstep|forces|rotated TRACE
 set -u
 bisturi="$1"
 work="$2"
@@ -180,6 +180,38 @@ TOML
       awk '{ if ($2 + 0 > 0.05) bad = 1 } END { exit bad }' ||
       { grep -E '"(channel|chatter_rms_N|reversals)"' "$work/forces.json"; fail "a channel chatters"; }
     echo "forces: ok ($channels channels, $at_limit commands at the limit, $clamped clamped)"
+    ;;
+  rotated)
+    # The glove turned 90 degrees about z and moved in the scene: its twin moves as the device
+    # would there (the scripted procedure goes through the inverse transform), so the session is
+    # the unturned one's: contacts, a grasp and its release, every channel's peak force within
+    # 10 % (a finger's contact follows the twin's quantised poses), and it replays exactly.
+    "$bisturi" run --print-default-scene > "$work/turned.toml" || fail "print-default-scene"
+    sed -i 's|^max_force_N = 3.0|max_force_N = 3.0\ndevice_to_scene_rotation_deg = [0.0, 0.0, 90.0]\ndevice_to_scene_translation_mm = [100.0, -20.0, 5.0]|' "$work/turned.toml"
+    grep -q "device_to_scene_rotation_deg" "$work/turned.toml" || fail "could not turn the glove"
+    for name in straight turned; do
+      scene=""
+      [ "$name" = turned ] && scene="$work/turned.toml"
+      rm -rf "$work/$name"
+      # shellcheck disable=SC2086
+      "$bisturi" run $scene --duration 5 --eye-width 64 --eye-height 64 --no-openxr \
+        --out "$work/$name" --record "$work/$name.btrace" > "$work/$name.txt" 2>&1 ||
+        { cat "$work/$name.txt"; fail "bisturi run ($name) exited with $?"; }
+      "$bisturi" trace forces "$work/$name.btrace" --json | tr -d ' \n' |
+        grep -o '"max_N":[0-9.e-]*' | cut -d: -f2 > "$work/$name.peak"
+    done
+    grep -q '"kind": "contact"' "$work/turned/report.json" || fail "the turned glove touches nothing"
+    grep -q '"kind": "grasp"' "$work/turned/report.json" || fail "the turned glove grasps nothing"
+    grep -q '"kind": "release"' "$work/turned/report.json" || fail "the turned glove never lets go"
+    paste "$work/straight.peak" "$work/turned.peak" |
+      awk '{ d = $2 - $1; if (d < 0) d = -d; m = ($1 > $2 ? $1 : $2)
+             print "  channel " NR ": peak " $1 " N straight, " $2 " N turned"
+             if (d > 0.1 * m + 0.05) bad = 1 }
+           END { exit bad + (NR < 6) }' ||
+      fail "the turned glove feels other forces"
+    out=$("$bisturi" replay "$work/turned.btrace" --json) || { echo "$out"; fail "replay turned"; }
+    echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "the turned session did not replay"; }
+    echo "rotated: ok"
     ;;
   *) fail "unknown mode $mode" ;;
 esac

@@ -29,6 +29,25 @@ devices::Pose DeviceFrame::to_scene(const devices::Pose& device_pose) const {
   return out;
 }
 
+devices::Pose DeviceFrame::to_device(const devices::Pose& scene_pose) const {
+  if (identity_) return scene_pose;
+  const glm::dvec3 p(scene_pose.position_m.x, scene_pose.position_m.y, scene_pose.position_m.z);
+  const glm::dquat q(scene_pose.orientation.w, scene_pose.orientation.x,
+                     scene_pose.orientation.y, scene_pose.orientation.z);
+  const glm::dvec3 pd = to_device_ * (p - translation_m_);
+  const glm::dquat qd = glm::conjugate(rotation_) * q;
+  devices::Pose out;
+  out.position_m = {pd.x, pd.y, pd.z};
+  out.orientation = {qd.w, qd.x, qd.y, qd.z};
+  return out;
+}
+
+devices::DeviceScript DeviceFrame::script_to_device(devices::DeviceScript scene_script) const {
+  for (devices::MotionKey& key : scene_script.motion)
+    key.pose = to_device(key.pose);
+  return scene_script;
+}
+
 void DeviceFrame::to_scene(const devices::HapticState& device_state,
                            devices::HapticState& scene_state) const {
   scene_state.sample_time = device_state.sample_time;

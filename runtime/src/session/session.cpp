@@ -206,9 +206,12 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   report.max_tissue_ticks_per_step = first_ticks_per_step;
   const auto duration =
       Nanoseconds{static_cast<std::int64_t>(std::llround(report.duration_s * 1e9))};
-  const Procedure procedure =
+  Procedure procedure =
       make_procedure(choice.haptic->simulated ? choice.haptic->script : std::string("default"),
                      solids, duration, devices::SimulatedGlove::kJoints);
+  // The procedure is written in scene coordinates; the twin moves as the device would where the
+  // scene puts it (the session brings its poses back through device_to_scene).
+  procedure.glove = device_frame_of(*choice.haptic).script_to_device(std::move(procedure.glove));
   const devices::Registry registry = devices::builtin_registry();
 
   std::unique_ptr<devices::TraceWriter> writer =

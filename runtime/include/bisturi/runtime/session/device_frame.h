@@ -9,6 +9,7 @@
 #include <glm/vec3.hpp>
 
 #include "bisturi/devices/device.h"
+#include "bisturi/devices/simulated.h"
 #include "bisturi/runtime/session/scene_description.h"
 
 namespace bisturi::runtime {
@@ -23,6 +24,12 @@ class DeviceFrame {
   [[nodiscard]] devices::Pose to_scene(const devices::Pose& device_pose) const;
   /// Every end effector pose of a haptic state in the scene frame (the rest is copied).
   void to_scene(const devices::HapticState& device_state, devices::HapticState& scene_state) const;
+  /// A scene pose in the device's frame (the inverse of to_scene).
+  [[nodiscard]] devices::Pose to_device(const devices::Pose& scene_pose) const;
+  /// A script written in scene coordinates (a procedure's) as the device itself would move: its
+  /// poses through to_device. A twin following it reports what the real device would in the
+  /// same place, so the session's to_scene brings it back to the scene's path.
+  [[nodiscard]] devices::DeviceScript script_to_device(devices::DeviceScript scene_script) const;
   /// A scene-frame force vector in the device's frame (rotation only: forces are free vectors).
   [[nodiscard]] glm::dvec3 force_to_device(const glm::dvec3& scene_force_N) const;
   [[nodiscard]] bool identity() const { return identity_; }
