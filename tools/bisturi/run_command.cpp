@@ -275,6 +275,7 @@ int run_run(const RunOptions& options) {
         {"render_ms", summary_json(r.render_ms)},
         {"motion_to_photon_ms", summary_json(r.motion_to_photon_ms)},
         {"action_to_response_ms", summary_json(r.action_to_response_ms)}}},
+      {"max_force_N", r.max_force_N},
       {"haptic_nominal_period_ms", nominal_ms},
       {"counts",
        {{"overruns", r.overruns},
