@@ -390,7 +390,6 @@ TEST(ForceGuard, ClampsAndLimitsTheRate) {
   EXPECT_NEAR(out[0], 5.0, 1e-12);
   EXPECT_NEAR(out[1], 2.0 * 3 / 5, 1e-12);
   EXPECT_NEAR(out[2], 2.0 * 4 / 5, 1e-12);
-  EXPECT_EQ(bd::classify(bd::Fault::ForceAboveLimit), bd::FaultAction::ClampAndContinue);
   EXPECT_GT(guard.clamp_count(), 0u);
 }
 
@@ -431,7 +430,6 @@ TEST(ForceGuard, NanLatchesUntilRearm) {
   guard.rearm();
   guard.step(std::span(&cmd, 1), 40ms, std::span(&out, 1));
   EXPECT_EQ(guard.state(), bd::GuardState::Engaged);
-  EXPECT_EQ(bd::classify(bd::Fault::NonFiniteCommand), bd::FaultAction::StopForces);
 }
 
 TEST(ForceGuard, WatchdogDeadlineAndSilence) {
@@ -470,11 +468,6 @@ TEST(ForceGuard, WatchdogDeadlineAndSilence) {
     r = step(1ms, false);
   EXPECT_EQ(r.latched, bd::Fault::DeviceSilent);
   EXPECT_EQ(out, 0.0);
-  // A supervisor's watchdog.
-  bd::LoopWatchdog watchdog;
-  watchdog.kick(10ms);
-  EXPECT_FALSE(watchdog.expired(12ms));
-  EXPECT_TRUE(watchdog.expired(13100us));
   bd::ForceGuard fresh({finger()}, config);
   fresh.device_answered(0ms);
   fresh.step(std::span(&cmd, 1), 0ms, std::span(&out, 1));
@@ -503,9 +496,7 @@ TEST(ForceGuard, DisconnectZeroesFirst) {
     arm->send_forces(out);
   }
   EXPECT_NEAR(twin.applied_force_N().x, 2.0, 1e-3);
-  // A transport error classified as a lost device: latch, send the zeros, then drop the device.
-  bd::DeviceDisconnected lost("arm: gone");
-  EXPECT_EQ(bd::classify(bd::classify_exception(lost)), bd::FaultAction::StopForces);
+  // A lost device: latch, send the zeros, then drop the device.
   guard.device_disconnected();
   EXPECT_EQ(guard.last_output()[0], 0.0);
   arm->send_forces(guard.last_output());

@@ -43,28 +43,6 @@ const char* to_string(Fault fault) {
   return "unknown";
 }
 
-FaultAction classify(Fault fault) {
-  switch (fault) {
-    case Fault::None:
-    case Fault::ForceAboveLimit:
-    case Fault::ForceRateAboveLimit:
-      return FaultAction::ClampAndContinue;
-    case Fault::MalformedReport:
-      return FaultAction::DropAndContinue;
-    case Fault::NonFiniteCommand:
-    case Fault::DeadlineOverrun:
-    case Fault::DeviceSilent:
-    case Fault::DeviceDisconnected:
-      return FaultAction::StopForces;
-  }
-  return FaultAction::StopForces;
-}
-
-Fault classify_exception(const std::exception& error) {
-  if (dynamic_cast<const ProtocolError*>(&error)) return Fault::MalformedReport;
-  return Fault::DeviceDisconnected;
-}
-
 namespace {
 
 bool is_watchdog_fault(Fault fault) {
@@ -247,17 +225,6 @@ GuardStep ForceGuard::step(std::span<const double> command_N, Nanoseconds now,
   std::copy(output_.begin(), output_.end(), out_N.begin());
   result.state = state_;
   return result;
-}
-
-LoopWatchdog::LoopWatchdog(Nanoseconds period, Nanoseconds margin) : limit_(period + margin) {}
-
-void LoopWatchdog::kick(Nanoseconds now) {
-  last_kick_.store(now.count());
-}
-
-bool LoopWatchdog::expired(Nanoseconds now) const {
-  const auto last = last_kick_.load();
-  return last >= 0 && now.count() - last > limit_.count();
 }
 
 }  // namespace bisturi::devices

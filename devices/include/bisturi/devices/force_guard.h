@@ -4,9 +4,7 @@
 // from the caller's Clock, so replay in virtual time gives the same forces.
 #pragma once
 
-#include <atomic>
 #include <cstdint>
-#include <exception>
 #include <span>
 #include <vector>
 
@@ -52,15 +50,6 @@ enum class Fault : std::uint8_t {
 };
 const char* to_string(Fault fault);
 
-enum class FaultAction : std::uint8_t {
-  ClampAndContinue,  // an unsafe command: made safe, session goes on
-  DropAndContinue,   // a bad report: ignored, session goes on
-  StopForces,        // forces latched to zero
-};
-FaultAction classify(Fault fault);
-// Classifies an exception from a device: DeviceDisconnected -> DeviceDisconnected,
-// ProtocolError -> MalformedReport, other DeviceError -> DeviceDisconnected (forces stop).
-Fault classify_exception(const std::exception& error);
 
 struct GuardStep {
   GuardState state = GuardState::WaitingForSmallCommand;
@@ -88,7 +77,8 @@ class ForceGuard {
   // when the loop missed its deadline or the device went silent.
   bool watchdog_expired(Nanoseconds now);
 
-  // A supervisor saw the loop stall past its deadline (LoopWatchdog): latches zero at once, as a
+  // A supervisor saw the loop stall past its deadline (the haptic loop's zero_if_stalled):
+  // latches zero at once, as a
   // missed deadline does (the output is zero immediately, not rate-limited down; it re-arms by
   // itself like a missed deadline when watchdog_auto_rearm).
   void deadline_missed();
@@ -123,20 +113,6 @@ class ForceGuard {
   Nanoseconds ramp_start_{0};
   std::uint64_t clamps_ = 0;
   std::uint64_t rate_limits_ = 0;
-};
-
-// A watchdog for a supervisor: the loop kicks it each step; check() says whether the last kick is
-// older than period + margin. Thread-safe (atomics), clock-agnostic.
-class LoopWatchdog {
- public:
-  explicit LoopWatchdog(Nanoseconds period = std::chrono::milliseconds(1),
-                        Nanoseconds margin = std::chrono::milliseconds(2));
-  void kick(Nanoseconds now);
-  bool expired(Nanoseconds now) const;
-
- private:
-  Nanoseconds limit_;
-  std::atomic<Nanoseconds::rep> last_kick_{-1};
 };
 
 }  // namespace bisturi::devices

@@ -176,7 +176,7 @@ struct SessionReport {
   std::uint64_t divergence_events = 0;
   /// Hand-overs the tissue could not queue (a whole ring behind); the ticks then used older steps.
   std::uint64_t dropped_tissue_steps = 0;
-  /// Stalled ticks whose output the supervisor zeroed (LoopWatchdog: period + guard margin).
+  /// Stalled ticks whose output the supervisor zeroed (past the period plus the guard's margin).
   std::uint64_t supervisor_zeros = 0;
   /// Ticks whose step was older than the due one by more than stale_margin_ticks: their force
   /// faded to zero. The longest such run, in ticks.
