@@ -76,6 +76,9 @@ TOML
     [ "$status" -ne 0 ] || fail "a session without its hardware ran"
     grep -q "real.toml: device 'glove' (driver hid-glove): not connected" "$work/real.txt" ||
       fail "the missing device is not named"
+    # The report is written for a session that never started too.
+    tr -d '\n' < "$work/real/report.json" | grep -q '"ending": "error",.*"error": "[^"]*not connected.*"stage": "setup"' ||
+      { cat "$work/real/report.json"; fail "no report.json saying the set-up failed"; }
     echo "real-missing: ok"
     ;;
   stored)

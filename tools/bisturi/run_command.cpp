@@ -103,14 +103,41 @@ void add_replay_command(CLI::App& app, ReplayOptions& options, int (*&run)(const
   cmd->callback([&run] { run = run_replay; });
 }
 
+namespace {
+
+/// report.json for a session that never started (a bad scene file, a device not connected, a
+/// trace that cannot be written): the ending, the stage and the error, so a script reading the
+/// report always finds one. Best effort: a folder that cannot be written is the error itself.
+void write_setup_failure(const std::filesystem::path& out, const std::string& scene,
+                         const std::string& error) {
+  try {
+    std::filesystem::create_directories(out);
+    const nlohmann::json report = {{"scene", scene},
+                                   {"ending", "error"},
+                                   {"stage", "setup"},
+                                   {"error", error},
+                                   {"out", out.string()}};
+    std::ofstream(out / "report.json") << report.dump(2) << "\n";
+  } catch (const std::exception&) {
+  }
+}
+
+}  // namespace
+
 int run_run(const RunOptions& options) {
   if (options.print_default_scene) {
     std::cout << runtime::default_scene_toml();
     return 0;
   }
-  const runtime::SceneDescription scene =
-      options.scene.empty() ? runtime::default_scene() : runtime::read_scene_file(options.scene);
   const std::filesystem::path out(options.out);
+  runtime::SceneDescription scene;
+  try {
+    scene = options.scene.empty() ? runtime::default_scene()
+                                  : runtime::read_scene_file(options.scene);
+  } catch (const std::exception& e) {
+    write_setup_failure(out, options.scene, e.what());
+    throw;
+  }
   std::filesystem::create_directories(out);
 
   runtime::SessionOptions so;
@@ -188,9 +215,15 @@ int run_run(const RunOptions& options) {
   runtime::SessionReport r;
   try {
     r = runtime::run_session(scene, so);
+  } catch (const std::exception& e) {
+    sigaction(SIGINT, &old_int, nullptr);
+    sigaction(SIGTERM, &old_term, nullptr);
+    write_setup_failure(out, scene.name, e.what());
+    throw;
   } catch (...) {
     sigaction(SIGINT, &old_int, nullptr);
     sigaction(SIGTERM, &old_term, nullptr);
+    write_setup_failure(out, scene.name, "an unknown error");
     throw;
   }
   sigaction(SIGINT, &old_int, nullptr);
