@@ -1,6 +1,8 @@
 #version 450
-// Blinn-Phong with a key light and a hemisphere ambient term: enough shading to read the shape
-// of tissue, cheap enough for a CPU rasterizer.
+// Blinn-Phong with a key light, a hemisphere ambient term and a fill from the viewer's side:
+// enough shading to read the shape of tissue, cheap enough for a CPU rasterizer. With the field
+// lamp on, the light falls off with distance from the viewer past the lamp's focus (an
+// operating lamp's pool of light): nearer tissue is brighter, a depth cue in each eye.
 #extension GL_EXT_multiview : require
 
 layout(location = 0) in vec3 v_normal;
@@ -10,6 +12,7 @@ layout(set = 0, binding = 0) uniform Eyes {
   mat4 view_projection[2];
   vec4 eye_position[2];
   vec4 light_direction;
+  vec4 lamp;  // xyz: the field lamp's focus (world mm); w: 1 when the lamp is on
 } eyes;
 
 layout(push_constant) uniform Draw {
@@ -31,10 +34,21 @@ void main() {
   const vec3 l = normalize(eyes.light_direction.xyz);
   const vec3 v = normalize(eyes.eye_position[gl_ViewIndex].xyz - v_world);
   const vec3 h = normalize(l + v);
-  const float hemisphere = 0.5 + 0.5 * dot(n, l);
+  // The ambient term never reaches black: the side away from the key light still gets the
+  // light the field scatters back (a third of the sky's).
+  const float hemisphere = mix(0.35, 1.0, 0.5 + 0.5 * dot(n, l));
   const float diffuse = max(dot(n, l), 0.0);
+  const float fill = 0.25 * max(dot(n, v), 0.0);
   const float specular = diffuse > 0.0 ? pow(max(dot(n, h), 0.0), draw.material.w) : 0.0;
-  const vec3 c = albedo * (draw.material.x * hemisphere + draw.material.y * diffuse) +
-                 vec3(shine * specular);
+  float pool = 1.0;
+  if (eyes.lamp.w > 0.0) {
+    const vec3 eye = eyes.eye_position[gl_ViewIndex].xyz;
+    const float focus = length(eyes.lamp.xyz - eye);
+    const float d = max(length(v_world - eye), 1e-3);
+    pool = clamp((focus * focus) / (d * d), 0.3, 1.4);
+  }
+  const vec3 c = pool * (albedo * (draw.material.x * hemisphere +
+                                   draw.material.y * (diffuse + fill)) +
+                         vec3(shine * specular));
   out_colour = vec4(pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2)), 1.0);
 }

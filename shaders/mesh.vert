@@ -9,6 +9,7 @@ layout(set = 0, binding = 0) uniform Eyes {
   mat4 view_projection[2];
   vec4 eye_position[2];  // world millimetres
   vec4 light_direction;  // towards the light, world frame
+  vec4 lamp;             // the field lamp (fragment stage)
 } eyes;
 
 layout(push_constant) uniform Draw {

@@ -110,6 +110,7 @@ int run_render(const RenderOptions& options) {
   ro.headset.ipd_mm = framing.ipd_mm;
   ro.frustum_culling = !options.no_culling;
   ro.level_of_detail = !options.no_lod;
+  ro.field_lamp = true;  // nearer surfaces brighter: the orbit reads in depth
   ro.validation = options.validation;
   if (options.cpu) ro.device = render::DevicePreference::Cpu;
   render::StereoRenderer renderer(ro);

@@ -26,6 +26,7 @@ struct EyeUniforms {
   glm::mat4 view_projection[2];
   glm::vec4 eye_position[2];
   glm::vec4 light_direction;
+  glm::vec4 lamp;  ///< the field lamp's focus (world mm), w = 1 when on
 };
 
 class MeshPipeline {

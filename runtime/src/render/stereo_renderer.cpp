@@ -399,6 +399,13 @@ struct StereoRenderer::Impl {
     const glm::dmat3 head_rotation = glm::mat3_cast(glm::normalize(head.orientation));
     uniforms.light_direction =
         glm::vec4(glm::vec3(glm::normalize(head_rotation * glm::dvec3(0.3, 0.8, 0.6))), 0.0f);
+    if (options.field_lamp) {
+      Aabb field;
+      for (const Solid& s : solids) {
+        if (s.visible && !s.instrument) field.extend(s.levels->bounds());
+      }
+      if (!field.empty()) uniforms.lamp = glm::vec4(glm::vec3(0.5 * (field.lo + field.hi)), 1.0f);
+    }
     std::memcpy(slot.uniforms.data(), &uniforms, sizeof(uniforms));
 
     // Plan: cull solids, pick levels, cull chunks; count the vertex bytes to stream.

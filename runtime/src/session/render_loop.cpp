@@ -2,7 +2,9 @@
 
 #include "render_loop.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <limits>
 #include <optional>
 #include <stdexcept>
@@ -235,6 +237,9 @@ void feed_controller(devices::ControllerFeed& feed, const render::HeadsetFrame& 
   last_amplitude = *amplitude;
 }
 
+/// The background (linear RGB): a dark shade of surgical drape green, not a black void.
+constexpr glm::vec3 kFieldBackground{0.035f, 0.098f, 0.091f};
+
 }  // namespace
 
 void run_render_loop(const RenderLoopContext& c) {
@@ -263,6 +268,10 @@ void run_render_loop(const RenderLoopContext& c) {
     f.angle_up = static_cast<float>(scene.headset.fov_deg[2] * kRad);
     f.angle_down = static_cast<float>(-scene.headset.fov_deg[3] * kRad);
   }
+  // An operating field, not a void: a dark drape-green background and an operating lamp whose
+  // light falls off past the organs (a depth cue).
+  ro.clear_colour = kFieldBackground;
+  ro.field_lamp = true;
   // The headset first: the renderer draws on its device (and goes before it).
   std::unique_ptr<render::OpenXrSink> xr;
   if (options.openxr) {

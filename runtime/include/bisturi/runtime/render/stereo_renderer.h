@@ -59,6 +59,10 @@ struct RendererOptions {
   /// flight adds a frame of latency and no throughput).
   std::uint32_t frames_in_flight = 0;
   glm::vec3 clear_colour{0.0f, 0.0f, 0.0f};
+  /// An operating lamp at the viewer focused on the solids' centre: the light falls off with
+  /// the square of the distance from each eye, relative to the focus (0.3 to 1.4 times), so
+  /// nearer tissue is brighter. Off: uniform light, as a plain mesh viewer draws.
+  bool field_lamp = false;
   LevelOptions levels;
 };
 

@@ -1,0 +1,106 @@
+// The operating field's light: the side of an organ away from the key light is still lit (no
+// black void inside the silhouette), and with the field lamp on nearer tissue is brighter than
+// farther tissue of the same material and normal, a depth cue the plain light does not give.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <vector>
+
+#include "bisturi/runtime/render/instrument_mesh.h"
+#include "bisturi/scene/oriented_builder.h"
+#include "bisturi/scene/shapes.h"
+#include "render_test_support.h"
+
+namespace bisturi::render {
+namespace {
+
+using testing::Capture;
+using testing::RendererFixture;
+
+constexpr std::uint32_t kSize = 192;
+
+bool background(const std::uint8_t* px) {
+  return px[0] == 0 && px[1] == 0 && px[2] == 0;
+}
+
+class RenderFieldTest : public RendererFixture {};
+
+TEST_F(RenderFieldTest, TheSideAwayFromTheKeyLightIsNotBlack) {
+  RendererOptions options;
+  auto* r = make(options, kSize);
+  REQUIRE_RENDERER(r);
+  r->add_solid(testing::sphere_mm({0.0, 0.0, -200.0}, 40.0));
+  Capture frame;
+  r->set_sink(&frame);
+  r->render(testing::at_origin());
+  r->flush();
+  ASSERT_EQ(frame.frames, 1u);
+  std::vector<int> red;
+  for (std::uint32_t y = 0; y < kSize; ++y)
+    for (std::uint32_t x = 0; x < kSize; ++x)
+      if (!background(frame.at(0, x, y))) red.push_back(frame.at(0, x, y)[0]);
+  ASSERT_GT(red.size(), 1000u);
+  std::sort(red.begin(), red.end());
+  // The darkest percent of the sphere (its limb away from the light, lower left): the field's
+  // scattered light keeps it above 95 of 255 in red (the plain hemisphere light gave 75).
+  std::printf("darkest percent: red %d (darkest %d)\n", red[red.size() / 100], red.front());
+  EXPECT_GT(red[red.size() / 100], 95) << "darkest " << red.front();
+}
+
+/// A square of 80 mm tilted away from the viewer: its lower edge at 170 mm, its upper at 330.
+Dlfl receding_square() {
+  PolygonMesh grid = grid_mesh(8, 8, 10.0, true);
+  for (auto& p : grid.positions) {
+    const double y = p.y - 40.0;
+    p = glm::dvec3(p.x - 40.0, y, -250.0 - 2.0 * y);
+  }
+  return build_oriented_manifold(grid);
+}
+
+/// Mean green (red may saturate) of the `n` topmost and bottommost lit pixels of the centre
+/// column (far, near).
+std::pair<double, double> far_and_near(const Capture& frame, std::size_t n) {
+  std::vector<int> column;
+  for (std::uint32_t y = 0; y < kSize; ++y) {
+    const std::uint8_t* px = frame.at(0, kSize / 2, y);
+    if (!background(px)) column.push_back(px[1]);
+  }
+  if (column.size() < 2 * n) return {0.0, 0.0};
+  double far = 0.0, near = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    far += column[i];
+    near += column[column.size() - 1 - i];
+  }
+  return {far / double(n), near / double(n)};
+}
+
+TEST_F(RenderFieldTest, TheFieldLampMakesNearerTissueBrighter) {
+  std::pair<double, double> plain, lamp;
+  for (const bool on : {false, true}) {
+    RendererOptions options;
+    options.field_lamp = on;
+    auto* r = make(options, kSize);
+    REQUIRE_RENDERER(r);
+    r->add_solid(receding_square());
+    // An instrument does not move the lamp's focus: the solids' centre, the square's.
+    r->add_instrument(capsule_solid(1.0, 10.0), Material{}, glm::dmat4(1.0));
+    Capture frame;
+    r->set_sink(&frame);
+    r->render(testing::at_origin());
+    r->flush();
+    ASSERT_EQ(frame.frames, 1u);
+    (on ? lamp : plain) = far_and_near(frame, 6);
+  }
+  ASSERT_GT(plain.first, 0.0);
+  ASSERT_GT(lamp.first, 0.0);
+  // Same normal everywhere: without the lamp, near and far are within a few percent.
+  EXPECT_NEAR(plain.second / plain.first, 1.0, 0.1);
+  // With it, the near edge (170 mm) is brighter than the far one (330 mm) by a clear margin.
+  EXPECT_GT(lamp.second / lamp.first, 1.3 * plain.second / plain.first)
+      << "near " << lamp.second << ", far " << lamp.first;
+}
+
+}  // namespace
+}  // namespace bisturi::render
