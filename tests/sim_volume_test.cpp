@@ -72,7 +72,9 @@ Surface box(const glm::dvec3& lo, const glm::dvec3& hi, int n = 8) {
           s.vertices.push_back(p);
         }
       }
-      const auto at = [&](int a, int b) { return base + static_cast<std::uint32_t>(a * (n + 1) + b); };
+      const auto at = [&](int a, int b) {
+        return base + static_cast<std::uint32_t>(a * (n + 1) + b);
+      };
       for (int a = 0; a < n; ++a) {
         for (int b = 0; b < n; ++b) {
           if (end) {
@@ -149,7 +151,8 @@ TEST(HexElement, RigidMotionsAreFreeAndAUniformStrainGivesItsExactStress) {
   box_stiffness(h, mu, lambda, 1.0, k);
   std::array<glm::dvec3, 8> corner;
   for (int c = 0; c < 8; ++c)
-    corner[static_cast<std::size_t>(c)] = glm::dvec3((c & 1) * h.x, ((c >> 1) & 1) * h.y, ((c >> 2) & 1) * h.z);
+    corner[static_cast<std::size_t>(c)] =
+        glm::dvec3((c & 1) * h.x, ((c >> 1) & 1) * h.y, ((c >> 2) & 1) * h.z);
   const auto force = [&](const std::array<glm::dvec3, 8>& u, std::size_t i) {
     glm::dvec3 f(0.0);
     for (std::size_t j = 0; j < 8; ++j)
@@ -184,7 +187,8 @@ TEST(HexElement, RigidMotionsAreFreeAndAUniformStrainGivesItsExactStress) {
 }
 
 TEST(PolarRotation, RecoversTheRotationOfAStretchedRotatedGradient) {
-  const glm::dmat3 r = glm::dmat3(glm::rotate(glm::dmat4(1.0), 0.7, glm::normalize(glm::dvec3(1, 2, -1))));
+  const glm::dmat3 r =
+      glm::dmat3(glm::rotate(glm::dmat4(1.0), 0.7, glm::normalize(glm::dvec3(1, 2, -1))));
   const glm::dmat3 stretch(1.2, 0.1, 0.0, 0.1, 0.9, 0.05, 0.0, 0.05, 1.1);
   const glm::dmat3 got = polar_rotation(r * stretch);
   for (int c = 0; c < 3; ++c)

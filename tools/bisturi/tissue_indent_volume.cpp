@@ -91,9 +91,10 @@ IndentCurve indent_volume(const TissueIndentOptions& o, double youngs_kPa, doubl
   // The sphere stands on a rigid plane through its bottom cap (a fiftieth of its height): the
   // solid is cut there and the cut held, cells next to it a third of the cap's radius.
   const double hold_z = sphere ? lo.z + 0.02 * (hi.z - lo.z) : lo.z;
-  const double cap_radius = sphere ? std::sqrt(std::max(0.0, std::pow(0.5 * (hi.z - lo.z), 2) -
-                                                                 std::pow(hold_z - 0.5 * (hi.z + lo.z), 2)))
-                                   : INFINITY;
+  const double cap_radius =
+      sphere ? std::sqrt(std::max(0.0, std::pow(0.5 * (hi.z - lo.z), 2) -
+                                           std::pow(hold_z - 0.5 * (hi.z + lo.z), 2)))
+             : INFINITY;
   if (sphere) {
     lattice.floor_z_m = hold_z;
     lattice.floor_cell_m = cap_radius / 3.0;
@@ -136,8 +137,7 @@ IndentCurve indent_volume(const TissueIndentOptions& o, double youngs_kPa, doubl
     // The penalty as a pressure stiffness of 20 E / h over each sample's share of the surface
     // (its spacing squared): the multipliers carry the contact force, the penalty only how fast
     // they get there; stiffer, and the contact set flips from one Newton step to the next.
-    press_options.penalty_N_per_m =
-        20.0 * youngs_kPa * 1e3 * spacing * spacing / lattice.finest_m;
+    press_options.penalty_N_per_m = 20.0 * youngs_kPa * 1e3 * spacing * spacing / lattice.finest_m;
     const sim::PressResult press = volume.press_sphere(points, centre, r, press_options);
     curve.depth_mm.push_back(depth * 1e3);
     curve.force_N.push_back(press.probe_force_N.z);

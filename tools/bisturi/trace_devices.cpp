@@ -36,8 +36,8 @@ void open_driver(DecodedDevice& d, const devices::Registry& registry, const Inpu
 
 }  // namespace
 
-std::vector<std::unique_ptr<DecodedDevice>> decode_trace_devices(const std::string& path,
-                                                                 const devices::Registry& registry) {
+std::vector<std::unique_ptr<DecodedDevice>> decode_trace_devices(
+    const std::string& path, const devices::Registry& registry) {
   std::vector<devices::TraceDevice> trace_devices;
   std::map<std::uint16_t, Inputs> inputs;
   {

@@ -23,7 +23,7 @@ namespace {
 using nlohmann::json;
 
 constexpr int kExitBadChunk = 2;
-constexpr double kReversal_N = 0.02;  // a change smaller than this is not a reversal
+constexpr double kReversal_N = 0.02;        // a change smaller than this is not a reversal
 constexpr std::size_t kChatterWindow = 11;  // ticks of the moving mean chatter is measured from
 
 struct ChannelStats {
@@ -43,7 +43,7 @@ struct ChannelStats {
   double chatter_max_N = 0.0;
   // State between commands.
   std::vector<double> last;
-  double last_change = 0.0;  // signed change of the magnitude at the last command
+  double last_change = 0.0;   // signed change of the magnitude at the last command
   std::deque<double> window;  // recent magnitudes, for the chatter's moving mean
 };
 
@@ -95,37 +95,41 @@ void add_command(ChannelStats& s, const std::vector<double>& forces, double time
 }
 
 json channel_json(const ChannelStats& s) {
-  return {{"channel", s.channel.name},
-          {"components", s.channel.components},
-          {"limit_N", s.limit_N},
-          {"rate_limit_N_per_s", s.channel.max_force_rate_N_per_s},
-          {"allowed_step_N", s.allowed_step_N},
-          {"commands", s.commands},
-          {"max_N", s.max_N},
-          {"at_limit", s.at_limit},
-          {"largest_step_N", s.largest_step_N},
-          {"largest_step_time_s", s.largest_step_time_s},
-          {"steps_above_rate", s.steps_above_rate},
-          {"reversals", s.reversals},
-          {"chatter_rms_N",
-           s.chatter_samples > 0 ? std::sqrt(s.chatter_sum_sq / static_cast<double>(s.chatter_samples))
-                                 : 0.0},
-          {"chatter_max_N", s.chatter_max_N}};
+  return {
+      {"channel", s.channel.name},
+      {"components", s.channel.components},
+      {"limit_N", s.limit_N},
+      {"rate_limit_N_per_s", s.channel.max_force_rate_N_per_s},
+      {"allowed_step_N", s.allowed_step_N},
+      {"commands", s.commands},
+      {"max_N", s.max_N},
+      {"at_limit", s.at_limit},
+      {"largest_step_N", s.largest_step_N},
+      {"largest_step_time_s", s.largest_step_time_s},
+      {"steps_above_rate", s.steps_above_rate},
+      {"reversals", s.reversals},
+      {"chatter_rms_N", s.chatter_samples > 0
+                            ? std::sqrt(s.chatter_sum_sq / static_cast<double>(s.chatter_samples))
+                            : 0.0},
+      {"chatter_max_N", s.chatter_max_N}};
 }
 
 }  // namespace
 
 int run_trace_forces(const TraceOptions& options) {
   const devices::Registry registry = devices::builtin_registry();
-  std::vector<std::unique_ptr<DecodedDevice>> decoded = decode_trace_devices(options.input, registry);
+  std::vector<std::unique_ptr<DecodedDevice>> decoded =
+      decode_trace_devices(options.input, registry);
   devices::TraceReader reader(options.input);
-  const devices::ForceGuardConfig guard = devices::force_guard_config_from_json(reader.header().config);
+  const devices::ForceGuardConfig guard =
+      devices::force_guard_config_from_json(reader.header().config);
   const double period_s = std::chrono::duration<double>(guard.period).count();
 
   std::vector<std::vector<ChannelStats>> stats(decoded.size());
   std::vector<std::uint64_t> fault_zeros(decoded.size(), 0);
   for (std::size_t i = 0; i < decoded.size(); ++i) {
-    const auto* haptic = decoded[i]->driver ? devices::as_haptic(decoded[i]->driver.get()) : nullptr;
+    const auto* haptic =
+        decoded[i]->driver ? devices::as_haptic(decoded[i]->driver.get()) : nullptr;
     if (haptic == nullptr) continue;
     std::size_t offset = 0;
     for (const devices::ForceChannel& c : haptic->capabilities().force_channels) {
@@ -185,11 +189,12 @@ int run_trace_forces(const TraceOptions& options) {
       std::cout << "device " << d["index"] << " (" << d["driver"].get<std::string>()
                 << "), fault zeros " << d["fault_zeros"] << "\n";
       for (const json& c : d["channels"]) {
-        std::cout << "  " << c["channel"].get<std::string>() << ": max " << c["max_N"] << " N (limit "
-                  << c["limit_N"] << ", " << c["at_limit"] << " at it); largest step "
-                  << c["largest_step_N"] << " N at " << c["largest_step_time_s"] << " s (rate allows "
-                  << c["allowed_step_N"] << ", " << c["steps_above_rate"] << " above); "
-                  << c["reversals"] << " reversals, chatter rms " << c["chatter_rms_N"] << " N\n";
+        std::cout << "  " << c["channel"].get<std::string>() << ": max " << c["max_N"]
+                  << " N (limit " << c["limit_N"] << ", " << c["at_limit"]
+                  << " at it); largest step " << c["largest_step_N"] << " N at "
+                  << c["largest_step_time_s"] << " s (rate allows " << c["allowed_step_N"] << ", "
+                  << c["steps_above_rate"] << " above); " << c["reversals"]
+                  << " reversals, chatter rms " << c["chatter_rms_N"] << " N\n";
       }
     }
     if (bad) std::cout << "bad chunk: " << bad->what() << "\n";

@@ -77,8 +77,8 @@ BlockMatrix::SolveStats BlockMatrix::solve(std::span<const glm::dvec3> b, std::s
   };
   for (std::size_t i = 0; i < n; ++i) {
     const glm::dmat3& d = values_[diagonal_[i]];
-    inv_diag_[i] = fixed[i] || std::abs(glm::determinant(d)) < 1e-300 ? glm::dmat3(0.0)
-                                                                       : glm::inverse(d);
+    inv_diag_[i] =
+        fixed[i] || std::abs(glm::determinant(d)) < 1e-300 ? glm::dmat3(0.0) : glm::inverse(d);
     if (fixed[i]) x[i] = glm::dvec3(0.0);
   }
   multiply(x, r_);

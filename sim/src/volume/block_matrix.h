@@ -43,7 +43,7 @@ class BlockMatrix {
  private:
   std::vector<std::uint32_t> row_start_;  ///< CSR over nodes
   std::vector<std::uint32_t> columns_;
-  std::vector<std::uint32_t> diagonal_;   ///< each row's own block
+  std::vector<std::uint32_t> diagonal_;  ///< each row's own block
   std::vector<glm::dmat3> values_;
   std::vector<std::array<std::uint32_t, 64>> cell_slots_;
   std::vector<glm::dvec3> r_, z_, p_, q_;  // solver scratch

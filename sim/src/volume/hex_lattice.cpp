@@ -14,7 +14,8 @@ std::vector<double> graded_axis(double lo, double hi, double centre, double fine
                                 double fine_half_width, double growth, double coarsest,
                                 double lo_cell) {
   if (!(hi > lo) || !(finest > 0.0) || !(growth >= 1.0) || !(coarsest >= finest))
-    throw std::invalid_argument("graded_axis: need hi > lo, finest > 0, growth >= 1, coarsest >= finest");
+    throw std::invalid_argument(
+        "graded_axis: need hi > lo, finest > 0, growth >= 1, coarsest >= finest");
   // A centre within a cell of an end moves onto it: no sliver cell at the end.
   centre = std::clamp(centre, lo, hi);
   if (centre - lo < finest) centre = lo;
@@ -152,7 +153,8 @@ HexLattice build_hex_lattice(std::span<const glm::dvec3> vertices,
           std::int32_t& id = node_id[(nk * (d[1] + 1) + nj) * (d[0] + 1) + ni];
           if (id < 0) {
             id = static_cast<std::int32_t>(lattice.rest.size());
-            lattice.rest.emplace_back(lattice.axis[0][ni], lattice.axis[1][nj], lattice.axis[2][nk]);
+            lattice.rest.emplace_back(lattice.axis[0][ni], lattice.axis[1][nj],
+                                      lattice.axis[2][nk]);
           }
           nodes[corner] = static_cast<std::uint32_t>(id);
         }

@@ -14,9 +14,10 @@ std::vector<std::uint8_t> inside_columns(std::span<const glm::dvec3> vertices,
   // Buckets over the columns' xy range, about one triangle's size each.
   const double x0 = xs.front(), x1 = xs.back(), y0 = ys.front(), y1 = ys.back();
   const double extent = std::max(x1 - x0, y1 - y0);
-  const auto nb = static_cast<std::size_t>(
-      std::clamp(std::sqrt(double(triangles.size())) / 2.0, 1.0, 512.0));
-  const double bw = std::max(x1 - x0, 1e-12) / double(nb), bh = std::max(y1 - y0, 1e-12) / double(nb);
+  const auto nb =
+      static_cast<std::size_t>(std::clamp(std::sqrt(double(triangles.size())) / 2.0, 1.0, 512.0));
+  const double bw = std::max(x1 - x0, 1e-12) / double(nb),
+               bh = std::max(y1 - y0, 1e-12) / double(nb);
   const auto bucket_of = [&](double v, double v0, double w) {
     return static_cast<std::size_t>(std::clamp((v - v0) / w, 0.0, double(nb - 1)));
   };

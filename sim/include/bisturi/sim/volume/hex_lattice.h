@@ -19,12 +19,12 @@
 namespace bisturi::sim {
 
 struct LatticeOptions {
-  double finest_m = 0.001;      ///< cell size at the focus
-  double coarsest_m = 0.004;    ///< the largest cell size grading reaches
-  double growth = 1.3;          ///< ratio of neighbouring cell sizes away from the fine region
-  glm::dvec3 focus_m{0.0};      ///< where the cells are finest
+  double finest_m = 0.001;         ///< cell size at the focus
+  double coarsest_m = 0.004;       ///< the largest cell size grading reaches
+  double growth = 1.3;             ///< ratio of neighbouring cell sizes away from the fine region
+  glm::dvec3 focus_m{0.0};         ///< where the cells are finest
   double fine_half_width_m = 0.0;  ///< cells stay finest within this distance of the focus
-  int fill_samples = 3;         ///< per axis and cell, for the inside share
+  int fill_samples = 3;            ///< per axis and cell, for the inside share
   /// The solid is cut at this height: no cell below it (a rigid plane it stands on).
   double floor_z_m = -INFINITY;
   /// Cells next to the floor no taller than this, growing away from it (0: no limit).
