@@ -37,8 +37,11 @@ struct Pose {
 enum class DeviceClass : std::uint8_t { HapticGlove, HapticArm, HeadTracker };
 const char* to_string(DeviceClass device_class);
 
-// One force output. components == 3: a force vector at an end effector (x, y, z in newtons, device
-// frame); components == 1: an actuator pulling along its own axis (a finger's), in newtons.
+// One force output. Sign convention: every value is the force the device applies to the user's
+// hand, in newtons. components == 3: a vector at an end effector (x, y, z in the device's own
+// frame, the frame its poses are reported in; pressing on tissue gives a force pointing out of
+// the tissue, back towards the hand's approach); components == 1: an actuator along its own
+// axis (a finger's), positive resisting the finger's flexion, never pulling it closed.
 struct ForceChannel {
   std::string name;  // "end_effector", "thumb", "actuator_2", ...
   std::uint8_t components = 1;
