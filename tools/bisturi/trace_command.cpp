@@ -65,7 +65,9 @@ double seconds(std::int64_t ns) {
 
 void add_trace_command(CLI::App& app, TraceOptions& options, int (*&run)(const TraceOptions&)) {
   CLI::App* trace = app.add_subcommand(
-      "trace", "inspect, replay and cut device traces (reports in and out, force commands)");
+      "trace",
+      "inspect, replay, cut and dump device traces (reports in and out, force commands), and "
+      "read what their forces did (trace forces)");
   trace->require_subcommand(1);
 
   CLI::App* inspect = trace->add_subcommand(
