@@ -156,7 +156,7 @@ struct Rig {
     parts.clock = &clock;
     parts.head = devices::as_tracker(head_device.get());
     parts.step_twins = [this](Nanoseconds t) {
-      arm_twin->step(t);
+      if (!arm_muted) arm_twin->step(t);
       head_twin->step(t);
     };
     loop = std::make_unique<HapticLoop>(std::move(parts), 0, 1);
@@ -188,6 +188,7 @@ struct Rig {
   std::unique_ptr<LiveTickSteps> steps;
   std::unique_ptr<HangableSteps> hangable;
   std::unique_ptr<HapticLoop> loop;
+  bool arm_muted = false;  ///< the arm's twin sends nothing
 };
 
 /// The arm comes down onto the organ's top (scene normal +z) and presses 2 mm in, its poses
@@ -364,6 +365,28 @@ TEST(HapticLoop, AHungTissueFadesTheForceToZeroAndItComesBackRamped) {
     last = now;
   }
   EXPECT_GT(glm::length(glm::dvec3(last[0], last[1], last[2])), 0.01) << "the force came back";
+}
+
+TEST(HapticLoop, ASilentDeviceIsCountedAndItsForceIsZero) {
+  const SceneDescription scene = arm_scene("[0.0, 0.0, 0.0]");
+  Rig rig(scene, pressing_arm(DeviceFrame{}));
+  rig.run_to(milliseconds(1000));
+  ASSERT_GT(glm::length(rig.applied()), 0.01);
+  EXPECT_EQ(rig.loop->counters().silent_ticks, 0u);
+  EXPECT_EQ(rig.loop->silent_for_s(), 0.0);
+  // The arm stops sending for 1.5 s: silent from 100 ms on, its force zero (the guard's own
+  // timeout), and the silence measured for the watching thread.
+  rig.arm_muted = true;
+  rig.run_to(rig.clock.now() + milliseconds(1500));
+  EXPECT_EQ(glm::length(rig.applied()), 0.0);
+  EXPECT_NEAR(rig.loop->silent_for_s(), 1.5, 0.01);
+  EXPECT_NEAR(static_cast<double>(rig.loop->counters().silent_ticks), 1400.0, 2.0);
+  EXPECT_GT(rig.loop->counters().guard_latched_ticks, 1400u);
+  // It comes back: no longer silent; the longest silence stays on record.
+  rig.arm_muted = false;
+  rig.run_to(rig.clock.now() + milliseconds(10));
+  EXPECT_EQ(rig.loop->silent_for_s(), 0.0);
+  EXPECT_NEAR(static_cast<double>(rig.loop->counters().longest_silence_ticks), 1400.0, 2.0);
 }
 
 TEST(HapticLoop, StopSendsZeroAndLatches) {

@@ -187,6 +187,10 @@ int run_run(const RunOptions& options) {
   if (options.cpu) so.render_device = render::DevicePreference::Cpu;
   ProgressLine line;
   so.progress = [&line](const runtime::SessionProgress& p) {
+    if (!p.warning.empty()) {
+      line.clear();
+      std::cerr << "bisturi: warning: " << p.warning << "\n";
+    }
     if (p.stage != "run") {
       line.show(p.stage == "build" ? "building the scene" : p.stage, 0, 1);
       return;
@@ -332,6 +336,10 @@ int run_run(const RunOptions& options) {
         {"events", r.events.size()}}},
       {"ending", r.ending},
       {"error", r.error.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.error)},
+      {"inputs",
+       {{"haptic_silent_s", r.haptic_silent_s},
+        {"haptic_longest_silence_s", r.haptic_longest_silence_s},
+        {"guard_latched_s", r.guard_latched_s}}},
       {"faults",
        {{"haptic_device_lost_s",
          r.haptic_device_lost_s < 0 ? nlohmann::json(nullptr) : nlohmann::json(r.haptic_device_lost_s)},
@@ -372,6 +380,9 @@ int run_run(const RunOptions& options) {
               << " dropped frames; sink " << r.sink
               << (r.sink_note.empty() ? "" : " (" + r.sink_note + ")") << "\n"
               << "  report, plots and frames in " << out.string() << "\n";
+    if (r.haptic_silent_s > 0.0)
+      std::cout << "  the haptic device sent nothing for " << r.haptic_silent_s << " s in all (longest "
+                << r.haptic_longest_silence_s << " s); its forces were zero meanwhile\n";
     if (r.haptic_device_lost_s >= 0)
       std::cout << "  haptic device lost at " << r.haptic_device_lost_s
                 << " s (its force zero, the instrument held): " << r.haptic_device_lost_reason

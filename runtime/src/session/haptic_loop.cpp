@@ -141,6 +141,7 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
   ++counters_.ticks;
   if (stopped_.load(std::memory_order_acquire)) return TickStatus::Stopped;
   poll_devices(t);
+  watch_inputs(t);
 
   // Every tick sends the command of the step due (or, when that step is late, the newest one,
   // noted in the trace for the replay).
@@ -178,6 +179,24 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
   if (was_lost) note("tick");
   if (stopped_.load(std::memory_order_acquire)) return TickStatus::Stopped;
   return lost_ ? TickStatus::DeviceLost : TickStatus::Sent;
+}
+
+void HapticLoop::watch_inputs(devices::Nanoseconds t) noexcept {
+  const std::uint64_t reports = parts_.haptic->device().state().reports;
+  if (reports != last_reports_ || last_report_t_.count() < 0) {
+    last_report_t_ = t;
+    last_reports_ = reports;
+  }
+  const devices::Nanoseconds quiet = t - last_report_t_;
+  if (!lost_ && quiet > kSilentAfter) {
+    ++counters_.silent_ticks;
+    counters_.longest_silence_ticks = std::max(counters_.longest_silence_ticks, ++silence_run_);
+    silent_for_s_.store(seconds(quiet), std::memory_order_relaxed);
+  } else {
+    silence_run_ = 0;
+    silent_for_s_.store(0.0, std::memory_order_relaxed);
+  }
+  if (parts_.haptic->guard().state() == devices::GuardState::Latched) ++counters_.guard_latched_ticks;
 }
 
 void HapticLoop::fade_if_stale(std::uint64_t k, bool late) noexcept {

@@ -89,6 +89,11 @@ struct HapticLoopCounters {
   std::uint64_t stale_ticks = 0;
   std::uint64_t longest_stale_run = 0;
   std::uint64_t slewed_ticks = 0;  ///< ticks on which the command slew held a channel back
+  /// Ticks on which the haptic device had sent nothing for kSilentAfter (from the first tick when
+  /// it never sent anything), the longest such run, and ticks the force guard was latched.
+  std::uint64_t silent_ticks = 0;
+  std::uint64_t longest_silence_ticks = 0;
+  std::uint64_t guard_latched_ticks = 0;
   /// Session time when the haptic device / head tracker was lost (-1: never), and why.
   double haptic_lost_s = -1.0;
   std::string haptic_lost_reason;
@@ -130,6 +135,9 @@ class HapticLoop {
  public:
   /// Ticks over which a stale step's force fades to zero (and comes back once steps are due).
   static constexpr std::uint32_t kStaleFadeTicks = 10;
+  /// A haptic device that has sent no report for this long counts as silent (the guard zeroes
+  /// its forces after its own, shorter, silence timeout).
+  static constexpr devices::Nanoseconds kSilentAfter{std::chrono::milliseconds(100)};
   /// `lag`: ticks between a hand-over and the tick that uses its step (step_schedule.h).
   HapticLoop(HapticLoopParts parts, std::uint32_t lag, std::uint32_t ticks_per_step);
 
@@ -148,6 +156,11 @@ class HapticLoop {
   /// "display_hold" / "display_live" notes say the live session did.
   void hold_display(bool held) noexcept { display_held_ = held; }
 
+  /// How long the haptic device has sent nothing, as of the last tick (0 while it sends): for
+  /// the watching thread, which says so on the terminal. Any thread.
+  [[nodiscard]] double silent_for_s() const {
+    return silent_for_s_.load(std::memory_order_relaxed);
+  }
   /// The last tick's command (N, per force component, before the guard).
   [[nodiscard]] const std::vector<double>& command() const { return command_; }
   /// The step the last tick's command came from (null: none yet, a zero command).
@@ -178,6 +191,12 @@ class HapticLoop {
   StepSchedule schedule_;
   CommandSlew slew_;
   std::uint64_t fresh_k_ = 0;      ///< the last tick that used its due step
+  std::uint64_t last_reports_ = 0;  ///< the device's report count at the last tick
+  devices::Nanoseconds last_report_t_{-1};  ///< session time a new report was last seen
+  std::uint64_t silence_run_ = 0;
+  std::atomic<double> silent_for_s_{0.0};
+  /// Notes the device's reports and the guard's latch for the tick at session time t.
+  void watch_inputs(devices::Nanoseconds t) noexcept;
   std::uint64_t stale_run_ = 0;    ///< ticks in the current run past the margin
   double stale_gain_ = 1.0;        ///< 1: fresh; falls to 0 while stale, rises again after
   HapticLoopCounters counters_;

@@ -107,6 +107,10 @@ void add_loop_counters(const HapticLoop& loop, SessionReport& report) {
   report.stale_ticks = c.stale_ticks;
   report.longest_stale_run = c.longest_stale_run;
   report.slewed_ticks = c.slewed_ticks;
+  const double period_s = 1.0 / report.haptic_hz;
+  report.haptic_silent_s = static_cast<double>(c.silent_ticks) * period_s;
+  report.haptic_longest_silence_s = static_cast<double>(c.longest_silence_ticks) * period_s;
+  report.guard_latched_s = static_cast<double>(c.guard_latched_ticks) * period_s;
   report.haptic_device_lost_s = c.haptic_lost_s;
   report.haptic_device_lost_reason = c.haptic_lost_reason;
   report.head_tracker_lost_s = c.head_lost_s;
@@ -338,6 +342,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
 
   // ---- The calling thread watches ----
   progress.stage = "run";
+  bool warned_silent = false;
   while (!stop.load()) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     if (options.stop_requested != nullptr && options.stop_requested->load()) interrupted.store(true);
@@ -348,6 +353,16 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     progress.overruns = overruns.load();
     progress.events = publisher.events();
     progress.force_N = force_now.load();
+    // A dead input is said within a second (the forces are zero meanwhile: the guard latched).
+    const double silent_s = loop.silent_for_s();
+    progress.warning.clear();
+    if (silent_s >= 1.0 && !warned_silent) {
+      progress.warning = "the haptic device '" + choice.haptic->name + "' (" +
+                         glove->driver_name() + ") has sent nothing for " +
+                         std::to_string(static_cast<int>(silent_s)) +
+                         " s: its forces are zero until it reports again";
+    }
+    warned_silent = silent_s >= 1.0;
     if (options.progress) options.progress(progress);
   }
   haptic_thread.join();

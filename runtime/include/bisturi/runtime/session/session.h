@@ -49,6 +49,9 @@ struct SessionProgress {
   std::size_t events = 0;
   double force_N = 0.0;  ///< proxy force on the tip now
   std::string stage;     ///< "build", "start", "run"
+  /// Set on the first update after an input went dead (the haptic device sent nothing for a
+  /// second): what to tell the user; empty otherwise.
+  std::string warning;
 };
 
 struct SessionOptions {
@@ -185,6 +188,11 @@ struct SessionReport {
   std::uint32_t stale_margin_ticks = 0;
   /// Ticks on which the command slew held a channel to the device's rate limit.
   std::uint64_t slewed_ticks = 0;
+  /// The haptic device silent (no report for 100 ms; its forces are zero then): in all, and the
+  /// longest stretch; and how long the force guard was latched (zero output), in seconds.
+  double haptic_silent_s = 0.0;
+  double haptic_longest_silence_s = 0.0;
+  double guard_latched_s = 0.0;
   /// Session time the haptic device / head tracker was lost (-1: never) and why. A lost haptic
   /// device's force is zero and its instrument holds its pose; a lost tracker's view holds.
   double haptic_device_lost_s = -1.0;
