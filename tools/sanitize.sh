@@ -21,7 +21,7 @@ sim_fiber_test session_haptic_loop_test:-*AFailedTraceWrite*"
 asan_default="devices_test devices_spec_test devices_usb_async_test devices_descriptor_files_test \
 devices_sample_test devices_example_test trace_test session_devices_test dlfl_operators_test \
 dlfl_figures_test dlfl_random_test mesh_io_test polygon_import_test oriented_builder_test \
-volume_io_test bono_octree_test segmentation_test marching_cubes_test lod_test"
+volume_io_test bono_octree_test segmentation_test marching_cubes_test lod_test sim_volume_test"
 
 configure() {  # folder, sanitizer flags
   mkdir -p "$here/$1"
