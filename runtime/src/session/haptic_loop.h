@@ -7,8 +7,9 @@
 //   force guard -> the driver -> the trace notes the replay needs.
 // tick() never throws: a lost device, a malformed report, a tissue that falls behind or a trace
 // that cannot be written is counted and the session goes on (HapticLoopCounters). stop() sends
-// zero through the guard and latches; zero_if_stalled() is the supervisor's (haptic_supervisor.h):
-// both may run on another thread than tick(), and share one lock with it around the device.
+// zero through the guard and latches; zero_if_stalled() is the supervisor thread's (run_session
+// starts it): both may run on another thread than tick(), and share one lock with it around the
+// device.
 
 #include <atomic>
 #include <cstdint>
