@@ -81,6 +81,13 @@ double percentile(std::vector<double> v, double q) {
   return v[std::min(i, v.size() - 1)];
 }
 
+/// One world step with the tip at device_m, timed: its wall time in microseconds.
+double timed_step_us(SimWorld& world, const glm::dvec3& device_m) {
+  const auto t0 = std::chrono::steady_clock::now();
+  benchmark::DoNotOptimize(world.step(device_m));
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e6;
+}
+
 /// The body's vertices below z_m anchored (the benches hold a sphere's lower third).
 void anchor_below(SoftBody& body, double z_m) {
   for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
@@ -134,18 +141,13 @@ void full_step(benchmark::State& state, std::int64_t vertices, bool all, int int
   double residual = 0.0, residual_sum = 0.0, awake = 0.0;
   std::vector<double> period_starts, others;
   for (auto _ : state) {
-    const glm::dvec3 d = device();
-    const auto t0 = std::chrono::steady_clock::now();
-    const HapticOutput out = world.step(d);
-    const auto t1 = std::chrono::steady_clock::now();
-    benchmark::DoNotOptimize(out);
-    const double sec = std::chrono::duration<double>(t1 - t0).count();
-    state.SetIterationTime(sec);
-    samples.push_back(sec * 1e6);
+    const double us = timed_step_us(world, device());
+    state.SetIterationTime(us * 1e-6);
+    samples.push_back(us);
     // Multirate: the steps that start a far-field period (they end its last job, apply the
     // result to the near region's neighbours and start the next job) apart.
     (interval > 1 && s % std::uint64_t(interval) == 0 ? period_starts : others)
-        .push_back(sec * 1e6);
+        .push_back(us);
     cg += world.last_stats(id).cg_iterations;
     cg_max = std::max(cg_max, world.last_stats(id).cg_iterations);
     residual = world.last_stats(id).relative_residual;
@@ -463,11 +465,9 @@ void BM_TwoBodies(benchmark::State& state) {
     std::uint64_t s = 0;
     auto device = [&] { return probe_tip(organ, double(s)); };
     auto timed_step = [&] {
-      const glm::dvec3 d = device();
-      const auto t0 = std::chrono::steady_clock::now();
-      benchmark::DoNotOptimize(world.step(d));
+      const double us = timed_step_us(world, device());
       ++s;
-      return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e6;
+      return us;
     };
     first.push_back(timed_step());
     first_cg = world.last_stats(0).cg_iterations + world.last_stats(1).cg_iterations;
@@ -586,14 +586,9 @@ void BM_FastTip(benchmark::State& state) {
     world.step(device());
   std::vector<double> samples;
   for (auto _ : state) {
-    const glm::dvec3 d = device();
-    const auto t0 = std::chrono::steady_clock::now();
-    const HapticOutput out = world.step(d);
-    const auto t1 = std::chrono::steady_clock::now();
-    benchmark::DoNotOptimize(out);
-    const double sec = std::chrono::duration<double>(t1 - t0).count();
-    state.SetIterationTime(sec);
-    samples.push_back(sec * 1e6);
+    const double us = timed_step_us(world, device());
+    state.SetIterationTime(us * 1e-6);
+    samples.push_back(us);
     ++s;
   }
   state.counters["p50_us"] = percentile(samples, 0.50);

@@ -29,6 +29,10 @@ ElasticVolume::ElasticVolume(HexLattice lattice, const ElasticMaterial& material
     : lattice_(std::move(lattice)), law_(law) {
   check_elastic(material);
   const double e = material.youngs_modulus_kPa * 1e3, nu = material.poisson_ratio;
+  youngs_Pa_ = e;
+  for (const auto& axis : lattice_.axis)
+    for (std::size_t i = 0; i + 1 < axis.size(); ++i)
+      finest_cell_m_ = std::min(finest_cell_m_, axis[i + 1] - axis[i]);
   mu_ = e / (2.0 * (1.0 + nu));
   lambda_ = e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
   x_ = lattice_.rest;
@@ -58,12 +62,8 @@ PressResult ElasticVolume::press_sphere(std::span<const EmbeddedPoint> points,
   // The penalty, unless given: twenty times what one finest cell resists with (E h). The
   // multipliers carry the contact force; the penalty sets how fast they get there, and a stiffer
   // one makes the contact set flip between Newton steps.
-  double finest = INFINITY;
-  for (const auto& axis : lattice_.axis)
-    for (std::size_t i = 0; i + 1 < axis.size(); ++i)
-      finest = std::min(finest, axis[i + 1] - axis[i]);
-  const double e = mu_ * (3.0 * lambda_ + 2.0 * mu_) / (lambda_ + mu_);
-  const double penalty = o.penalty_N_per_m > 0.0 ? o.penalty_N_per_m : 20.0 * e * finest;
+  const double penalty =
+      o.penalty_N_per_m > 0.0 ? o.penalty_N_per_m : 20.0 * youngs_Pa_ * finest_cell_m_;
 
   PressResult result;
   const auto residual_norm = [&] {

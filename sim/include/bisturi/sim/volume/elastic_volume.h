@@ -10,6 +10,7 @@
 // surface (`bisturi tissue indent --model volume`), contact by an augmented Lagrangian on the
 // embedded surface points, each Newton step solved by block-Jacobi preconditioned CG.
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -85,6 +86,8 @@ class ElasticVolume {
   HexLattice lattice_;
   ElasticLaw law_;
   double mu_ = 0.0, lambda_ = 0.0;
+  double youngs_Pa_ = 0.0;
+  double finest_cell_m_ = INFINITY;  ///< the lattice's smallest cell side
   std::vector<glm::dvec3> x_;
   std::vector<std::uint8_t> held_;
   std::vector<double> multipliers_;  ///< per surface point, N
