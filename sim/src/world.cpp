@@ -15,6 +15,7 @@ SimWorld::SimWorld(const WorldOptions& options)
 
 std::uint32_t SimWorld::add_body(SoftBody body) {
   bodies_.push_back(std::move(body));
+  volumes_.emplace_back();
   bvhs_.emplace_back(*device_, bodies_.back());
   bvhs_.back().set_rebuild_limits(options_.bvh_rebuild);
   stats_.emplace_back();
@@ -27,8 +28,15 @@ void SimWorld::prepare() {
     prepare_body(i);
 }
 
+void SimWorld::set_volume(std::uint32_t i, const VolumeOptions& options) {
+  volumes_.at(i) = std::make_unique<VolumeBody>(bodies_[i], options);
+}
+
 void SimWorld::prepare_body(std::uint32_t i) {
-  integrator_.prepare(bodies_[i], options_.integrator);
+  if (volumes_[i])
+    volumes_[i]->sync_topology(bodies_[i]);
+  else
+    integrator_.prepare(bodies_[i], options_.integrator);
   bvhs_[i].update(bodies_[i]);  // a topology change (a cut) updates the patches now
   if (!options_.contact.enabled) return;
   // The user-geometry copies rtcCollide works on, built by a query whose result is not used.
@@ -48,7 +56,9 @@ HapticOutput SimWorld::step(const glm::dvec3& device_m) {
   HapticOutput out = proxy_.update(device_m, targets, options_.integrator.dt_s);
   if (options_.contact.enabled && bodies_.size() > 1) tissue_contacts();
   for (std::uint32_t i = 0; i < bodies_.size(); ++i) {
-    stats_[i] = integrator_.step(bodies_[i], options_.integrator, events_, i, steps_);
+    stats_[i] = volumes_[i]
+                    ? volumes_[i]->step(bodies_[i], options_.integrator, events_, i, steps_)
+                    : integrator_.step(bodies_[i], options_.integrator, events_, i, steps_);
     // A body asleep entirely did not move: its BVH still fits.
     const StepStats& s = stats_[i];
     bvhs_[i].set_refit_tolerance(options_.bvh_refit_tolerance_m);

@@ -295,7 +295,8 @@ class SceneReader {
     only_keys(
         t, path,
         {"name", "mesh", "volume", "phantom", "dims", "spacing_mm", "a_mm", "b_mm", "iso", "label",
-         "downsample", "decimate", "smooth", "offset_mm", "material", "anchors", "simulate"});
+         "downsample", "decimate", "smooth", "offset_mm", "material", "anchors", "simulate",
+         "model", "cell_mm"});
     SolidDescription s;
     s.name = string_or(t, path, "name", path);
     const int sources = (t.contains("mesh") ? 1 : 0) + (t.contains("volume") ? 1 : 0) +
@@ -353,6 +354,18 @@ class SceneReader {
     s.offset_mm = numbers<3>(t, path, "offset_mm", s.offset_mm);
     s.simulate = boolean(t, path, "simulate", s.simulate);
     if (const toml::table* m = table_at(t, path, "material")) read_material(*m, path, s.material);
+    s.model = choice(t, path, "model", s.model,
+                     {{"surface", SolidDescription::Model::Surface},
+                      {"volume", SolidDescription::Model::Volume}});
+    s.cell_mm = positive(t, path, "cell_mm", s.cell_mm);
+    if (t.contains("cell_mm") && s.model != SolidDescription::Model::Volume) {
+      fail(t.get("cell_mm"), t, path + ".cell_mm", "only for model = \"volume\"");
+    }
+    if (s.model == SolidDescription::Model::Volume && !s.material.elastic) {
+      fail(t.get("model"), t, path + ".model",
+           "a volume takes its elasticity from the material: give [" + path +
+               ".material] a preset or youngs_modulus_kPa");
+    }
     for_each_table(t, "anchors", [&](const toml::table& a, const std::string& sub) {
       const std::string ap = path + "." + sub;
       only_keys(a, ap, {"point_mm", "normal", "distance_mm"});

@@ -80,6 +80,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
         std::min(world_.options().haptic.coupling_N_per_m, device_k);
   }
   coupling_N_per_m_ = world_.options().haptic.coupling_N_per_m;
+  probe_radius_m_ = world_.options().haptic.probe_radius_m;
   finger_stiffness_N_per_m_ = device_k > 0.0
                                   ? std::min(options_.finger_stiffness_N_per_m, device_k)
                                   : options_.finger_stiffness_N_per_m;
@@ -104,8 +105,24 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
       if (anchored) body.set_anchored(v, true);
     }
     names_.push_back(d.name);
-    world_.add_body(std::move(body));
+    const std::uint32_t index = world_.add_body(std::move(body));
+    if (d.model == SolidDescription::Model::Volume && d.simulate) {
+      sim::VolumeOptions volume;
+      volume.cell_m = d.cell_mm * sim::kMetresPerMillimetre;
+      volume.material = {d.material.youngs_modulus_kPa, d.material.poisson_ratio,
+                         d.material.density_kg_per_m3, d.material.retardation_time_s};
+      try {
+        world_.set_volume(index, volume);
+      } catch (const sim::SimInputError& e) {
+        throw sim::SimInputError("solid '" + d.name + "': " + e.what());
+      }
+      const double e_star = volume.material.youngs_modulus_kPa * 1e3 /
+                            (1.0 - volume.material.poisson_ratio * volume.material.poisson_ratio);
+      contact_modulus_Pa_.resize(index + 1, 0.0);
+      contact_modulus_Pa_[index] = e_star;
+    }
   }
+  contact_modulus_Pa_.resize(world_.body_count(), 0.0);
   // Everything the first step would build lazily (solver structure, BVHs, scratch) is built now,
   // before the haptic clock starts: tick 1 costs what tick 2 costs.
   world_.prepare();
@@ -216,6 +233,7 @@ const TickOutput& SessionSim::tick(const devices::HapticState& state, std::uint3
   const sim::HapticOutput h = world_.step(tip_m);
   out_.force_N = h.force_N;
   out_.contact = h.contact;
+  out_.contact_stiffness_N_per_m = contact_stiffness(h);
   // A new touch (not a flicker at the edge of one: 100 ticks without contact before it).
   if (h.contact && !contact_ && ticks_ >= last_contact_tick_ + 100)
     add_event(SessionEventKind::Contact, h.body, "");
@@ -316,12 +334,27 @@ double SessionSim::penetration_depth(const sim::SurfacePoint& closest, const glm
   return along;
 }
 
+double SessionSim::contact_stiffness(const sim::HapticOutput& h) const {
+  if (!h.contact || h.body < 0) return coupling_N_per_m_;
+  const double e_star = contact_modulus_Pa_[static_cast<std::size_t>(h.body)];
+  if (e_star <= 0.0) return coupling_N_per_m_;  // a membrane: the proxy is held where it is
+  // A volume yields under the probe between its steps as a solid does: the tangent stiffness
+  // of a Hertz contact of the probe's radius carrying the step's force, 2 E* a with
+  // a = (3 F R / 4 E*)^(1/3) (Johnson, Contact Mechanics, section 4.2), in series with the
+  // coupling spring.
+  const double radius = probe_radius_m_;
+  const double a = std::cbrt(3.0 * glm::length(h.force_N) * radius / (4.0 * e_star));
+  const double tissue = 2.0 * e_star * a;
+  return tissue * coupling_N_per_m_ / (tissue + coupling_N_per_m_);
+}
+
 void SessionSim::command_for(const TickOutput& step, const glm::dvec3& tip_now_m,
                              std::vector<double>& command_N) const {
-  // In contact the proxy stays where the step put it while the tip moves on: the coupling
-  // spring's change (k times the tip's motion) is added. Outside contact there is no force.
+  // In contact the proxy stays where the step put it while the tip moves on: the contact's
+  // stiffness times the tip's motion is added (the coupling spring alone against a membrane,
+  // in series with the tissue's own against a volume). Outside contact there is no force.
   glm::dvec3 force = step.force_N;
-  if (step.contact) force += coupling_N_per_m_ * (step.tip_m - tip_now_m);
+  if (step.contact) force += step.contact_stiffness_N_per_m * (step.tip_m - tip_now_m);
   const double contact_N = std::min(glm::length(force), max_force_N_);
   command_N.resize(command_size_);
   std::size_t k = 0;

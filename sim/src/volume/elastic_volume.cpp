@@ -22,8 +22,27 @@ struct ElasticVolume::Solver {
   std::vector<glm::dvec3> force;
   std::vector<glm::dvec3> step;
   std::vector<glm::dvec3> start;
-  HexStiffness k{};
+  std::vector<glm::dvec3> product;  ///< (h tau + h^2) K v in a dynamic step
+  /// Element stiffness at unit fill, one per distinct box shape (a graded lattice has few), and
+  /// each cell's shape: computed once, not per assembly.
+  std::vector<HexStiffness> shapes;
+  std::vector<std::uint32_t> cell_shape;
+  /// Per cell: its stiffness R K R^T for the rotation it was last warped with (blocks (a, b),
+  /// a <= b, in row order), and that rotation.
+  std::vector<std::array<glm::mat3, 36>> warped;
+  std::vector<glm::dmat3> warped_rotation;
 };
+
+namespace {
+
+glm::dvec3 cell_sides(const HexLattice& lattice, std::size_t c) {
+  const auto& ijk = lattice.cell_ijk[c];
+  return {lattice.axis[0][ijk[0] + 1] - lattice.axis[0][ijk[0]],
+          lattice.axis[1][ijk[1] + 1] - lattice.axis[1][ijk[1]],
+          lattice.axis[2][ijk[2] + 1] - lattice.axis[2][ijk[2]]};
+}
+
+}  // namespace
 
 ElasticVolume::ElasticVolume(HexLattice lattice, const ElasticMaterial& material, ElasticLaw law)
     : lattice_(std::move(lattice)), law_(law) {
@@ -35,9 +54,28 @@ ElasticVolume::ElasticVolume(HexLattice lattice, const ElasticMaterial& material
       finest_cell_m_ = std::min(finest_cell_m_, axis[i + 1] - axis[i]);
   mu_ = e / (2.0 * (1.0 + nu));
   lambda_ = e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu));
+  retardation_s_ = material.retardation_time_s;
   x_ = lattice_.rest;
+  v_.assign(x_.size(), glm::dvec3(0.0));
   held_.assign(x_.size(), 0);
+  mass_.assign(x_.size(), 0.0);
   solver_ = std::make_unique<Solver>(lattice_);
+  Solver& s = *solver_;
+  s.product.resize(x_.size());
+  std::vector<glm::dvec3> shape_sides;
+  s.cell_shape.resize(lattice_.cells.size());
+  for (std::size_t c = 0; c < lattice_.cells.size(); ++c) {
+    const glm::dvec3 h = cell_sides(lattice_, c);
+    const double node_mass = material.density_kg_per_m3 * h.x * h.y * h.z * lattice_.fill[c] / 8.0;
+    for (const std::uint32_t node : lattice_.cells[c])
+      mass_[node] += node_mass;
+    const auto same = std::find(shape_sides.begin(), shape_sides.end(), h);
+    s.cell_shape[c] = static_cast<std::uint32_t>(same - shape_sides.begin());
+    if (same != shape_sides.end()) continue;
+    shape_sides.push_back(h);
+    s.shapes.emplace_back();
+    box_stiffness(h, mu_, lambda_, 1.0, s.shapes.back());
+  }
 }
 
 ElasticVolume::~ElasticVolume() = default;
@@ -47,6 +85,59 @@ ElasticVolume& ElasticVolume::operator=(ElasticVolume&&) noexcept = default;
 void ElasticVolume::hold(std::uint32_t node) {
   held_.at(node) = 1;
   x_[node] = lattice_.rest[node];
+  v_[node] = glm::dvec3(0.0);
+}
+
+void ElasticVolume::set_state(std::span<const glm::dvec3> positions,
+                              std::span<const glm::dvec3> velocities) {
+  if (positions.size() != x_.size() || velocities.size() != v_.size())
+    throw std::invalid_argument("ElasticVolume::set_state: sizes differ from the node count");
+  std::copy(positions.begin(), positions.end(), x_.begin());
+  std::copy(velocities.begin(), velocities.end(), v_.begin());
+}
+
+DynamicResult ElasticVolume::advance(std::span<const PointLoad> loads,
+                                     const DynamicOptions& o) {
+  Solver& s = *solver_;
+  const std::size_t n = x_.size();
+  const double h = o.dt_s;
+  const double kv_weight = h * retardation_s_ + h * h;
+  // s.force = f(x), the matrix (h tau + h^2) K.
+  assemble_elements(true, o.warp_tolerance, kv_weight);
+  s.matrix.multiply(v_, s.product);
+  // The right-hand side before the loads: h (f - tau K v + M g) - h^2 K v (the product is
+  // (h tau + h^2) K v: the masses join the matrix after it).
+  for (std::size_t i = 0; i < n; ++i)
+    s.force[i] = h * (s.force[i] + mass_[i] * o.gravity_m_s2) - s.product[i];
+  std::vector<glm::mat3>& values = s.matrix.values();
+  for (std::size_t i = 0; i < n; ++i)
+    values[s.matrix.diagonal_slot(i)] += glm::mat3(static_cast<float>(mass_[i]));
+  for (const PointLoad& load : loads) {
+    const auto& cell = lattice_.cells[load.point.cell];
+    const auto& w = load.point.weights;
+    glm::dvec3 point_velocity(0.0);
+    for (std::size_t a = 0; a < 8; ++a)
+      point_velocity += w[a] * v_[cell[a]];
+    const glm::dvec3 rhs = h * load.force_N - (h * h) * (load.stiffness_N_per_m * point_velocity);
+    const glm::dmat3 scaled = (h * h) * load.stiffness_N_per_m;
+    const auto& slots = s.matrix.cell_slots(load.point.cell);
+    for (std::size_t a = 0; a < 8; ++a) {
+      if (w[a] == 0.0) continue;
+      s.force[cell[a]] += w[a] * rhs;
+      for (std::size_t b = 0; b < 8; ++b)
+        values[slots[a * 8 + b]] += glm::mat3((w[a] * w[b]) * scaled);
+    }
+  }
+  // Warm start: the last step's velocity change (the motion changes smoothly step to step).
+  if (s.step.size() != n) s.step.assign(n, glm::dvec3(0.0));
+  const BlockMatrix::SolveStats cg =
+      s.matrix.solve(s.force, s.step, held_, o.cg_tolerance, o.max_cg);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (held_[i]) continue;
+    v_[i] += s.step[i];
+    x_[i] += h * v_[i];
+  }
+  return {cg.iterations, cg.relative_residual};
 }
 
 std::size_t ElasticVolume::held_count() const {
@@ -113,18 +204,49 @@ PressResult ElasticVolume::press_sphere(std::span<const EmbeddedPoint> points,
   return result;
 }
 
-void ElasticVolume::assemble(std::span<const EmbeddedPoint> points, const glm::dvec3& centre,
-                             double radius, double penalty, bool with_matrix, PressResult& out) {
+void ElasticVolume::add_cell_matrix(std::size_t c, const glm::dmat3& r, double warp_tolerance,
+                                    float scale) {
+  Solver& s = *solver_;
+  if (s.warped.size() != lattice_.cells.size()) {
+    s.warped.resize(lattice_.cells.size());
+    s.warped_rotation.assign(lattice_.cells.size(), glm::dmat3(0.0));  // none valid yet
+  }
+  // R K R^T for the cell's rotation, kept while the cell turns less than the tolerance: the
+  // rotation changes little from step to step and the products are most of an assembly.
+  const glm::dmat3 change = r - s.warped_rotation[c];
+  double drift = 0.0;
+  for (int i = 0; i < 3; ++i)
+    drift = std::max(drift, glm::length(change[i]));
+  std::array<glm::mat3, 36>& blocks = s.warped[c];
+  if (!(drift <= warp_tolerance) || warp_tolerance <= 0.0) {
+    s.warped_rotation[c] = r;
+    const HexStiffness& k = s.shapes[s.cell_shape[c]];
+    const glm::dmat3 r_fill = lattice_.fill[c] * r;
+    const glm::dmat3 rt = glm::transpose(r);
+    std::size_t i = 0;
+    for (std::size_t a = 0; a < 8; ++a)
+      for (std::size_t b = a; b < 8; ++b)
+        blocks[i++] = glm::mat3(r_fill * k[a][b] * rt);
+  }
+  std::vector<glm::mat3>& values = s.matrix.values();
+  const auto& slots = s.matrix.cell_slots(c);
+  std::size_t i = 0;
+  for (std::size_t a = 0; a < 8; ++a) {
+    for (std::size_t b = a; b < 8; ++b, ++i) {
+      const glm::mat3 block = scale * blocks[i];
+      values[slots[a * 8 + b]] += block;
+      if (b != a) values[slots[b * 8 + a]] += glm::transpose(block);
+    }
+  }
+}
+
+void ElasticVolume::assemble_elements(bool with_matrix, double warp_tolerance, double scale) {
   Solver& s = *solver_;
   if (with_matrix) s.matrix.set_zero();
   std::fill(s.force.begin(), s.force.end(), glm::dvec3(0.0));
-  std::vector<glm::dmat3>& values = s.matrix.values();
   for (std::size_t c = 0; c < lattice_.cells.size(); ++c) {
     const auto& cell = lattice_.cells[c];
-    const auto& ijk = lattice_.cell_ijk[c];
-    const glm::dvec3 h(lattice_.axis[0][ijk[0] + 1] - lattice_.axis[0][ijk[0]],
-                       lattice_.axis[1][ijk[1] + 1] - lattice_.axis[1][ijk[1]],
-                       lattice_.axis[2][ijk[2] + 1] - lattice_.axis[2][ijk[2]]);
+    const glm::dvec3 h = cell_sides(lattice_, c);
     const std::array<glm::dvec3, 8> g = centre_gradients(h);
     glm::dmat3 f(0.0);
     for (std::size_t a = 0; a < 8; ++a)
@@ -133,21 +255,23 @@ void ElasticVolume::assemble(std::span<const EmbeddedPoint> points, const glm::d
     // crushed flat, which neo-Hookean cannot take.
     const bool hyper = law_ == ElasticLaw::NeoHookean && lattice_.fill[c] >= 0.5;
     if (with_matrix || !hyper) {
-      box_stiffness(h, mu_, lambda_, lattice_.fill[c], s.k);
+      const HexStiffness& k = s.shapes[s.cell_shape[c]];
+      const double fill = lattice_.fill[c];
       const glm::dmat3 r = polar_rotation(f);
       const glm::dmat3 rt = glm::transpose(r);
+      const glm::dmat3 r_fill = fill * r;
       std::array<glm::dvec3, 8> u;
       for (std::size_t a = 0; a < 8; ++a)
         u[a] = rt * x_[cell[a]] - lattice_.rest[cell[a]];
-      const auto& slots = s.matrix.cell_slots(c);
-      for (std::size_t a = 0; a < 8; ++a) {
-        glm::dvec3 local(0.0);
-        for (std::size_t b = 0; b < 8; ++b) {
-          local += s.k[a][b] * u[b];
-          if (with_matrix) values[slots[a * 8 + b]] += r * s.k[a][b] * rt;
+      if (!hyper) {
+        for (std::size_t a = 0; a < 8; ++a) {
+          glm::dvec3 local(0.0);
+          for (std::size_t b = 0; b < 8; ++b)
+            local += k[a][b] * u[b];
+          s.force[cell[a]] -= r_fill * local;
         }
-        if (!hyper) s.force[cell[a]] -= r * local;
       }
+      if (with_matrix) add_cell_matrix(c, r, warp_tolerance, static_cast<float>(scale));
     }
     if (hyper) {
       // f_a = -integral of P grad N_a: the isochoric stress at the Gauss points, the volumetric
@@ -167,6 +291,13 @@ void ElasticVolume::assemble(std::span<const EmbeddedPoint> points, const glm::d
         s.force[cell[a]] -= p * g[a];
     }
   }
+}
+
+void ElasticVolume::assemble(std::span<const EmbeddedPoint> points, const glm::dvec3& centre,
+                             double radius, double penalty, bool with_matrix, PressResult& out) {
+  Solver& s = *solver_;
+  assemble_elements(with_matrix, 0.0, 1.0);
+  std::vector<glm::mat3>& values = s.matrix.values();
   // Contact: each surface point inside the probe (or holding a multiplier) pushed out along the
   // probe's normal, F = max(0, multiplier - penalty * gap).
   glm::dvec3 probe(0.0);
@@ -191,7 +322,7 @@ void ElasticVolume::assemble(std::span<const EmbeddedPoint> points, const glm::d
       s.force[cell[a]] += ep.weights[a] * push * normal;
       if (!with_matrix) continue;
       for (std::size_t b = 0; b < 8; ++b)
-        values[slots[a * 8 + b]] += (ep.weights[a] * ep.weights[b]) * nn;
+        values[slots[a * 8 + b]] += glm::mat3((ep.weights[a] * ep.weights[b]) * nn);
     }
     probe -= push * normal;
   }

@@ -3,6 +3,8 @@
 // the integrator, advanced by one full haptic-rate step at a time:
 //   haptic proxy force (on the current surface, reaction onto the tissue) -> tissue-tissue
 //   contact forces -> implicit step of every body (with the divergence guard) -> BVH refit.
+// A body is a spring membrane stepped by the ImplicitIntegrator unless it was given a volume
+// (set_volume), which then steps it.
 // Single-threaded and deterministic. Divergence events are collected for the runtime to report.
 
 #include <cstdint>
@@ -14,6 +16,7 @@
 #include "bisturi/sim/haptic.h"
 #include "bisturi/sim/integrator.h"
 #include "bisturi/sim/soft_body.h"
+#include "bisturi/sim/volume/volume_body.h"
 
 namespace bisturi::sim {
 
@@ -56,6 +59,11 @@ class SimWorld {
   void prepare_body(std::uint32_t i);
   [[nodiscard]] std::size_t body_count() const { return bodies_.size(); }
   SoftBody& body(std::uint32_t i) { return bodies_[i]; }
+  /// Gives body i a volume (volume_body.h): from now on its steps are the volume's, not the
+  /// spring integrator's. Throws SimInputError when the volume cannot be built.
+  void set_volume(std::uint32_t i, const VolumeOptions& options);
+  /// Body i's volume, or null when it is a surface model.
+  [[nodiscard]] const VolumeBody* volume(std::uint32_t i) const { return volumes_[i].get(); }
   [[nodiscard]] const SurfaceBvh& bvh(std::uint32_t i) const { return bvhs_[i]; }
 
   /// One full step with the device (probe tip) at device_m; returns the force for the device.
@@ -82,6 +90,7 @@ class SimWorld {
   WorldOptions options_;
   std::unique_ptr<CollisionDevice> device_;  // heap: the world stays movable
   std::vector<SoftBody> bodies_;
+  std::vector<std::unique_ptr<VolumeBody>> volumes_;  ///< per body; null: the spring model
   std::vector<SurfaceBvh> bvhs_;
   std::vector<StepStats> stats_;
   ImplicitIntegrator integrator_;

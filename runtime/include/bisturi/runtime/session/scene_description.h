@@ -77,6 +77,10 @@ struct SolidDescription {
   MaterialDescription material;
   std::vector<AnchorDescription> anchors;
   bool simulate = true;  ///< false: rigid, drawn and touched but not deformed
+  /// How the tissue moves: a spring membrane on its surface, or a hexahedral volume under it
+  /// (sim/volume/volume_body.h) with cells of cell_mm, elastic from the material's modulus.
+  enum class Model { Surface, Volume } model = Model::Surface;
+  double cell_mm = 8.0;
 };
 
 struct InstrumentDescription {

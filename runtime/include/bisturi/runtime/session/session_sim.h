@@ -52,6 +52,9 @@ struct TickOutput {
   /// force of that finger's own contact with the tissue (N, >= 0; hand_model.h).
   std::vector<double> finger_contact_N;
   bool contact = false;
+  /// How the contact force grows per metre the tip moves on into the tissue before the next
+  /// step (N/m): what command_for adds for the tip's motion since this step.
+  double contact_stiffness_N_per_m = 0.0;
   bool grasping = false;  ///< the grasper holds tissue after this step
   bool cutting = false;   ///< the scalpel is sweeping after this step
   bool topology_changed = false;
@@ -139,6 +142,11 @@ class SessionSim {
 
  private:
   std::int32_t nearest_body(const glm::dvec3& p_m);
+  /// The contact stiffness of a step's haptic output (TickOutput::contact_stiffness_N_per_m).
+  [[nodiscard]] double contact_stiffness(const sim::HapticOutput& h) const;
+  /// Per body: the contact modulus E / (1 - nu^2) of a volume (Pa), 0 for a membrane.
+  std::vector<double> contact_modulus_Pa_;
+  double probe_radius_m_ = 0.001;
   void add_event(SessionEventKind kind, std::int32_t body, std::string detail);
 
   SessionSimOptions options_;

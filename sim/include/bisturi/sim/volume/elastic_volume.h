@@ -6,9 +6,12 @@
 // neo-Hookean, both with selective reduced integration (the volumetric part at the centre: no
 // locking near incompressibility), weighted by the cell's inside share.
 //
-// This stage solves for static equilibrium: a rigid spherical probe pressed into the embedded
-// surface (`bisturi tissue indent --model volume`), contact by an augmented Lagrangian on the
-// embedded surface points, each Newton step solved by block-Jacobi preconditioned CG.
+// Two uses: static equilibrium with a rigid spherical probe pressed into the embedded surface
+// (`bisturi tissue indent --model volume`; contact by an augmented Lagrangian on the embedded
+// surface points, each Newton step solved by block-Jacobi preconditioned CG), and dynamics
+// (advance(): one linearised backward Euler step per call, lumped masses from the density,
+// Kelvin-Voigt damping from the retardation time, loads on embedded points), which is how a
+// session's tissue moves (volume_body.h).
 
 #include <cmath>
 #include <cstdint>
@@ -16,6 +19,7 @@
 #include <span>
 #include <vector>
 
+#include <glm/mat3x3.hpp>
 #include <glm/vec3.hpp>
 
 #include "bisturi/sim/tissue.h"
@@ -44,6 +48,32 @@ struct PressResult {
   int newton_iterations = 0;
   long cg_iterations = 0;
   bool converged = false;
+};
+
+/// A load on an embedded point for one dynamic step: its force at the current positions and its
+/// stiffness (how the force changes per metre the point moves, with the sign of a spring: k n n^T
+/// for a penalty contact along n, k I for a spring to a target), which the implicit step takes
+/// in as it takes the elements' own.
+struct PointLoad {
+  EmbeddedPoint point;
+  glm::dvec3 force_N{0.0};
+  glm::dmat3 stiffness_N_per_m{0.0};
+};
+
+struct DynamicOptions {
+  double dt_s = 1e-3;
+  glm::dvec3 gravity_m_s2{0.0, 0.0, -9.81};
+  double cg_tolerance = 1e-4;
+  int max_cg = 100;
+  /// The step's matrix may warp a cell's stiffness with a rotation this far from the cell's
+  /// own (the largest column difference): a Newton matrix a little off costs nothing in
+  /// accuracy (the forces use the exact rotation) and saves recomputing R K R^T.
+  double warp_tolerance = 0.01;
+};
+
+struct DynamicResult {
+  int cg_iterations = 0;
+  double relative_residual = 0.0;
 };
 
 /// How the elements resist: both from E and nu, identical at small strains.
@@ -77,18 +107,40 @@ class ElasticVolume {
   PressResult press_sphere(std::span<const EmbeddedPoint> points, const glm::dvec3& centre,
                            double radius, const PressOptions& options = {});
 
+  /// One backward Euler step of options.dt_s, linearised at the current state (one Newton step,
+  /// the corotated stiffness as its matrix, Kelvin-Voigt damping tau K):
+  ///   (M + (h tau + h^2) K + h^2 L) dv = h (f(x) - tau K v + M g + l) - h^2 (K + L) v,
+  ///   v += dv,  x += h v
+  /// with L and l the loads' stiffness and force. Held nodes stay at rest.
+  DynamicResult advance(std::span<const PointLoad> loads, const DynamicOptions& options);
+  [[nodiscard]] std::span<const glm::dvec3> velocities() const { return v_; }
+  /// Each node's lumped mass (kg): the density times its share of its cells' inside volume.
+  [[nodiscard]] std::span<const double> masses() const { return mass_; }
+  /// Restores a state saved from positions() and velocities() (a rolled-back step).
+  void set_state(std::span<const glm::dvec3> positions, std::span<const glm::dvec3> velocities);
+  [[nodiscard]] double finest_cell_m() const { return finest_cell_m_; }
+  [[nodiscard]] double youngs_modulus_Pa() const { return youngs_Pa_; }
+
  private:
   struct Solver;
   /// The forces at the current positions (elements and contact, into the solver's force) and,
   /// with_matrix, the Newton matrix; the probe's force, contacts and penetration into `out`.
   void assemble(std::span<const EmbeddedPoint> points, const glm::dvec3& centre, double radius,
                 double penalty, bool with_matrix, PressResult& out);
+  /// The elements' forces at the current positions into the solver's force and, with_matrix,
+  /// their corotated stiffness times `scale` into its matrix (zeroed first), each cell's warped
+  /// with a rotation within warp_tolerance of its own (0: exactly its own).
+  void assemble_elements(bool with_matrix, double warp_tolerance, double scale);
+  void add_cell_matrix(std::size_t c, const glm::dmat3& r, double warp_tolerance, float scale);
   HexLattice lattice_;
   ElasticLaw law_;
   double mu_ = 0.0, lambda_ = 0.0;
   double youngs_Pa_ = 0.0;
+  double retardation_s_ = 0.0;
   double finest_cell_m_ = INFINITY;  ///< the lattice's smallest cell side
   std::vector<glm::dvec3> x_;
+  std::vector<glm::dvec3> v_;
+  std::vector<double> mass_;
   std::vector<std::uint8_t> held_;
   std::vector<double> multipliers_;  ///< per surface point, N
   std::unique_ptr<Solver> solver_;

@@ -1,0 +1,72 @@
+#pragma once
+// A soft body whose motion comes from a volume: the hexahedral lattice under its closed DLFL
+// surface (hex_lattice.h), elastic from the material's modulus (elastic_volume.h), with every
+// surface vertex embedded in it. The SoftBody stays what is drawn, touched, grasped and cut;
+// each step the loads the world gave its vertices (forces, penalty contacts with their
+// stiffness, grasped vertices' targets) go to the lattice's nodes by the embedding weights, the
+// volume takes one implicit step, and the vertices' positions and velocities are read back from
+// it. Anchored vertices hold the nodes of their cells.
+//
+// A cut changes the surface only: the new vertices (copies along the cut) are embedded where
+// their originals are, so both lips follow the same elements and the wound does not open yet.
+
+#include <cstdint>
+#include <vector>
+
+#include "bisturi/sim/integrator.h"
+#include "bisturi/sim/soft_body.h"
+#include "bisturi/sim/tissue.h"
+#include "bisturi/sim/volume/elastic_volume.h"
+
+namespace bisturi::sim {
+
+struct VolumeOptions {
+  /// Cell side (metres): the lattice is uniform at this size.
+  double cell_m = 0.006;
+  ElasticMaterial material;
+  ElasticLaw law = ElasticLaw::Corotational;
+  /// Stiffness of the spring pulling a grasped vertex to its target (N/m); 0: 20 E h, what
+  /// twenty cells of side h resist with.
+  double target_stiffness_N_per_m = 0.0;
+  /// The step's solve: relative residual (warm started from the last step's velocity change).
+  double cg_tolerance = 1e-3;
+  int max_cg = 100;
+};
+
+class VolumeBody {
+ public:
+  /// The lattice under `body`'s surface at its rest positions, its vertices embedded and its
+  /// anchored vertices' cells held. Throws SimInputError when the body has no closed surface or
+  /// a vertex cannot be embedded.
+  VolumeBody(const SoftBody& body, const VolumeOptions& options);
+
+  /// One step of options.dt_s (gravity and the guard's speed limit from `options`): the body's
+  /// loads in, its vertices' state out, its loads cleared. A non-finite state or a node faster
+  /// than the limit rolls the step back and retries it in 2, 4, 8 substeps, then freezes the
+  /// body (events as the spring integrator reports them). A frozen body does not move.
+  StepStats step(SoftBody& body, const IntegratorOptions& options, std::vector<SimEvent>& events,
+                 std::uint32_t body_index, std::uint64_t step);
+  /// After a topology change: embeds the vertices the body gained (at their rest positions).
+  void sync_topology(const SoftBody& body);
+
+  [[nodiscard]] const ElasticVolume& volume() const { return volume_; }
+  /// Embedded vertex slots (alive vertices of the body's mesh).
+  [[nodiscard]] std::size_t embedded_vertices() const;
+
+ private:
+  void embed_slots(const SoftBody& body, std::size_t from);
+  /// The body's loads as point loads on the lattice (into loads_).
+  void gather_loads(const SoftBody& body);
+  void write_surface(SoftBody& body) const;
+
+  ElasticVolume volume_;
+  VolumeOptions options_;
+  double target_stiffness_N_per_m_ = 0.0;
+  std::vector<EmbeddedPoint> embedding_;  ///< per vertex slot
+  std::vector<std::uint8_t> embedded_;    ///< per vertex slot
+  std::vector<PointLoad> loads_;          // scratch
+  std::vector<std::uint8_t> loaded_;      // scratch: per vertex slot
+  std::vector<glm::dvec3> saved_x_, saved_v_;
+};
+
+}  // namespace bisturi::sim

@@ -1,0 +1,187 @@
+#include "bisturi/sim/volume/volume_body.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include <glm/geometric.hpp>
+#include <glm/gtx/norm.hpp>
+
+#include "bisturi/sim/errors.h"
+
+namespace bisturi::sim {
+
+namespace {
+
+ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options) {
+  if (!body.closed()) {
+    throw SimInputError("a volume needs a closed surface: the solid has open boundaries");
+  }
+  if (!(options.cell_m > 0.0) || !std::isfinite(options.cell_m)) {
+    throw SimInputError("volume cell size must be positive, got " +
+                        std::to_string(options.cell_m) + " m");
+  }
+  // The surface at rest, its alive vertices numbered compactly.
+  const Dlfl& mesh = body.mesh();
+  std::vector<std::uint32_t> compact(mesh.vertex_capacity(), 0);
+  std::vector<glm::dvec3> vertices;
+  for (std::uint32_t i = 0; i < mesh.vertex_capacity(); ++i) {
+    if (!mesh.alive(VertexId(i))) continue;
+    compact[i] = static_cast<std::uint32_t>(vertices.size());
+    vertices.push_back(body.rest_position(VertexId(i)));
+  }
+  const auto& indices = body.triangles().indices;
+  std::vector<std::array<std::uint32_t, 3>> triangles(indices.size() / 3);
+  for (std::size_t t = 0; t < triangles.size(); ++t)
+    for (std::size_t c = 0; c < 3; ++c)
+      triangles[t][c] = compact[indices[3 * t + c]];
+  LatticeOptions lattice;
+  lattice.finest_m = options.cell_m;
+  lattice.coarsest_m = options.cell_m;
+  ElasticVolume volume(build_hex_lattice(vertices, triangles, lattice), options.material,
+                       options.law);
+  return volume;
+}
+
+}  // namespace
+
+VolumeBody::VolumeBody(const SoftBody& body, const VolumeOptions& options)
+    : volume_(build_volume(body, options)), options_(options) {
+  target_stiffness_N_per_m_ = options.target_stiffness_N_per_m > 0.0
+                                  ? options.target_stiffness_N_per_m
+                                  : 20.0 * volume_.youngs_modulus_Pa() * volume_.finest_cell_m();
+  embed_slots(body, 0);
+  for (std::uint32_t i = 0; i < embedded_.size(); ++i) {
+    if (!embedded_[i] || !body.anchored(VertexId(i))) continue;
+    for (const std::uint32_t node : volume_.lattice().cells[embedding_[i].cell])
+      volume_.hold(node);
+  }
+}
+
+void VolumeBody::embed_slots(const SoftBody& body, std::size_t from) {
+  const Dlfl& mesh = body.mesh();
+  const std::size_t capacity = mesh.vertex_capacity();
+  embedding_.resize(capacity);
+  embedded_.resize(capacity, 0);
+  loaded_.resize(capacity, 0);
+  for (std::size_t i = from; i < capacity; ++i) {
+    const VertexId v(static_cast<std::uint32_t>(i));
+    if (!mesh.alive(v) || embedded_[i]) continue;
+    const glm::dvec3 rest = body.rest_position(v);
+    const std::vector<EmbeddedPoint> one = embed_points(volume_.lattice(), {&rest, 1});
+    embedding_[i] = one.front();
+    embedded_[i] = 1;
+  }
+}
+
+void VolumeBody::sync_topology(const SoftBody& body) {
+  // Slots that died are skipped from now on; new ones (the cut's copies) embedded.
+  const Dlfl& mesh = body.mesh();
+  for (std::size_t i = 0; i < embedded_.size(); ++i)
+    if (embedded_[i] && !mesh.alive(VertexId(static_cast<std::uint32_t>(i)))) embedded_[i] = 0;
+  embed_slots(body, 0);
+}
+
+std::size_t VolumeBody::embedded_vertices() const {
+  return static_cast<std::size_t>(std::count(embedded_.begin(), embedded_.end(), 1));
+}
+
+void VolumeBody::gather_loads(const SoftBody& body) {
+  loads_.clear();
+  const auto& forces = body.external_forces();
+  for (const std::uint32_t i : body.loaded_vertices()) {
+    if (loaded_[i] || !embedded_[i]) continue;  // a vertex listed twice carries one sum
+    loaded_[i] = 1;
+    loads_.push_back({embedding_[i], forces[i], glm::dmat3(0.0)});
+  }
+  for (const std::uint32_t i : body.loaded_vertices())
+    loaded_[i] = 0;
+  for (const SoftBody::ContactTerm& c : body.contacts()) {
+    if (!embedded_[c.vertex]) continue;
+    loads_.push_back(
+        {embedding_[c.vertex], glm::dvec3(0.0), c.stiffness_N_per_m * glm::outerProduct(c.normal, c.normal)});
+  }
+  if (body.kinematic_count() == 0) return;
+  const auto nodes = volume_.positions();
+  for (std::uint32_t i = 0; i < embedded_.size(); ++i) {
+    if (!embedded_[i] || !body.kinematic(VertexId(i))) continue;
+    const glm::dvec3 at = embedded_position(volume_.lattice(), nodes, embedding_[i]);
+    const double k = target_stiffness_N_per_m_;
+    loads_.push_back({embedding_[i], k * (body.kinematic_target(VertexId(i)) - at), glm::dmat3(k)});
+  }
+}
+
+void VolumeBody::write_surface(SoftBody& body) const {
+  auto& x = body.positions();
+  auto& v = body.velocities();
+  const auto nodes = volume_.positions();
+  const auto speeds = volume_.velocities();
+  for (std::size_t i = 0; i < embedded_.size(); ++i) {
+    if (!embedded_[i]) continue;
+    x[i] = embedded_position(volume_.lattice(), nodes, embedding_[i]);
+    v[i] = embedded_position(volume_.lattice(), speeds, embedding_[i]);
+  }
+}
+
+StepStats VolumeBody::step(SoftBody& body, const IntegratorOptions& options,
+                           std::vector<SimEvent>& events, std::uint32_t body_index,
+                           std::uint64_t step_index) {
+  StepStats stats;
+  stats.free_vertices = static_cast<std::uint32_t>(embedded_vertices());
+  stats.awake_vertices = stats.free_vertices;
+  if (body.frozen()) {
+    body.clear_forces();
+    return stats;
+  }
+  if (body.mesh().vertex_capacity() != embedded_.size()) sync_topology(body);
+  gather_loads(body);
+  saved_x_.assign(volume_.positions().begin(), volume_.positions().end());
+  saved_v_.assign(volume_.velocities().begin(), volume_.velocities().end());
+  const double max_speed2 = options.max_speed_m_s * options.max_speed_m_s;
+  for (int attempt = 0; attempt <= options.max_retry_halvings; ++attempt) {
+    const int substeps = 1 << attempt;
+    DynamicOptions dynamic;
+    dynamic.dt_s = options.dt_s / substeps;
+    dynamic.gravity_m_s2 = options.gravity_m_s2;
+    dynamic.cg_tolerance = options_.cg_tolerance;
+    dynamic.max_cg = options_.max_cg;
+    StepStats trial = stats;
+    trial.substeps = substeps;
+    for (int s = 0; s < substeps; ++s) {
+      const DynamicResult r = volume_.advance(loads_, dynamic);
+      trial.cg_iterations += r.cg_iterations;
+      trial.relative_residual = r.relative_residual;
+    }
+    std::string reason;
+    for (const glm::dvec3& v : volume_.velocities()) {
+      const double s2 = glm::length2(v);
+      if (!std::isfinite(s2)) {
+        reason = "non-finite state";
+        break;
+      }
+      if (s2 > max_speed2) {
+        reason = "speed " + std::to_string(std::sqrt(s2)) + " m/s above the limit";
+        break;
+      }
+    }
+    if (reason.empty()) {
+      trial.rolled_back = attempt > 0;
+      write_surface(body);
+      body.clear_forces();
+      return trial;
+    }
+    events.push_back({SimEventKind::RolledBack, body_index, step_index, substeps, reason});
+    volume_.set_state(saved_x_, saved_v_);
+  }
+  events.push_back({SimEventKind::Frozen, body_index, step_index, 1 << options.max_retry_halvings,
+                    "still diverging with the smallest substep: the solid is frozen"});
+  saved_v_.assign(saved_v_.size(), glm::dvec3(0.0));
+  volume_.set_state(saved_x_, saved_v_);
+  write_surface(body);
+  body.freeze();
+  stats.frozen = true;
+  stats.rolled_back = true;
+  return stats;
+}
+
+}  // namespace bisturi::sim

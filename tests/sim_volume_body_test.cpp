@@ -1,0 +1,159 @@
+// A soft body stepped by its volume (volume_body.h) inside a SimWorld, as a session steps it:
+// the probe's force grows strictly with depth and is of the order a solid gives (Hertz), the
+// organ settles under gravity on its anchors, grasped vertices follow their targets, a cut keeps
+// every vertex embedded, and two runs are bit-identical.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include <glm/geometric.hpp>
+
+#include "bisturi/scene/dlfl_validate.h"
+#include "bisturi/sim/tissue.h"
+#include "bisturi/sim/world.h"
+#include "sim_test_shapes.h"
+
+namespace bisturi::sim {
+namespace {
+
+constexpr double kRadius_m = 0.015;
+const glm::dvec3 kCentre_m(0.0195, 0.0195, 0.0195);  // sphere(40, 15 mm)
+
+/// The sphere with its lowest 3 mm anchored, stepped by a liver-like volume of 3 mm cells.
+SimWorld volume_world(bool gravity) {
+  WorldOptions options;
+  if (!gravity) options.integrator.gravity_m_s2 = glm::dvec3(0.0);
+  SimWorld world(options);
+  SoftBody body(testing::sphere(40, kRadius_m * 1e3), Material{});
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+    const VertexId v(i);
+    if (body.mesh().alive(v) && body.position(v).z < kCentre_m.z - kRadius_m + 0.003)
+      body.set_anchored(v, true);
+  }
+  world.add_body(std::move(body));
+  VolumeOptions volume;
+  volume.cell_m = 0.003;
+  volume.material = tissue_preset("liver").material;
+  world.set_volume(0, volume);
+  world.prepare();
+  return world;
+}
+
+/// The probe's force (N, along +z) with the tip held `depth` below the top for `steps`: the mean
+/// over the last third (what is left of the tissue's ringing averages out).
+double press(SimWorld& world, double depth_m, int steps) {
+  const double probe = world.options().haptic.probe_radius_m;
+  const glm::dvec3 tip = kCentre_m + glm::dvec3(0.0, 0.0, kRadius_m + probe - depth_m);
+  double sum = 0.0;
+  int counted = 0;
+  for (int s = 0; s < steps; ++s) {
+    const HapticOutput out = world.step(tip);
+    if (3 * s < 2 * steps) continue;
+    sum += out.force_N.z;
+    ++counted;
+  }
+  return sum / counted;
+}
+
+TEST(SimVolumeBody, ProbeForceGrowsStrictlyWithDepthAtASolidsOrder) {
+  SimWorld world = volume_world(false);
+  // A probe a few surface edges wide: its contact patch holds several vertices at every depth.
+  world.options().haptic.probe_radius_m = 0.003;
+  ASSERT_NE(world.volume(0), nullptr);
+  EXPECT_EQ(world.volume(0)->embedded_vertices(), world.body(0).mesh().num_vertices());
+  EXPECT_GT(world.volume(0)->volume().held_count(), 0u);
+  std::vector<double> forces;
+  // From above the surface down to 4 mm, slowly (a quarter millimetre per 150 ms).
+  for (int k = -2; k <= 16; ++k) {
+    const double f = press(world, 2.5e-4 * k, 150);
+    if (k > 0) forces.push_back(f);
+  }
+  for (std::size_t i = 1; i < forces.size(); ++i)
+    EXPECT_GT(forces[i], forces[i - 1]) << "at " << 0.25 * double(i + 1) << " mm";
+  // Hertz for the probe on the 15 mm sphere at the tip's depth less the coupling's
+  // stretch: the same order (the contact patch is sampled by 1-2 mm surface edges and 3 mm
+  // cells, which stiffen it), where the spring membrane gave about 1 %.
+  const double force = forces.back();
+  const double coupling = world.options().haptic.coupling_N_per_m;
+  const double depth = 0.004 - force / coupling;
+  const double probe = world.options().haptic.probe_radius_m;
+  const ElasticMaterial liver = tissue_preset("liver").material;
+  const double e_star = liver.youngs_modulus_kPa * 1e3 / (1.0 - liver.poisson_ratio * liver.poisson_ratio);
+  const double r_eff = 1.0 / (1.0 / probe + 1.0 / kRadius_m);
+  const double hertz = 4.0 / 3.0 * e_star * std::sqrt(r_eff) * std::pow(depth, 1.5);
+  EXPECT_GT(force, 0.5 * hertz) << "hertz " << hertz;
+  EXPECT_LT(force, 4.0 * hertz) << "hertz " << hertz;
+  EXPECT_TRUE(world.take_events().empty());
+}
+
+TEST(SimVolumeBody, SettlesUnderGravityOnItsAnchors) {
+  SimWorld world = volume_world(true);
+  const SoftBody& body = world.body(0);
+  const glm::dvec3 top_rest = kCentre_m + glm::dvec3(0.0, 0.0, kRadius_m);
+  for (int s = 0; s < 1500; ++s)
+    world.step({1.0, 1.0, 1.0});  // the probe far away
+  EXPECT_TRUE(world.take_events().empty());
+  double top_sag = 0.0, fastest = 0.0;
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+    const VertexId v(i);
+    if (!body.mesh().alive(v)) continue;
+    fastest = std::max(fastest, glm::length(body.velocity(v)));
+    if (glm::length(body.rest_position(v) - top_rest) < 0.002)
+      top_sag = std::max(top_sag, body.rest_position(v).z - body.position(v).z);
+    if (body.anchored(v)) {
+      EXPECT_LT(glm::length(body.position(v) - body.rest_position(v)), 1e-9);
+    }
+  }
+  // A 30 mm liver sphere sags by its weight: rho g H^2 / E is about 2 mm; it has stopped.
+  EXPECT_GT(top_sag, 2e-4);
+  EXPECT_LT(top_sag, 8e-3);
+  EXPECT_LT(fastest, 2e-3);
+}
+
+TEST(SimVolumeBody, GraspedVerticesFollowTheirTargets) {
+  SimWorld world = volume_world(false);
+  SoftBody& body = world.body(0);
+  const glm::dvec3 top = kCentre_m + glm::dvec3(0.0, 0.0, kRadius_m);
+  const glm::dvec3 lift(0.0, 0.0, 0.003);
+  std::vector<VertexId> held;
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+    const VertexId v(i);
+    if (body.mesh().alive(v) && glm::length(body.position(v) - top) < 0.002) held.push_back(v);
+  }
+  ASSERT_GE(held.size(), 3u);
+  for (int s = 0; s < 800; ++s) {
+    const double share = std::min(1.0, s / 300.0);
+    for (const VertexId v : held)
+      body.set_kinematic_target(v, body.rest_position(v) + share * lift);
+    world.step({1.0, 1.0, 1.0});
+  }
+  for (const VertexId v : held)
+    EXPECT_LT(glm::length(body.position(v) - (body.rest_position(v) + lift)), 5e-4);
+  EXPECT_TRUE(world.take_events().empty());
+}
+
+TEST(SimVolumeBody, ACutKeepsEveryVertexEmbeddedAndTheRunsAreIdentical) {
+  std::uint64_t hashes[2];
+  for (std::uint64_t& hash : hashes) {
+    SimWorld world = volume_world(true);
+    const double z = kCentre_m.z + std::sqrt(kRadius_m * kRadius_m - 0.005 * 0.005);
+    const std::vector<glm::dvec3> blade{kCentre_m * glm::dvec3(1, 1, 0) + glm::dvec3(-0.005, 0, z),
+                                        kCentre_m * glm::dvec3(1, 1, 0) + glm::dvec3(0.005, 0, z)};
+    for (int s = 0; s < 100; ++s)
+      world.step({1.0, 1.0, 1.0});
+    const CutResult cut = world.cut(0, blade);
+    ASSERT_FALSE(cut.new_vertices.empty());
+    ASSERT_TRUE(validate(world.body(0).mesh()).ok());
+    EXPECT_EQ(world.volume(0)->embedded_vertices(), world.body(0).mesh().num_vertices());
+    for (int s = 0; s < 200; ++s)
+      world.step(kCentre_m + glm::dvec3(0.0, 0.0, kRadius_m - 0.001));
+    EXPECT_TRUE(world.take_events().empty());
+    hash = world.body(0).state_hash();
+  }
+  EXPECT_EQ(hashes[0], hashes[1]);
+}
+
+}  // namespace
+}  // namespace bisturi::sim

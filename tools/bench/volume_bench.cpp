@@ -1,0 +1,142 @@
+// The volume model in a world step (sim/volume/volume_body.h), on the default organ's size: a
+// sphere of radius 28 mm (1 mm voxels) with its lower third anchored and the probe pressing
+// 0..3 mm into its top and back at 2 Hz, as sim_bench's BM_FullStep does for the membrane.
+// BM_VolumeBuild: building the volume (lattice, elements, embedding) at three cell sizes.
+// BM_VolumeStep: one 1 ms world step with the body stepped by its volume at three cell sizes:
+// p50/p99, CG iterations, cells and nodes, and in the same run the same step with the body a
+// spring membrane (surface_p50_us) and the ratio of the two p50s.
+// Run by hand: build/bin/volume_bench [--benchmark_filter=...].
+
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <chrono>
+#include <vector>
+
+#include "bisturi/scene/oriented_builder.h"
+#include "bisturi/scene/volume/marching_cubes.h"
+#include "bisturi/scene/volume/phantoms.h"
+#include "bisturi/sim/tissue.h"
+#include "bisturi/sim/world.h"
+
+namespace {
+
+using namespace bisturi;
+using namespace bisturi::sim;
+
+constexpr double kRadius_mm = 28.0;
+constexpr std::int64_t kDims = 62;  // 2 r + 6 voxels
+constexpr double kCentre_m = (kDims - 1) / 2.0 * 1e-3;
+
+const PolygonMesh& sphere_polygons() {
+  static const PolygonMesh mesh = [] {
+    PhantomOptions o;
+    o.shape = PhantomShape::Sphere;
+    o.dims = {kDims, kDims, kDims};
+    o.spacing = glm::dvec3(1.0);
+    o.a = kRadius_mm;
+    return extract_isosurface_mesh(make_phantom(o));
+  }();
+  return mesh;
+}
+
+SoftBody anchored_sphere() {
+  SoftBody body(build_oriented_manifold(sphere_polygons()), Material{});
+  const double below = kCentre_m - kRadius_mm * 1e-3 / 3.0;
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+    const VertexId v(i);
+    if (body.mesh().alive(v) && body.position(v).z < below) body.set_anchored(v, true);
+  }
+  return body;
+}
+
+VolumeOptions liver_cells(double cell_mm) {
+  VolumeOptions o;
+  o.cell_m = cell_mm * 1e-3;
+  o.material = tissue_preset("liver").material;
+  return o;
+}
+
+glm::dvec3 probe_tip(std::uint64_t step) {
+  const double depth = 0.0015 * (1.0 - std::cos(2.0 * 3.141592653589793 * 2.0 * double(step) * 1e-3));
+  return {kCentre_m, kCentre_m, kCentre_m + kRadius_mm * 1e-3 + 0.001 - depth};
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * double(v.size() - 1) + 0.5))];
+}
+
+/// The step times (us) of `steps` probe steps after 200 to settle.
+std::vector<double> step_times(SimWorld& world, int steps, double* cg_mean = nullptr) {
+  std::uint64_t s = 0;
+  for (; s < 200; ++s)
+    world.step(probe_tip(s));
+  std::vector<double> us;
+  double cg = 0.0;
+  for (int k = 0; k < steps; ++k, ++s) {
+    const auto t0 = std::chrono::steady_clock::now();
+    benchmark::DoNotOptimize(world.step(probe_tip(s)));
+    us.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() *
+                 1e6);
+    cg += world.last_stats(0).cg_iterations;
+  }
+  if (cg_mean) *cg_mean = cg / steps;
+  return us;
+}
+
+void BM_VolumeBuild(benchmark::State& state) {
+  const SoftBody body = anchored_sphere();
+  const double cell_mm = double(state.range(0));
+  std::size_t cells = 0, nodes = 0;
+  for (auto _ : state) {
+    VolumeBody volume(body, liver_cells(cell_mm));
+    cells = volume.volume().lattice().cells.size();
+    nodes = volume.volume().positions().size();
+    benchmark::DoNotOptimize(volume);
+  }
+  state.counters["vertices"] = double(body.mesh().num_vertices());
+  state.counters["cells"] = double(cells);
+  state.counters["nodes"] = double(nodes);
+}
+BENCHMARK(BM_VolumeBuild)->Arg(4)->Arg(6)->Arg(8)->Unit(benchmark::kMillisecond)->Iterations(5);
+
+void BM_VolumeStep(benchmark::State& state) {
+  const double cell_mm = double(state.range(0));
+  SimWorld surface;
+  surface.add_body(anchored_sphere());
+  surface.prepare();
+  const std::vector<double> membrane = step_times(surface, 1000);
+
+  SimWorld world;
+  world.add_body(anchored_sphere());
+  world.set_volume(0, liver_cells(cell_mm));
+  world.prepare();
+  std::vector<double> samples;
+  double cg = 0.0;
+  for (auto _ : state) {
+    samples = step_times(world, 1000, &cg);
+    state.SetIterationTime(percentile(samples, 0.5) * 1e-6);
+  }
+  const double p50 = percentile(samples, 0.50);
+  state.counters["cells"] = double(world.volume(0)->volume().lattice().cells.size());
+  state.counters["nodes"] = double(world.volume(0)->volume().positions().size());
+  state.counters["p50_us"] = p50;
+  state.counters["p99_us"] = percentile(samples, 0.99);
+  state.counters["cg_iters"] = cg;
+  state.counters["surface_p50_us"] = percentile(membrane, 0.50);
+  state.counters["volume_over_surface"] = p50 / percentile(membrane, 0.50);
+  state.counters["events"] = double(world.take_events().size());
+}
+BENCHMARK(BM_VolumeStep)
+    ->Arg(4)
+    ->Arg(6)
+    ->Arg(8)
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond)
+    ->Iterations(1);
+
+}  // namespace
+
+BENCHMARK_MAIN();
