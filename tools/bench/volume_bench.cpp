@@ -4,13 +4,19 @@
 // BM_VolumeBuild: building the volume (lattice, elements, embedding) at three cell sizes.
 // BM_VolumeStep: one 1 ms world step with the body stepped by its volume at three cell sizes:
 // p50/p99, CG iterations, cells and nodes, and in the same run the same step with the body a
-// spring membrane (surface_p50_us) and the ratio of the two p50s.
+// spring membrane (surface_p50_us) and the ratio of the two p50s. BM_VolumeForceConvergence:
+// the haptic force at dt = 1 ms against dt / 16.
 // Run by hand: build/bin/volume_bench [--benchmark_filter=...].
 
 #include <benchmark/benchmark.h>
 
+#include <glm/geometric.hpp>
+
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <memory>
+#include <string>
 #include <vector>
 
 #include "bisturi/scene/oriented_builder.h"
@@ -57,9 +63,11 @@ VolumeOptions liver_cells(double cell_mm) {
   return o;
 }
 
-glm::dvec3 probe_tip(std::uint64_t step) {
+/// The probe's tip at `step` milliseconds: a 2 Hz sine from 1 mm above the rest top to 2 mm
+/// below it, lowered by lower_m.
+glm::dvec3 probe_tip(std::uint64_t step, double lower_m = 0.0) {
   const double depth = 0.0015 * (1.0 - std::cos(2.0 * 3.141592653589793 * 2.0 * double(step) * 1e-3));
-  return {kCentre_m, kCentre_m, kCentre_m + kRadius_mm * 1e-3 + 0.001 - depth};
+  return {kCentre_m, kCentre_m, kCentre_m + kRadius_mm * 1e-3 + 0.001 - depth - lower_m};
 }
 
 double percentile(std::vector<double> v, double q) {
@@ -136,6 +144,48 @@ BENCHMARK(BM_VolumeStep)
     ->UseManualTime()
     ->Unit(benchmark::kMicrosecond)
     ->Iterations(1);
+
+// How the haptic force depends on the step length with the volume (6 mm cells): 1.6 s of the
+// probing, lowered by the argument (um; 2000 keeps the probe in firm contact), with dt = 1 ms / k
+// for k = 1, 2, 4, 8, 16 (the device held over a millisecond's steps). Counters per k: the RMS
+// force (force_k_mN) and the RMS difference from the k = 16 run against that run's RMS force
+// (diff_k).
+void BM_VolumeForceConvergence(benchmark::State& state) {
+  const double lower = double(state.range(0)) * 1e-6;
+  constexpr int kRuns = 5;
+  constexpr int kMilliseconds = 1600;
+  for (auto _ : state) {
+    std::vector<std::unique_ptr<SimWorld>> worlds;
+    for (int k = 0; k < kRuns; ++k) {
+      WorldOptions options;
+      options.integrator.dt_s = 1e-3 / double(1 << k);
+      worlds.push_back(std::make_unique<SimWorld>(options));
+      worlds.back()->add_body(anchored_sphere());
+      worlds.back()->set_volume(0, liver_cells(6.0));
+      worlds.back()->prepare();
+    }
+    double force2[kRuns] = {}, diff2[kRuns] = {};
+    for (int s = 0; s < kMilliseconds; ++s) {
+      const glm::dvec3 tip = probe_tip(std::uint64_t(s), lower);
+      glm::dvec3 f[kRuns];
+      for (int k = 0; k < kRuns; ++k) {
+        HapticOutput out;
+        for (int j = 0; j < (1 << k); ++j)
+          out = worlds[std::size_t(k)]->step(tip);
+        f[k] = out.force_N;
+        force2[k] += glm::dot(f[k], f[k]);
+      }
+      for (int k = 0; k < kRuns; ++k)
+        diff2[k] += glm::dot(f[k] - f[kRuns - 1], f[k] - f[kRuns - 1]);
+    }
+    for (int k = 0; k < kRuns; ++k) {
+      const std::string n = std::to_string(1 << k);
+      state.counters["force_" + n + "_mN"] = 1e3 * std::sqrt(force2[k] / kMilliseconds);
+      state.counters["diff_" + n] = std::sqrt(diff2[k] / std::max(force2[kRuns - 1], 1e-300));
+    }
+  }
+}
+BENCHMARK(BM_VolumeForceConvergence)->Arg(0)->Arg(2000)->Iterations(1)->Unit(benchmark::kSecond);
 
 }  // namespace
 
