@@ -62,7 +62,10 @@ std::uint32_t TissueRateController::decide(double median_step_ms) {
     n_ = std::min(max_, 2 * n_);
     since_change_ = 0;
   } else if (since_change_ >= 256 && n_ > 1 &&
-             median_step_ms < 0.5 * max_load_ * (covered_ms / 2)) {
+             median_step_ms < 0.75 * max_load_ * (covered_ms / 2)) {
+    // Back up when the step fits the shorter time with a quarter of its share to spare: a step
+    // that only just fitted stayed at the lower rate for good after one busy moment (a cut, the
+    // renderer's burst), and a shorter step is no dearer (the solve converges sooner).
     n_ /= 2;
     since_change_ = 0;
   }

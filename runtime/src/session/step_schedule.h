@@ -65,7 +65,8 @@ std::uint32_t ticks_per_step_for(double step_ms, double haptic_period_ms, double
 
 /// Picks the ticks per step from how long the tissue thread's steps take: doubles it (up to
 /// max_ticks) when the median step takes more than `max_load` (3/4) of the time it covers,
-/// halves it when the median would take under half that share of the halved step's time, with
+/// halves it when the median would take under three quarters of that share of the halved
+/// step's time, with
 /// a pause after each change so the median (of the last 32 steps) can follow.
 class TissueRateController {
  public:

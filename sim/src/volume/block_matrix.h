@@ -21,13 +21,20 @@ class BlockMatrix {
   BlockMatrix(std::size_t nodes, std::span<const std::array<std::uint32_t, 8>> cells);
 
   void set_zero();
-  /// The slot of block (i, j) in values(); i and j must share a cell.
+  /// The slot of block (i, j); i and j must share a cell.
   [[nodiscard]] std::uint32_t slot(std::uint32_t i, std::uint32_t j) const;
   /// Cell c's 64 slots, [a * 8 + b] for its corners a and b.
   [[nodiscard]] const std::array<std::uint32_t, 64>& cell_slots(std::size_t c) const {
     return cell_slots_[c];
   }
-  std::vector<glm::mat3>& values() { return values_; }
+  /// Adds m to the block in `slot`.
+  void add(std::uint32_t slot, const glm::mat3& m) {
+    float* b = values_[slot].data();
+    for (int c = 0; c < 3; ++c)
+      for (int r = 0; r < 3; ++r)
+        b[4 * c + r] += m[c][r];
+  }
+  [[nodiscard]] glm::mat3 block(std::uint32_t slot) const;
   /// The slot of node i's own block.
   [[nodiscard]] std::uint32_t diagonal_slot(std::size_t i) const { return diagonal_[i]; }
   [[nodiscard]] std::size_t nodes() const { return row_start_.size() - 1; }
@@ -48,11 +55,13 @@ class BlockMatrix {
   std::vector<std::uint32_t> row_start_;  ///< CSR over nodes
   std::vector<std::uint32_t> columns_;
   std::vector<std::uint32_t> diagonal_;  ///< each row's own block
-  std::vector<glm::mat3> values_;
+  /// Each block's columns, each padded to 4 floats: a product's column is one 4-wide vector.
+  std::vector<std::array<float, 12>> values_;
   std::vector<std::array<std::uint32_t, 64>> cell_slots_;
   std::vector<glm::dvec3> r_, z_, p_, q_;  // solver scratch
   std::vector<glm::dmat3> inv_diag_;
-  mutable std::vector<glm::vec3> x_single_;  ///< multiply()'s operand in single precision
+  /// multiply()'s operand in single precision, padded to 4 floats.
+  mutable std::vector<std::array<float, 4>> x_single_;
 };
 
 }  // namespace bisturi::sim

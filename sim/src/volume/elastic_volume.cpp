@@ -109,9 +109,8 @@ DynamicResult ElasticVolume::advance(std::span<const PointLoad> loads,
   // (h tau + h^2) K v: the masses join the matrix after it).
   for (std::size_t i = 0; i < n; ++i)
     s.force[i] = h * (s.force[i] + mass_[i] * o.gravity_m_s2) - s.product[i];
-  std::vector<glm::mat3>& values = s.matrix.values();
   for (std::size_t i = 0; i < n; ++i)
-    values[s.matrix.diagonal_slot(i)] += glm::mat3(static_cast<float>(mass_[i]));
+    s.matrix.add(s.matrix.diagonal_slot(i), glm::mat3(static_cast<float>(mass_[i])));
   for (const PointLoad& load : loads) {
     const auto& cell = lattice_.cells[load.point.cell];
     const auto& w = load.point.weights;
@@ -125,7 +124,7 @@ DynamicResult ElasticVolume::advance(std::span<const PointLoad> loads,
       if (w[a] == 0.0) continue;
       s.force[cell[a]] += w[a] * rhs;
       for (std::size_t b = 0; b < 8; ++b)
-        values[slots[a * 8 + b]] += glm::mat3((w[a] * w[b]) * scaled);
+        s.matrix.add(slots[a * 8 + b], glm::mat3((w[a] * w[b]) * scaled));
     }
   }
   // Warm start: the last step's velocity change (the motion changes smoothly step to step).
@@ -228,14 +227,13 @@ void ElasticVolume::add_cell_matrix(std::size_t c, const glm::dmat3& r, double w
       for (std::size_t b = a; b < 8; ++b)
         blocks[i++] = glm::mat3(r_fill * k[a][b] * rt);
   }
-  std::vector<glm::mat3>& values = s.matrix.values();
   const auto& slots = s.matrix.cell_slots(c);
   std::size_t i = 0;
   for (std::size_t a = 0; a < 8; ++a) {
     for (std::size_t b = a; b < 8; ++b, ++i) {
       const glm::mat3 block = scale * blocks[i];
-      values[slots[a * 8 + b]] += block;
-      if (b != a) values[slots[b * 8 + a]] += glm::transpose(block);
+      s.matrix.add(slots[a * 8 + b], block);
+      if (b != a) s.matrix.add(slots[b * 8 + a], glm::transpose(block));
     }
   }
 }
@@ -297,7 +295,6 @@ void ElasticVolume::assemble(std::span<const EmbeddedPoint> points, const glm::d
                              double radius, double penalty, bool with_matrix, PressResult& out) {
   Solver& s = *solver_;
   assemble_elements(with_matrix, 0.0, 1.0);
-  std::vector<glm::mat3>& values = s.matrix.values();
   // Contact: each surface point inside the probe (or holding a multiplier) pushed out along the
   // probe's normal, F = max(0, multiplier - penalty * gap).
   glm::dvec3 probe(0.0);
@@ -322,7 +319,7 @@ void ElasticVolume::assemble(std::span<const EmbeddedPoint> points, const glm::d
       s.force[cell[a]] += ep.weights[a] * push * normal;
       if (!with_matrix) continue;
       for (std::size_t b = 0; b < 8; ++b)
-        values[slots[a * 8 + b]] += glm::mat3((ep.weights[a] * ep.weights[b]) * nn);
+        s.matrix.add(slots[a * 8 + b], glm::mat3((ep.weights[a] * ep.weights[b]) * nn));
     }
     probe -= push * normal;
   }
