@@ -3,10 +3,13 @@
 // and the cut.
 
 #include <gtest/gtest.h>
+#include <fcntl.h>
 #include <signal.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -389,7 +392,8 @@ TEST_F(TraceTest, ForeignFilesAndOtherVersionsAreRefused) {
   EXPECT_THROW(TraceReader(file("absent.btrace")), TraceError);
 }
 
-// A process killed while recording leaves every chunk it had sealed.
+// A process killed while recording leaves every chunk it had sealed (and the writing thread had
+// time to take: it looks every couple of milliseconds).
 TEST_F(TraceTest, KilledWriterLeavesEverySealedChunk) {
   const fs::path path = file("killed.btrace");
   const pid_t child = ::fork();
@@ -403,6 +407,8 @@ TEST_F(TraceTest, KilledWriterLeavesEverySealedChunk) {
     const Bytes8 report = {1, 2, 3, 4};
     for (int i = 0; i < 95; ++i)
       writer.report_in(0, i, report);
+    // The writing thread takes sealed chunks within milliseconds, with no flush asked for.
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
     ::kill(::getpid(), SIGKILL);
     ::_exit(3);
   }
@@ -415,6 +421,46 @@ TEST_F(TraceTest, KilledWriterLeavesEverySealedChunk) {
   EXPECT_FALSE(all.closed);
   EXPECT_EQ(all.records.size(), 90u);
   EXPECT_EQ(all.records.back().time_ns, 89);
+}
+
+// A disk that stops taking the trace (a FIFO nobody reads: its write blocks) never holds up the
+// caller of a writer that must not wait: the ring fills, the recording stops and says why, and
+// every record call returns. Then the reader drains it and close() ends the writing thread.
+TEST_F(TraceTest, AStalledDiskStopsTheRecordingNotTheCaller) {
+  const fs::path path = file("stalled.fifo");
+  ASSERT_EQ(::mkfifo(path.c_str(), 0600), 0);
+  const int reader = ::open(path.c_str(), O_RDONLY | O_NONBLOCK);
+  ASSERT_GE(reader, 0);
+  {
+    TraceHeader header;
+    header.devices = {glove_device()};
+    TraceWriterOptions options;
+    options.max_chunk_records = 16;
+    options.wait_when_full = false;
+    TraceWriter writer(path, header, options);
+    const Bytes8 report(256, 7);
+    // 64 KiB of pipe, then the writing thread blocks in write(); the ring's buffers of 16
+    // records of 256 bytes fill after that.
+    for (int i = 0; i < 4000; ++i)
+      writer.report_in(0, i, report);
+    EXPECT_TRUE(writer.failed());
+    EXPECT_NE(writer.failure().find("the disk fell behind the recording"), std::string::npos)
+        << writer.failure();
+    std::thread drain([reader] {
+      std::uint8_t buffer[4096];
+      for (int quiet = 0; quiet < 200;) {
+        if (::read(reader, buffer, sizeof buffer) > 0) {
+          quiet = 0;
+        } else {
+          ++quiet;
+          std::this_thread::sleep_for(std::chrono::milliseconds(1));
+        }
+      }
+    });
+    EXPECT_THROW(writer.close(), TraceError);  // it says again why the recording stopped
+    drain.join();
+  }
+  ::close(reader);
 }
 
 // A writer that is destroyed without close() (an exception unwinding the session) still leaves a
@@ -604,6 +650,19 @@ TEST_F(TraceTest, SimulatedGloveSessionReplaysByteForByte) {
   EXPECT_EQ(glove.reports_out_replayed, glove.reports_out_recorded);
   EXPECT_EQ(r.devices[1].device.driver, "hid-tracker");
   EXPECT_GT(r.devices[1].reports_in, 90u);
+  // The device first, the trace after: a force command's record follows the output report it
+  // made, at the same time (while the glove is connected).
+  TraceReader again(path);
+  std::optional<TraceRecord> previous;
+  std::size_t after_their_report = 0;
+  while (auto record = again.next()) {
+    if (record->device != 0 || record->type == TraceRecordType::kNote) continue;
+    if (record->type == TraceRecordType::kForceCommand && previous &&
+        previous->type == TraceRecordType::kReportOut && previous->time_ns == record->time_ns)
+      ++after_their_report;
+    previous = record;
+  }
+  EXPECT_GE(after_their_report, commands * 9 / 10) << "of " << commands;
 }
 
 // The recorded session, with one byte of one output report changed (and the chunk's checksum

@@ -1,6 +1,6 @@
 // Trace write throughput (MB/s and records/s) and read throughput: records of typical sizes
-// appended to a TraceWriter on one thread, chunks sealed (CRC-32 + one write()) as in a live
-// session; the session's 1 kHz glove step (one input report, one force command, two output
+// appended to a TraceWriter on one thread, chunks sealed (CRC-32) and written by the writer's
+// own thread as in a live session; the session's 1 kHz glove step (one input report, one force command, two output
 // reports); and TraceReader streaming the result back. Files go to $TMPDIR (default /tmp);
 // rates are per wall-clock second (page-cache writes, no fsync).
 // Run by hand (build/bin/trace_bench).

@@ -101,15 +101,28 @@ std::size_t GuardedHaptic::poll(std::chrono::microseconds timeout) {
 
 GuardStep GuardedHaptic::send(std::span<const double> command_N) {
   const Nanoseconds now = clock_->now();
-  if (writer_ != nullptr) writer_->force_command(index_, now.count(), command_N);
   const GuardStep step = guard_->step(command_N, now, output_);
+  // The device first, the trace after: a recording that stalls or fails never delays or
+  // swallows a force (a zero above all). The record keeps the command's own time.
   try {
     device_->send_forces(output_);
   } catch (const DeviceDisconnected&) {
     guard_->device_disconnected();
+    record(now, command_N);
     throw;
   }
+  record(now, command_N);
   return step;
+}
+
+void GuardedHaptic::record(Nanoseconds time, std::span<const double> command_N) {
+  if (writer_ == nullptr) return;
+  try {
+    writer_->force_command(index_, time.count(), command_N);
+  } catch (const TraceError&) {
+    // Only a closed trace throws here (a failed write stops the recording quietly): the force
+    // went out, and the recording's end is the writer's to report.
+  }
 }
 
 }  // namespace bisturi::devices

@@ -70,13 +70,18 @@ std::optional<Bytes> RecordingTransport::read(std::chrono::microseconds timeout)
 }
 
 void RecordingTransport::write(std::span<const std::uint8_t> report) {
-  if (!disconnected_.load()) writer_->report_out(index_, clock_->now().count(), report);
+  // The device first, the trace after (at the time the write began): a recording never delays
+  // what goes to the device. A write that loses the device is recorded before its disconnect.
+  const std::int64_t now = clock_->now().count();
+  const bool known_lost = disconnected_.load();
   try {
     inner_->write(report);
   } catch (const DeviceDisconnected&) {
+    if (!known_lost) writer_->report_out(index_, now, report);
     lost();
     throw;
   }
+  if (!known_lost) writer_->report_out(index_, now, report);
 }
 
 }  // namespace bisturi::devices

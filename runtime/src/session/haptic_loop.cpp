@@ -127,7 +127,7 @@ void HapticLoop::send(devices::Nanoseconds t) noexcept {
   } catch (const devices::DeviceDisconnected& e) {
     lose_device(t, e.what());
   } catch (const devices::TraceError& e) {
-    // The command was not recorded, so it was not sent either (GuardedHaptic records first).
+    // The command went out (GuardedHaptic sends first); only its record is lost.
     recording_failed(e.what());
   } catch (const std::exception& e) {
     parts_.haptic->guard().device_disconnected();

@@ -88,7 +88,10 @@ std::unique_ptr<devices::TraceWriter> open_session_trace(const SceneDescription&
   header.config = session_trace_config(
       toml, scene.file.empty() ? std::filesystem::path() : scene.file.parent_path(),
       scene.rates.haptic_hz, 0, lag, ticks_per_step, tissue_threads);
-  return std::make_unique<devices::TraceWriter>(options.record, header);
+  // The haptic tick records: a disk that falls behind stops the recording, never the tick.
+  devices::TraceWriterOptions writer_options;
+  writer_options.wait_when_full = false;
+  return std::make_unique<devices::TraceWriter>(options.record, header, writer_options);
 }
 
 /// What the haptic loop counted, into the report.

@@ -3,8 +3,9 @@
 // replay_trace() both go through these, so a replayed trace meets the force guard with the same
 // commands at the same times and the driver writes the same bytes:
 //   poll:  device.poll(); the guard hears that the device answered at the last report's time;
-//   send:  the command is recorded (kForceCommand, N per actuator, at clock.now()), filtered by
-//          the guard at that same time, and the guarded forces go to the driver;
+//   send:  the command is filtered by the guard at clock.now(), the guarded forces go to the
+//          driver, and then the command is recorded (kForceCommand, N per actuator, at that
+//          same time): the trace never stands between a force and the device;
 //   lost:  DeviceDisconnected latches the guard to zero;
 //   back:  a reconnected device gets a new driver (open_recorded with its index) and guard.rearm();
 //   end:   the devices are closed (their zero-force reports are recorded), then the writer.
@@ -61,8 +62,8 @@ class GuardedHaptic {
   /// state().sample_time. DeviceDisconnected latches the guard and is rethrown; ProtocolError
   /// (a malformed report, dropped) propagates with the guard untouched.
   std::size_t poll(std::chrono::microseconds timeout);
-  /// Records `command_N`, filters it through the guard at clock.now() and sends the result.
-  /// DeviceDisconnected latches the guard and is rethrown.
+  /// Filters `command_N` through the guard at clock.now(), sends the result, then records the
+  /// command. DeviceDisconnected latches the guard and is rethrown (the command recorded first).
   GuardStep send(std::span<const double> command_N);
 
   HapticDevice& device() { return *device_; }
@@ -71,6 +72,7 @@ class GuardedHaptic {
   const std::vector<double>& last_output_N() const { return output_; }
 
  private:
+  void record(Nanoseconds time, std::span<const double> command_N);
   HapticDevice* device_;
   ForceGuard* guard_;
   Clock* clock_;
