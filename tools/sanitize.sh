@@ -14,14 +14,16 @@ jobs=2
 if [ "${2:-}" = "-j" ] && [ -n "${3:-}" ]; then jobs="$3"; fi
 
 # name:gtest-filter (the filter keeps a big suite to its threaded tests). The haptic loop's
-# failed-trace-write test forks a session's process: ThreadSanitizer cannot follow a fork of a
+# failed-trace-write test and the trace's killed-writer test fork a threaded process: ThreadSanitizer
+# cannot follow a fork of a
 # threaded process ("starting new threads after multi-threaded fork is not supported").
 tsan_default="session_test:*TripleBuffer* session_tissue_thread_test sim_threads_test \
-sim_fiber_test session_haptic_loop_test:-*AFailedTraceWrite*"
+sim_fiber_test session_haptic_loop_test:-*AFailedTraceWrite* trace_test:-*Killed*"
 asan_default="devices_test devices_spec_test devices_usb_async_test devices_descriptor_files_test \
 devices_sample_test devices_example_test trace_test session_devices_test dlfl_operators_test \
 dlfl_figures_test dlfl_random_test mesh_io_test polygon_import_test oriented_builder_test \
-volume_io_test bono_octree_test segmentation_test marching_cubes_test lod_test sim_volume_test"
+volume_io_test bono_octree_test segmentation_test marching_cubes_test lod_test sim_volume_test \
+sim_volume_body_test"
 
 configure() {  # folder, sanitizer flags
   mkdir -p "$here/$1"

@@ -67,15 +67,15 @@ std::size_t Device::poll_transport(std::chrono::microseconds timeout) {
   std::size_t handled = 0;
   auto wait = std::max(timeout, std::chrono::microseconds(0));
   for (;;) {
-    std::optional<Bytes> report;
+    bool got = false;
     try {
-      report = transport().read(wait);
+      got = transport().read_into(report_, wait);
     } catch (const DeviceDisconnected&) {
       transport_.reset();
       throw;
     }
-    if (!report) break;
-    handle_report(*report);
+    if (!got) break;
+    handle_report(report_);
     ++handled;
     wait = std::chrono::microseconds(0);
   }

@@ -105,9 +105,9 @@ void SimulatedDevice::drain() {
   std::lock_guard lock(mutex_);
   if (!link_) return;
   try {
-    while (auto report = link_->read(std::chrono::microseconds(0))) {
+    while (link_->read_into(output_, std::chrono::microseconds(0))) {
       ++outputs_;
-      on_output(*report);
+      on_output(output_);
     }
   } catch (const DeviceDisconnected&) {
   }

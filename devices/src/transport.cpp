@@ -36,6 +36,13 @@ ProtocolError::ProtocolError(const std::string& device, std::size_t offset,
       reason_(reason) {}
 
 Transport::~Transport() = default;
+
+bool Transport::read_into(Bytes& report, std::chrono::microseconds timeout) {
+  std::optional<Bytes> r = read(timeout);
+  if (!r) return false;
+  report = std::move(*r);
+  return true;
+}
 DeviceSource::~DeviceSource() = default;
 
 }  // namespace bisturi::devices

@@ -80,21 +80,22 @@ class VendorArm final : public HapticDevice {
   std::size_t poll(std::chrono::microseconds timeout) override { return poll_transport(timeout); }
 
   void handle_report(std::span<const std::uint8_t> p) override {
-    const std::string device = describe(descriptor_);
+    // The device's description is made only for an error: a report costs no allocation.
+    const auto device = [this] { return describe(descriptor_); };
     if (p.size() != ap::kPacketSize) {
-      throw ProtocolError(device, p.size(),
+      throw ProtocolError(device(), p.size(),
                           "packet of " + std::to_string(p.size()) + " bytes, expected 32");
     }
     const std::uint16_t crc = ap::crc16(p.first(30));
-    if (le16u(p, 30) != crc) throw ProtocolError(device, 30, "checksum mismatch");
+    if (le16u(p, 30) != crc) throw ProtocolError(device(), 30, "checksum mismatch");
     if (p[0] == ap::kInfo) {
       if (p[1] != ap::kVersion) {
-        throw ProtocolError(device, 1, "protocol version " + std::to_string(p[1]));
+        throw ProtocolError(device(), 1, "protocol version " + std::to_string(p[1]));
       }
       const double max_force_N = le16u(p, 2) / 100.0;
       const double max_rate = le16u(p, 4);
       if (!(max_force_N > 0) || !(max_rate > 0)) {
-        throw ProtocolError(device, 2, "info packet with a zero force or rate limit");
+        throw ProtocolError(device(), 2, "info packet with a zero force or rate limit");
       }
       caps_ = Capabilities{};
       caps_.device_class = DeviceClass::HapticArm;
@@ -107,7 +108,7 @@ class VendorArm final : public HapticDevice {
       const double hi[3] = {le16(p, 15) * 1e-3, le16(p, 17) * 1e-3, le16(p, 19) * 1e-3};
       for (std::size_t i = 0; i < 3; ++i) {
         if (lo[i] > hi[i]) {
-          throw ProtocolError(device, 9 + 2 * i,
+          throw ProtocolError(device(), 9 + 2 * i,
                               "info packet with a workspace minimum above its maximum");
         }
       }
@@ -117,7 +118,7 @@ class VendorArm final : public HapticDevice {
       return;
     }
     if (p[0] != ap::kState) {
-      throw ProtocolError(device, 0, "unknown packet type " + std::to_string(p[0]));
+      throw ProtocolError(device(), 0, "unknown packet type " + std::to_string(p[0]));
     }
     if (state_.end_effector_poses.empty()) state_.end_effector_poses.resize(1);
     Pose& pose = state_.end_effector_poses[0];
@@ -125,7 +126,7 @@ class VendorArm final : public HapticDevice {
     Quaternion q{le16(p, 16) / 16384.0, le16(p, 18) / 16384.0, le16(p, 20) / 16384.0,
                  le16(p, 22) / 16384.0};
     const double n = std::sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z);
-    if (!(n > 1e-3)) throw ProtocolError(device, 16, "orientation quaternion of zero length");
+    if (!(n > 1e-3)) throw ProtocolError(device(), 16, "orientation quaternion of zero length");
     pose.orientation = {q.w / n, q.x / n, q.y / n, q.z / n};
     state_.buttons = le16u(p, 2);
     status_ = p[24];

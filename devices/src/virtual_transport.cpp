@@ -2,12 +2,41 @@
 
 #include <algorithm>
 #include <condition_variable>
-#include <deque>
 #include <stdexcept>
 
 namespace bisturi::devices {
 
 namespace detail {
+
+/// A FIFO of reports that keeps its buffers: a report written is copied into a slot's buffer
+/// (reusing its storage) and read_into() swaps the reader's buffer into the slot, so a steady
+/// stream allocates nothing once each slot has held a report. It grows (allocates) only when
+/// more reports wait than ever before.
+class ReportQueue {
+ public:
+  [[nodiscard]] bool empty() const { return count_ == 0; }
+  [[nodiscard]] std::size_t size() const { return count_; }
+  void clear() { head_ = count_ = 0; }
+  Bytes& front() { return slots_[head_]; }
+  void pop_front() {
+    head_ = (head_ + 1) % slots_.size();
+    --count_;
+  }
+  void push_back(std::span<const std::uint8_t> report) {
+    if (count_ == slots_.size()) {
+      std::rotate(slots_.begin(), slots_.begin() + static_cast<std::ptrdiff_t>(head_),
+                  slots_.end());
+      head_ = 0;
+      slots_.resize(std::max<std::size_t>(8, 2 * slots_.size()));
+    }
+    slots_[(head_ + count_) % slots_.size()].assign(report.begin(), report.end());
+    ++count_;
+  }
+
+ private:
+  std::vector<Bytes> slots_;
+  std::size_t head_ = 0, count_ = 0;
+};
 
 struct VirtualLink {
   DeviceDescriptor descriptor;
@@ -16,7 +45,7 @@ struct VirtualLink {
   std::condition_variable changed;
   bool connected = true;
   // queue[0]: towards the host (input reports), queue[1]: towards the device (output reports).
-  std::deque<Bytes> queue[2];
+  ReportQueue queue[2];
   std::size_t dropped[2] = {0, 0};
   std::function<void()> on_report[2];
 };
@@ -55,6 +84,23 @@ std::optional<Bytes> VirtualTransport::read(std::chrono::microseconds timeout) {
   return report;
 }
 
+bool VirtualTransport::read_into(Bytes& report, std::chrono::microseconds timeout) {
+  auto& link = *link_;
+  std::unique_lock lock(link.mutex);
+  auto& queue = link.queue[inbox(side_)];
+  auto ready = [&] { return !link.connected || !queue.empty(); };
+  if (!ready()) {
+    if (timeout.count() <= 0) return false;
+    if (!link.changed.wait_for(lock, timeout, ready)) return false;
+  }
+  if (!link.connected) {
+    throw DeviceDisconnected(describe(link.descriptor) + ": disconnected");
+  }
+  std::swap(report, queue.front());  // the reader's old buffer stays for the next report
+  queue.pop_front();
+  return true;
+}
+
 void VirtualTransport::write(std::span<const std::uint8_t> report) {
   auto& link = *link_;
   const int target = 1 - inbox(side_);
@@ -69,7 +115,7 @@ void VirtualTransport::write(std::span<const std::uint8_t> report) {
       queue.pop_front();
       ++link.dropped[target];
     }
-    queue.emplace_back(report.begin(), report.end());
+    queue.push_back(report);
     callback = link.on_report[target];
   }
   link.changed.notify_all();

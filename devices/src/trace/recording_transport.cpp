@@ -69,6 +69,23 @@ std::optional<Bytes> RecordingTransport::read(std::chrono::microseconds timeout)
   return report;
 }
 
+bool RecordingTransport::read_into(Bytes& report, std::chrono::microseconds timeout) {
+  bool got = false;
+  try {
+    got = inner_->read_into(report, timeout);
+  } catch (const DeviceDisconnected&) {
+    lost();
+    throw;
+  }
+  const std::int64_t now = clock_->now().count();
+  if (got) {
+    writer_->report_in(index_, now, report);
+  } else {
+    writer_->poll(now);
+  }
+  return got;
+}
+
 void RecordingTransport::write(std::span<const std::uint8_t> report) {
   // The device first, the trace after (at the time the write began): a recording never delays
   // what goes to the device. A write that loses the device is recorded before its disconnect.

@@ -30,7 +30,7 @@ HapticLoop::HapticLoop(HapticLoopParts parts, std::uint32_t lag, std::uint32_t t
   scene_state_.finger_joint_angles_rad.resize(caps.finger_joints.size());
 }
 
-void HapticLoop::note(const std::string& text) noexcept {
+void HapticLoop::note(std::string_view text) noexcept {
   if (parts_.writer == nullptr || !recording_.load(std::memory_order_acquire)) return;
   try {
     parts_.writer->note(parts_.clock->now().count(), text);

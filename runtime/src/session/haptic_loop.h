@@ -16,6 +16,7 @@
 #include <functional>
 #include <mutex>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "bisturi/devices/clock.h"
@@ -177,7 +178,7 @@ class HapticLoop {
   void poll_devices(devices::Nanoseconds t) noexcept;
   void hand_over(std::uint64_t k) noexcept;
   void send(devices::Nanoseconds t) noexcept;
-  void note(const std::string& text) noexcept;
+  void note(std::string_view text) noexcept;
   void recording_failed(const char* why) noexcept;
   void lose_device(devices::Nanoseconds t, const std::string& why) noexcept;
   /// Zero through the guard, with `note_text` first; device_mutex_ held.

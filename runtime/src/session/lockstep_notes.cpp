@@ -2,7 +2,9 @@
 
 #include "lockstep_notes.h"
 
+#include <algorithm>
 #include <array>
+#include <cstdio>
 #include <nlohmann/json.hpp>
 
 namespace bisturi::runtime {
@@ -10,7 +12,7 @@ namespace bisturi::runtime {
 namespace {
 
 /// The two unsigned fields `a` and `b` of the object under `key`, when the text is such a note.
-std::optional<std::array<std::uint64_t, 2>> two_fields(const std::string& text, const char* key,
+std::optional<std::array<std::uint64_t, 2>> two_fields(std::string_view text, const char* key,
                                                        const char* a, const char* b) {
   const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
   if (j.is_discarded() || !j.is_object() || !j.contains(key)) return std::nullopt;
@@ -23,32 +25,43 @@ std::optional<std::array<std::uint64_t, 2>> two_fields(const std::string& text, 
 
 }  // namespace
 
-std::string late_tick_note(std::uint64_t tick, std::uint64_t step) {
-  return nlohmann::json{{"late_tick", {{"tick", tick}, {"step", step}}}}.dump();
+/// {"key":{"a":va,"b":vb}} with a and b in the order given (the notes give them sorted, as a
+/// JSON library writing them from a map would).
+NoteText format_note(const char* key, const char* a, std::uint64_t va, const char* b,
+                     std::uint64_t vb) {
+  NoteText note;
+  const int n = std::snprintf(note.text_.data(), note.text_.size(), "{\"%s\":{\"%s\":%llu,\"%s\":%llu}}",
+                              key, a, static_cast<unsigned long long>(va), b,
+                              static_cast<unsigned long long>(vb));
+  note.size_ = n < 0 ? 0 : std::min<std::size_t>(static_cast<std::size_t>(n), note.text_.size() - 1);
+  return note;
 }
 
-std::optional<LateTick> parse_late_tick_note(const std::string& text) {
+NoteText late_tick_note(std::uint64_t tick, std::uint64_t step) {
+  return format_note("late_tick", "step", step, "tick", tick);
+}
+
+std::optional<LateTick> parse_late_tick_note(std::string_view text) {
   const auto f = two_fields(text, "late_tick", "tick", "step");
   if (!f) return std::nullopt;
   return LateTick{(*f)[0], (*f)[1]};
 }
 
-std::string tissue_rate_note(std::uint64_t tick, std::uint32_t ticks_per_step) {
-  return nlohmann::json{{"tissue_rate", {{"tick", tick}, {"ticks_per_step", ticks_per_step}}}}
-      .dump();
+NoteText tissue_rate_note(std::uint64_t tick, std::uint32_t ticks_per_step) {
+  return format_note("tissue_rate", "tick", tick, "ticks_per_step", ticks_per_step);
 }
 
-std::optional<TissueRateChange> parse_tissue_rate_note(const std::string& text) {
+std::optional<TissueRateChange> parse_tissue_rate_note(std::string_view text) {
   const auto f = two_fields(text, "tissue_rate", "tick", "ticks_per_step");
   if (!f || (*f)[1] < 1 || (*f)[1] > 1000) return std::nullopt;
   return TissueRateChange{(*f)[0], static_cast<std::uint32_t>((*f)[1])};
 }
 
-std::string dropped_step_note(std::uint64_t tick, std::uint64_t step) {
-  return nlohmann::json{{"dropped_step", {{"tick", tick}, {"step", step}}}}.dump();
+NoteText dropped_step_note(std::uint64_t tick, std::uint64_t step) {
+  return format_note("dropped_step", "step", step, "tick", tick);
 }
 
-std::optional<DroppedStep> parse_dropped_step_note(const std::string& text) {
+std::optional<DroppedStep> parse_dropped_step_note(std::string_view text) {
   const auto f = two_fields(text, "dropped_step", "tick", "step");
   if (!f) return std::nullopt;
   return DroppedStep{(*f)[0], (*f)[1]};

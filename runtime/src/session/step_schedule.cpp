@@ -7,20 +7,32 @@
 namespace bisturi::runtime {
 
 StepSchedule::StepSchedule(std::uint32_t base_lag, std::uint32_t ticks_per_step)
-    : base_lag_(base_lag), n_(std::max(1u, ticks_per_step)), next_hand_over_(n_) {}
+    : base_lag_(base_lag),
+      n_(std::max(1u, ticks_per_step)),
+      next_hand_over_(n_),
+      // A step comes due base_lag + n - 1 ticks after its hand-over, and hand-overs are at least
+      // a tick apart: with due() asked every tick no more than base_lag + 1 wait at once.
+      due_ticks_(base_lag + 2, 0) {}
 
 bool StepSchedule::hands_over(std::uint64_t k) {
   if (k != next_hand_over_) return false;
   handed_over_ticks_ = n_;
   ++steps_;
-  due_ticks_.push_back(k + base_lag_ + n_ - 1);
+  if (pending_ == due_ticks_.size()) {  // due() not asked every tick: make room (allocates)
+    std::rotate(due_ticks_.begin(), due_ticks_.begin() + static_cast<std::ptrdiff_t>(head_),
+                due_ticks_.end());
+    head_ = 0;
+    due_ticks_.resize(2 * due_ticks_.size());
+  }
+  due_ticks_[(head_ + pending_) % due_ticks_.size()] = k + base_lag_ + n_ - 1;
+  ++pending_;
   next_hand_over_ = k + n_;
   return true;
 }
 
 void StepSchedule::forget_hand_over() {
-  if (due_ticks_.empty()) return;
-  due_ticks_.pop_back();
+  if (pending_ == 0) return;
+  --pending_;
   --steps_;
 }
 
@@ -30,8 +42,9 @@ void StepSchedule::set_ticks_per_step(std::uint64_t k, std::uint32_t n) {
 }
 
 std::uint64_t StepSchedule::due(std::uint64_t k) {
-  while (!due_ticks_.empty() && due_ticks_.front() <= k) {
-    due_ticks_.pop_front();
+  while (pending_ > 0 && due_ticks_[head_] <= k) {
+    head_ = (head_ + 1) % due_ticks_.size();
+    --pending_;
     ++due_;
   }
   return due_;

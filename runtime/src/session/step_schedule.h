@@ -11,7 +11,7 @@
 // steps with the same ticks.
 
 #include <cstdint>
-#include <deque>
+#include <vector>
 
 namespace bisturi::runtime {
 
@@ -48,7 +48,9 @@ class StepSchedule {
   std::uint64_t next_hand_over_;
   std::uint64_t steps_ = 0;
   std::uint64_t due_ = 0;
-  std::deque<std::uint64_t> due_ticks_;  ///< of the steps handed over and not yet due
+  /// Ring of the due ticks of the steps handed over and not yet due (a tick never allocates).
+  std::vector<std::uint64_t> due_ticks_;
+  std::size_t head_ = 0, pending_ = 0;
 };
 
 /// Whether a step of step_ms takes more than max_load of the `ticks` haptic periods it covers:

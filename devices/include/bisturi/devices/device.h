@@ -117,6 +117,7 @@ class Device {
  private:
   std::unique_ptr<Transport> transport_;
   Clock* clock_;
+  Bytes report_;  ///< poll_transport's buffer, reused report after report
 };
 
 // Gloves and arms. send_forces takes forces that went through the ForceGuard.

@@ -84,6 +84,7 @@ class SimulatedDevice {
   Nanoseconds next_{0};
   std::uint64_t outputs_ = 0;
   std::unique_ptr<VirtualTransport> link_;
+  Bytes output_;  ///< drain()'s buffer, reused (its slot in the link keeps the one before)
 };
 
 // A force-feedback glove: VR Controls:Glove, hand pose, 15 finger joints (12-bit flexors in

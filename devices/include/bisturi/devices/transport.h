@@ -70,6 +70,10 @@ class Transport {
   // The next input report (for HID with its report id byte first when the device uses ids);
   // nullopt on timeout; throws DeviceDisconnected when the device is gone.
   virtual std::optional<Bytes> read(std::chrono::microseconds timeout) = 0;
+  // read() into `report`, whose storage may be reused or swapped: true when a report came. The
+  // default moves read()'s result in; a transport that can hand over a buffer without
+  // allocating overrides it, so a driver's poll (Device::poll_transport) allocates nothing.
+  virtual bool read_into(Bytes& report, std::chrono::microseconds timeout);
   // Sends one output report (HID: as the report descriptor lays it out, the id byte first only
   // when the descriptor uses report ids; raw USB: one interrupt packet). Throws
   // DeviceDisconnected when the device is gone.

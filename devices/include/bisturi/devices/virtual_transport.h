@@ -33,6 +33,7 @@ class VirtualTransport final : public Transport {
   const DeviceDescriptor& descriptor() const override;
   // Host side: input reports the device side wrote. Device side: output reports the host wrote.
   std::optional<Bytes> read(std::chrono::microseconds timeout) override;
+  bool read_into(Bytes& report, std::chrono::microseconds timeout) override;
   void write(std::span<const std::uint8_t> report) override;
 
   Side side() const { return side_; }

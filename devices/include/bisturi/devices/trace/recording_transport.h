@@ -37,6 +37,7 @@ class RecordingTransport final : public Transport {
 
   const DeviceDescriptor& descriptor() const override { return inner_->descriptor(); }
   std::optional<Bytes> read(std::chrono::microseconds timeout) override;
+  bool read_into(Bytes& report, std::chrono::microseconds timeout) override;
   void write(std::span<const std::uint8_t> report) override;
 
   std::uint16_t index() const { return index_; }
