@@ -14,9 +14,9 @@ jobs=2
 if [ "${2:-}" = "-j" ] && [ -n "${3:-}" ]; then jobs="$3"; fi
 
 # name:gtest-filter (the filter keeps a big suite to its threaded tests). The haptic loop's
-# failed-trace-write test and the trace's killed-writer test fork a threaded process: ThreadSanitizer
-# cannot follow a fork of a
-# threaded process ("starting new threads after multi-threaded fork is not supported").
+# failed-trace-write test and the trace's killed-writer test fork a threaded process:
+# ThreadSanitizer cannot follow a fork of a threaded process ("starting new threads after
+# multi-threaded fork is not supported").
 tsan_default="session_test:*TripleBuffer* session_tissue_thread_test sim_threads_test \
 sim_fiber_test session_haptic_loop_test:-*AFailedTraceWrite* trace_test:-*Killed*"
 asan_default="devices_test devices_spec_test devices_usb_async_test devices_descriptor_files_test \
