@@ -12,9 +12,12 @@
 #include <fstream>
 #include <glm/glm.hpp>
 #include <sstream>
+#include <stdexcept>
+#include <string>
 #include <thread>
 
 #include "bisturi/devices/simulated.h"
+#include "bisturi/runtime/session/fault_injection.h"
 #include "bisturi/runtime/session/plots.h"
 #include "bisturi/runtime/session/procedure.h"
 #include "bisturi/runtime/session/scene_builder.h"
@@ -318,6 +321,24 @@ TEST(LiverScene, TheLiverIsBuiltAndTheProcedureFollowsTheScene) {
   EXPECT_TRUE(left);
   EXPECT_TRUE(right);
   EXPECT_TRUE(through);
+}
+
+TEST(FaultInjection, ParsesAFaultAndItsTimeAndRefusesTheRest) {
+  const InjectedFault f = parse_fault("tissue-hang@2.5");
+  EXPECT_EQ(f.kind, FaultKind::TissueHang);
+  EXPECT_DOUBLE_EQ(f.at_s, 2.5);
+  EXPECT_EQ(parse_fault("trace-slow-disk@0").kind, FaultKind::TraceSlowDisk);
+  for (const char* bad : {"tissue-hang", "tissue-hang@", "tissue-hang@-1", "tissue-hang@2s",
+                          "melt@1", "@1"}) {
+    try {
+      (void)parse_fault(bad);
+      ADD_FAILURE() << bad << " was taken";
+    } catch (const std::invalid_argument& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(bad), std::string::npos) << what;
+      EXPECT_NE(what.find("device-unplug"), std::string::npos) << "names the faults: " << what;
+    }
+  }
 }
 
 }  // namespace

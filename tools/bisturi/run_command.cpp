@@ -85,6 +85,12 @@ void add_run_command(CLI::App& app, RunOptions& options, int (*&run)(const RunOp
                   "(1 on this kind of 2-core machine); a number (1-64) fixes it. The trace "
                   "records it, and the replay uses the same count: the state's bits depend on it")
       ->capture_default_str();
+  cmd->add_option("--inject", options.inject,
+                  "make a fault happen at a session time, FAULT@SECONDS (repeatable), to check "
+                  "that the force reaches zero and the report says so: " +
+                      runtime::fault_names() +
+                      " (hangs and stalls last 2 s); report.json's faults.injected gives, per "
+                      "fault, the time to zero force on every channel");
   cmd->add_flag("--print-default-scene", options.print_default_scene,
                 "print the embedded default scene (TOML) and exit");
   cmd->add_flag("--json", options.json, "write the report as one JSON object on stdout");
@@ -184,6 +190,8 @@ int run_run(const RunOptions& options) {
                                   std::to_string(runtime::kMaxTissueThreads));
     so.tissue_threads = static_cast<std::uint32_t>(n);
   }
+  for (const std::string& f : options.inject)
+    so.inject.push_back(runtime::parse_fault(f));
   if (options.cpu) so.render_device = render::DevicePreference::Cpu;
   ProgressLine line;
   so.progress = [&line](const runtime::SessionProgress& p) {
@@ -272,6 +280,15 @@ int run_run(const RunOptions& options) {
   for (const runtime::SolidReport& s : r.solids)
     solids.push_back(
         {{"name", s.name}, {"vertices", s.vertices}, {"faces", s.faces}, {"build_ms", s.build_ms}});
+  nlohmann::json injected = nlohmann::json::array();
+  for (const runtime::FaultOutcome& f : r.injected)
+    injected.push_back(
+        {{"fault", runtime::to_string(f.fault.kind)},
+         {"at_s", f.fault.at_s},
+         {"injected_s", f.injected_s < 0 ? nlohmann::json(nullptr) : nlohmann::json(f.injected_s)},
+         {"force_before_N", f.force_before_N},
+         {"zero_after_ms",
+          f.zero_after_ms < 0 ? nlohmann::json(nullptr) : nlohmann::json(f.zero_after_ms)}});
   const double nominal_ms = 1000.0 / r.haptic_hz;
   const nlohmann::json report = {
       {"scene", r.scene},
@@ -348,7 +365,8 @@ int run_run(const RunOptions& options) {
          r.head_tracker_lost_s < 0 ? nlohmann::json(nullptr) : nlohmann::json(r.head_tracker_lost_s)},
         {"head_tracker_lost_reason", r.head_tracker_lost_reason},
         {"recording_error",
-         r.recording_error.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.recording_error)}}},
+         r.recording_error.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.recording_error)},
+        {"injected", injected}}},
       {"events", events},
       {"final_state_hash", hex(r.final_state_hash)},
       {"trace", r.trace.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.trace.string())},
@@ -392,6 +410,17 @@ int run_run(const RunOptions& options) {
                 << " s (the view held its last pose): " << r.head_tracker_lost_reason << "\n";
     if (!r.recording_error.empty())
       std::cout << "  recording stopped: " << r.recording_error << "\n";
+    for (const runtime::FaultOutcome& f : r.injected) {
+      std::cout << "  injected " << runtime::to_string(f.fault.kind) << " at " << f.fault.at_s
+                << " s: ";
+      if (f.injected_s < 0)
+        std::cout << "not made (the session ended first, or the device is hardware)\n";
+      else if (f.zero_after_ms < 0)
+        std::cout << "the force was never zero after it (" << f.force_before_N << " N before)\n";
+      else
+        std::cout << "zero force on every channel " << f.zero_after_ms << " ms after it ("
+                  << f.force_before_N << " N before)\n";
+    }
     if (r.ending == "interrupted") std::cout << "  interrupted: ended early, cleanly\n";
   }
   if (r.ending == "error") {

@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace CLI {
 class App;
@@ -32,6 +33,7 @@ struct RunOptions {
   bool cpu = false;
   bool print_default_scene = false;
   bool json = false;
+  std::vector<std::string> inject;  ///< FAULT@SECONDS
 };
 
 struct ReplayOptions {

@@ -7,6 +7,8 @@
 #include <chrono>
 #include <cstring>
 #include <limits>
+#include <thread>
+#include <utility>
 
 #include "wire.h"
 
@@ -101,9 +103,12 @@ void TraceWriter::write_loop() {
     }
     const std::size_t b = sealed_[sealed_head_];
     writing_ = true;
+    const auto stall = std::exchange(injected_stall_, std::chrono::milliseconds(0));
+    std::string injected = std::exchange(injected_failure_, std::string());
     lock.unlock();
+    if (stall.count() > 0) std::this_thread::sleep_for(stall);
     std::uint64_t written = 0;
-    const std::string error = write_all(buffers_[b], written);
+    const std::string error = injected.empty() ? write_all(buffers_[b], written) : injected;
     lock.lock();
     writing_ = false;
     stats_.bytes += written;
@@ -115,6 +120,16 @@ void TraceWriter::write_loop() {
     written_.notify_all();
   }
   written_.notify_all();
+}
+
+void TraceWriter::fail_next_write(std::string why) {
+  std::lock_guard lock(mutex_);
+  injected_failure_ = path_.string() + ": write failed: " + why;
+}
+
+void TraceWriter::stall_next_write(std::chrono::milliseconds stall) {
+  std::lock_guard lock(mutex_);
+  injected_stall_ = stall;
 }
 
 void TraceWriter::drain_locked(std::unique_lock<std::mutex>& lock) {

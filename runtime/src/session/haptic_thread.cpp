@@ -19,6 +19,22 @@ double ms(Nanoseconds d) {
   return static_cast<double>(d.count()) * 1e-6;
 }
 
+/// The output's largest channel, and an injected fault's first all-zero tick after it. A lost
+/// device is sent nothing: its output is zero from the tick that found it gone.
+void watch_fault(const HapticLoop& loop, const devices::GuardedHaptic& guarded, Nanoseconds now,
+                 HapticThreadFlags& flags) {
+  double largest = 0.0;
+  if (!loop.device_lost()) {
+    for (const double f : guarded.last_output_N())
+      largest = std::max(largest, std::abs(f));
+  }
+  flags.output_now_N->store(largest, std::memory_order_relaxed);
+  const std::int64_t fault = flags.fault_at_ns->load(std::memory_order_acquire);
+  if (fault >= 0 && largest == 0.0 && now.count() >= fault &&
+      flags.zero_at_ns->load(std::memory_order_relaxed) < 0)
+    flags.zero_at_ns->store(now.count(), std::memory_order_release);
+}
+
 }  // namespace
 
 void run_haptic_thread(HapticLoop& loop, const devices::GuardedHaptic& guarded,
@@ -69,6 +85,7 @@ void run_haptic_thread(HapticLoop& loop, const devices::GuardedHaptic& guarded,
                               output.empty() ? 0.0 : output[0]});
     }
     flags.force_now.store(proxy_N, std::memory_order_relaxed);
+    if (flags.output_now_N != nullptr) watch_fault(loop, guarded, clock.now(), flags);
 
     const Nanoseconds end = clock.now();
     report.tick_ms.record(ms(end - start));
@@ -89,6 +106,7 @@ void run_haptic_thread(HapticLoop& loop, const devices::GuardedHaptic& guarded,
   }
   // Zero first: before the tissue drains and the renderer joins.
   loop.stop();
+  if (flags.output_now_N != nullptr) watch_fault(loop, guarded, clock.now(), flags);
   flags.stop.store(true);
 }
 

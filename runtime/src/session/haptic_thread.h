@@ -34,6 +34,12 @@ struct HapticThreadFlags {
   std::atomic<std::uint64_t>& ticks;
   std::atomic<std::uint64_t>& overruns;
   std::atomic<double>& force_now;   ///< the proxy force now, for the progress line
+  /// An injected fault's watch: while fault_at_ns >= 0 (clock time of the fault) and
+  /// zero_at_ns < 0, the first tick after it whose output is zero on every channel sets
+  /// zero_at_ns. output_now_N: the largest force on a channel at the last tick.
+  std::atomic<std::int64_t>* fault_at_ns = nullptr;
+  std::atomic<std::int64_t>* zero_at_ns = nullptr;
+  std::atomic<double>* output_now_N = nullptr;
 };
 
 /// Runs the ticks until the duration, `flags.stop` or stop_requested, then stops the loop (zero

@@ -357,6 +357,8 @@ void run_render_loop(const RenderLoopContext& c) {
   while (!stop.load(std::memory_order_relaxed) && !handoff.take())
     std::this_thread::sleep_for(std::chrono::microseconds(200));
   while (!stop.load(std::memory_order_relaxed)) {
+    if (c.fail_next_frame != nullptr && c.fail_next_frame->exchange(false))
+      throw std::runtime_error("injected fault: render-throw");
     render::HeadsetFrame xr_frame;
     if (xr) {
       // The runtime's frame: paced by xrWaitFrame, posed by its views.

@@ -51,6 +51,8 @@ struct RenderLoopContext {
   /// each frame's grip pose and trigger go into it, and the vibration its driver writes back is
   /// applied to the controller. It needs the OpenXR sink: without one the loop throws.
   devices::ControllerFeed* controller = nullptr;
+  /// Set (an injected render-throw): the next frame throws, as a failing renderer would.
+  std::atomic<bool>* fail_next_frame = nullptr;
 };
 
 /// Runs until `stop`. Throws render::RenderError (no Vulkan device) and what the sinks throw.

@@ -6,11 +6,13 @@
 #include <array>
 #include <atomic>
 #include <cmath>
+#include <chrono>
 #include <exception>
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
+#include <stdexcept>
 #include <thread>
 
 #include <glm/gtc/matrix_transform.hpp>
@@ -36,6 +38,7 @@
 #include "bisturi/scene/polygon_export.h"
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/sim/units.h"
+#include "fault_injector.h"
 #include "haptic_loop.h"
 #include "haptic_thread.h"
 #include "lockstep_notes.h"
@@ -264,10 +267,17 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
 
   // ---- Tissue thread: each step publishes the snapshot the renderer draws ----
   SnapshotPublisher publisher(sim, initial, handoff, event_times);
+  // Injected faults: the tissue thread and the renderer act on theirs (fault_injector.h).
+  FaultInjector faults(options.inject, report, clock, session_devices, writer.get(),
+                       scene.rates.haptic_hz);
   const auto publish_step = [&](const TickOutput& out, const devices::HapticState& state,
                                 double step_ms) {
     report.step_ms.record(step_ms);
     publisher.publish(out, state);
+    if (faults.fail_tissue.exchange(false))
+      throw std::runtime_error("injected fault: tissue-throw");
+    if (faults.hang_tissue.exchange(false))
+      std::this_thread::sleep_for(std::chrono::duration<double>(kFaultHangSeconds));
   };
   devices::HapticState glove_shape;
   glove_shape.end_effector_poses.resize(glove->capabilities().end_effectors);
@@ -281,7 +291,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     try {
       run_render_loop({scene, options, report, initial, handoff, head_handoff, stop, render_ready,
                        frames, event_response, event_times, display_live, writer.get(),
-                       controller_feed.opened() ? &controller_feed : nullptr});
+                       controller_feed.opened() ? &controller_feed : nullptr,
+                       &faults.fail_render});
     } catch (const std::exception& e) {
       render_error = e.what();
       render_ready.store(true);
@@ -330,6 +341,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   pacing.realtime_priority = options.realtime_priority;
   pacing.stop_requested = options.stop_requested;
   HapticThreadFlags flags{stop, render_ready, interrupted, realtime, ticks, overruns, force_now};
+  faults.watch_with(flags);
   std::thread haptic_thread(
       [&] { run_haptic_thread(loop, guarded, clock, pacing, flags, report, t0); });
 
@@ -343,11 +355,17 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     }
   });
 
-  // ---- The calling thread watches ----
+  // ---- The calling thread watches (and makes the injected faults happen) ----
   progress.stage = "run";
   bool warned_silent = false;
+  auto last_progress = wall_start;
   while (!stop.load()) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    // With faults to inject the watch is finer: each happens within a few milliseconds of its time.
+    std::this_thread::sleep_for(std::chrono::milliseconds(faults.any() ? 2 : 100));
+    faults.poll(ticks.load());
+    if (std::chrono::steady_clock::now() - last_progress < std::chrono::milliseconds(100))
+      continue;
+    last_progress = std::chrono::steady_clock::now();
     if (options.stop_requested != nullptr && options.stop_requested->load()) interrupted.store(true);
     progress.elapsed_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
@@ -369,6 +387,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     if (options.progress) options.progress(progress);
   }
   haptic_thread.join();
+  faults.finish();
   supervising.store(false);
   supervisor.join();
   loop.stop();  // already done by the haptic thread; kept in case it never started its loop

@@ -208,6 +208,13 @@ std::vector<std::string> SessionDevices::summary() const {
   return summary_;
 }
 
+bool SessionDevices::unplug_haptic() {
+  // The haptic device is opened first: a simulated one's twin is the first.
+  if (!choice_.haptic->simulated || twins_.empty()) return false;
+  twins_.front()->disconnect();
+  return true;
+}
+
 void SessionDevices::close() {
   if (haptic_device_) haptic_device_->close();
   if (head_device_) head_device_->close();

@@ -8,6 +8,7 @@
 
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
@@ -98,6 +99,10 @@ class TraceWriter {
   /// Why writing stopped (a failed write or fdatasync, a full ring); empty while the trace is
   /// being written.
   std::string failure() const;
+  /// Fault injection (`bisturi run --inject`): the next write fails as `why` says, or the
+  /// writing thread stalls for `stall` before its next write, as a full or a slow disk would.
+  void fail_next_write(std::string why);
+  void stall_next_write(std::chrono::milliseconds stall);
   /// Whether writing stopped: lock-free, for a haptic tick to ask.
   [[nodiscard]] bool failed() const noexcept { return failed_.load(std::memory_order_acquire); }
 
@@ -141,6 +146,8 @@ class TraceWriter {
   std::uint64_t total_records_ = 0;  // appended, sealed or not
   std::string failure_;
   std::atomic<bool> failed_{false};
+  std::string injected_failure_;           ///< fail_next_write's reason, until the write
+  std::chrono::milliseconds injected_stall_{0};
   std::thread thread_;
 };
 

@@ -33,6 +33,7 @@
 
 #include "bisturi/devices/clock.h"
 #include "bisturi/runtime/render/stereo_renderer.h"
+#include "bisturi/runtime/session/fault_injection.h"
 #include "bisturi/runtime/session/headset_report.h"
 #include "bisturi/runtime/session/scene_description.h"
 #include "bisturi/runtime/session/session_sim.h"
@@ -97,6 +98,8 @@ struct SessionOptions {
   /// Set (e.g. by a SIGINT/SIGTERM handler) to end the session early and cleanly: forces zeroed
   /// first, the trace sealed, the report complete (ending "interrupted").
   const std::atomic<bool>* stop_requested = nullptr;
+  /// Faults to make happen at their session times (fault_injection.h), in any order.
+  std::vector<InjectedFault> inject;
 };
 
 struct SolidReport {
@@ -201,6 +204,8 @@ struct SessionReport {
   std::string head_tracker_lost_reason;
   /// Why the recording stopped before the end (empty: it did not, or nothing was recorded).
   std::string recording_error;
+  /// Each injected fault (SessionOptions::inject, in time order) and what followed it.
+  std::vector<FaultOutcome> injected;
   /// How the session ended: "completed" (its duration), "interrupted" (stop_requested),
   /// "headset" (the OpenXR runtime ended it early: the user exited or the runtime went away;
   /// headset.stop_reason says which) or "error" (the renderer or the soft tissue failed; `error`

@@ -77,6 +77,9 @@ class SessionDevices {
   [[nodiscard]] std::vector<std::string> summary() const;
   /// Closes both drivers (zero forces first).
   void close();
+  /// Breaks a simulated haptic device's link as an unplug would (an injected fault): false for
+  /// hardware, which only a hand can unplug.
+  bool unplug_haptic();
 
  private:
   std::unique_ptr<devices::Device> open_one(const DeviceDescription& d,
