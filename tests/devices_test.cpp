@@ -292,6 +292,30 @@ TEST(VendorArm, DriverAgainstItsTwin) {
   EXPECT_EQ(twin.applied_force_N().x, 0.0);
 }
 
+TEST(VendorArm, AnInfoPacketMayRateTheForcePerAxis) {
+  bd::SimulatedArm twin({});
+  auto pair = bd::make_virtual_pair(twin.descriptor());
+  twin.attach(std::move(pair.device));
+  auto arm = bd::open_vendor_arm(std::move(pair.host));
+  EXPECT_FALSE(arm->capabilities().force_channels.at(0).per_axis);  // the twin's firmware: norm
+  namespace ap = bd::arm_protocol;
+  ap::Packet info{};
+  info[0] = ap::kInfo;
+  info[1] = ap::kVersion;
+  info[2] = 0x20;  // 800 cN
+  info[3] = 0x03;
+  info[4] = 200;  // 200 N/s
+  info[6] = 1;
+  info[21] = 0x01;  // per axis
+  ap::seal(info);
+  arm->handle_report(info);
+  const bd::ForceChannel& channel = arm->capabilities().force_channels.at(0);
+  EXPECT_TRUE(channel.per_axis);
+  EXPECT_NEAR(channel.max_force_N, 8.0, 1e-9);
+  const double diagonal[3] = {6.0, 6.0, 6.0};
+  EXPECT_NEAR(bd::force_extent(channel, diagonal), 6.0, 1e-12);
+}
+
 TEST(VendorArm, CorruptPacketsAndNoAnswer) {
   bd::SimulatedArm twin({});
   auto pair = bd::make_virtual_pair(twin.descriptor());
@@ -391,6 +415,28 @@ TEST(ForceGuard, ClampsAndLimitsTheRate) {
   EXPECT_NEAR(out[1], 2.0 * 3 / 5, 1e-12);
   EXPECT_NEAR(out[2], 2.0 * 4 / 5, 1e-12);
   EXPECT_GT(guard.clamp_count(), 0u);
+}
+
+TEST(ForceGuard, APerAxisLimitKeepsTheDiagonalAndTheDirection) {
+  // A channel rated 8 N per axis: 6 N along each axis at once (10.4 N in all) passes whole; a
+  // force with a component over 8 N is scaled down whole by that component, not clipped per axis.
+  bd::ForceGuardConfig config;
+  config.ramp_in = 0ms;
+  bd::ForceChannel tip{"tip", 3, 8.0, 1e6, false};
+  tip.per_axis = true;
+  bd::ForceGuard guard({tip}, config);
+  double zero[3] = {0, 0, 0}, out[3];
+  guard.step(zero, 1ms, out);
+  double diagonal[3] = {6.0, -6.0, 6.0};
+  EXPECT_FALSE(guard.step(diagonal, 2ms, out).clamped);
+  EXPECT_EQ(out[0], 6.0);
+  EXPECT_EQ(out[1], -6.0);
+  EXPECT_EQ(out[2], 6.0);
+  double over[3] = {10.0, 4.0, 0.0};
+  EXPECT_TRUE(guard.step(over, 3ms, out).clamped);
+  EXPECT_NEAR(out[0], 8.0, 1e-12);
+  EXPECT_NEAR(out[1], 3.2, 1e-12);  // 4 x 8/10: the direction kept
+  EXPECT_EQ(out[2], 0.0);
 }
 
 TEST(ForceGuard, ACommandAtTheLimitCountsAsClamped) {

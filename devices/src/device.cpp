@@ -1,6 +1,7 @@
 #include "bisturi/devices/device.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace bisturi::devices {
 
@@ -80,6 +81,15 @@ std::size_t Device::poll_transport(std::chrono::microseconds timeout) {
     wait = std::chrono::microseconds(0);
   }
   return handled;
+}
+
+double force_extent(const ForceChannel& channel, const double* force_N) {
+  double sum = 0.0, largest = 0.0;
+  for (std::size_t i = 0; i < channel.components; ++i) {
+    sum += force_N[i] * force_N[i];
+    largest = std::max(largest, std::abs(force_N[i]));
+  }
+  return channel.per_axis ? largest : std::sqrt(sum);
 }
 
 HapticDevice* as_haptic(Device* device) {

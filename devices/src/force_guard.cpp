@@ -174,7 +174,7 @@ GuardStep ForceGuard::step(std::span<const double> command_N, Nanoseconds now,
   std::size_t offset = 0;
   for (const auto& channel : channels_) {
     const std::size_t n = channel.components;
-    const double magnitude = norm(command_N.data() + offset, n);
+    const double magnitude = force_extent(channel, command_N.data() + offset);
     const double scale = magnitude > channel.max_force_N ? channel.max_force_N / magnitude : 1.0;
     // At the limit counts too: a command clamped upstream arrives exactly there.
     if (magnitude >= channel.max_force_N) result.clamped = true;

@@ -101,7 +101,10 @@ class VendorArm final : public HapticDevice {
       caps_.device_class = DeviceClass::HapticArm;
       caps_.end_effectors = 1;
       caps_.buttons = std::min<std::size_t>(p[6], 16);
-      caps_.force_channels.push_back(ForceChannel{"end_effector", 3, max_force_N, max_rate, false});
+      // Byte 21 bit 0: the force limit holds per axis (0 from firmware that predates it: norm).
+      ForceChannel channel{"end_effector", 3, max_force_N, max_rate, false};
+      channel.per_axis = (p[21] & 1u) != 0;
+      caps_.force_channels.push_back(channel);
       // Bytes 7-20: stiffness and workspace; zeros from firmware that does not state them.
       caps_.spec.max_stiffness_N_per_m = le16u(p, 7);
       const double lo[3] = {le16(p, 9) * 1e-3, le16(p, 11) * 1e-3, le16(p, 13) * 1e-3};

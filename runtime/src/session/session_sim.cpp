@@ -365,7 +365,8 @@ void SessionSim::command_for(const TickOutput& step, const glm::dvec3& tip_now_m
     if (role.use == devices::ChannelUse::Vector) {
       // The force itself, in the device's frame: scaled down as a whole, never turned.
       glm::dvec3 f = options_.device_frame.force_to_device(force);
-      const double magnitude = glm::length(f);
+      const double along[3] = {f.x, f.y, f.z};
+      const double magnitude = devices::force_extent(c, along);  // per axis when rated so
       if (magnitude > limit_N) f *= limit_N / magnitude;
       command_N[k++] = f.x;
       command_N[k++] = f.y;

@@ -49,7 +49,14 @@ struct ForceChannel {
   double max_force_rate_N_per_s = 0;  // limit on how fast the magnitude of the change may grow
   bool unitless = false;              // the device gave no force unit (Haptics intensity): the
                                       // value is a fraction of max_force_N == 1
+  // max_force_N limits each component, not the norm (a device rated "8 N per axis" renders
+  // 8 N along every axis at once). A force over it is still scaled down whole, by its largest
+  // component, so it keeps its direction.
+  bool per_axis = false;
 };
+
+// How far a channel's force is from its limit: its norm, or with per_axis its largest component.
+double force_extent(const ForceChannel& channel, const double* force_N);
 
 // What the hardware can render, from its datasheet (the driver states it): the force guard and the
 // session's haptic coupling read it. 0 means the device does not say.
