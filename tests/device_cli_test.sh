@@ -14,6 +14,11 @@ case "$mode" in
     out=$("$bisturi" device list --json) || fail "device list exited $?"
     echo "$out" | grep -q '"devices": \[' || { echo "$out"; fail "no devices array"; }
     echo "$out" | grep -q '"name": "sample-pinch"' || fail "the registered drivers are not listed"
+    # Each driver with its ids, twin and channel roles: what an integrator needs to pick one.
+    echo "$out" | tr -d ' \n' | grep -q '"name":"vendor-arm","summary":"[^"]*","twin":true,"usb_ids":\["0x1209:0xB157"\]' ||
+      fail "vendor-arm is listed without its ids or its twin"
+    echo "$out" | tr -d ' \n' | grep -q '"channels":\["finger0","finger1"\],"class":"haptic-glove","name":"sample-pinch"' ||
+      fail "sample-pinch is listed without its channel roles"
     "$bisturi" device list > /dev/null || fail "device list (text) exited $?"
     echo "list: ok"
     ;;

@@ -93,6 +93,31 @@ void add_device_command(CLI::App& app, DeviceOptions& options, int (*&run)(const
   describe->callback([&run] { run = run_device_describe; });
 }
 
+namespace {
+
+/// A driver as `device list` shows it: what it opens, where, the USB ids it claims, whether it
+/// has a twin (scenes can simulate it), and the roles of its force channels (empty: by shape).
+nlohmann::json driver_json(const devices::DriverInfo& d) {
+  nlohmann::json ids = nlohmann::json::array();
+  for (const devices::UsbId& id : d.usb_ids)
+    ids.push_back(hex(id.vendor_id, 4) + ":" + hex(id.product_id, 4));
+  nlohmann::json channels = nlohmann::json::array();
+  for (const devices::ChannelRole& r : d.layout.channels) {
+    std::string role = devices::to_string(r.use);
+    if (r.use == devices::ChannelUse::Finger) role += " " + std::to_string(r.finger);
+    channels.push_back(role);
+  }
+  return {{"name", d.name},
+          {"bus", devices::to_string(d.bus)},
+          {"class", devices::to_string(d.device_class)},
+          {"summary", d.summary},
+          {"usb_ids", ids},
+          {"twin", static_cast<bool>(d.make_twin)},
+          {"channels", channels}};
+}
+
+}  // namespace
+
 int run_device_list(const DeviceOptions& options) {
   const devices::Registry registry = devices::builtin_registry();
   nlohmann::json listed = nlohmann::json::array();
@@ -121,7 +146,7 @@ int run_device_list(const DeviceOptions& options) {
   if (options.json) {
     nlohmann::json drivers = nlohmann::json::array();
     for (const devices::DriverInfo& d : registry.drivers())
-      drivers.push_back({{"name", d.name}, {"bus", devices::to_string(d.bus)}});
+      drivers.push_back(driver_json(d));
     std::cout
         << nlohmann::json{{"devices", listed}, {"problems", problems}, {"drivers", drivers}}.dump(2)
         << "\n";
@@ -139,10 +164,26 @@ int run_device_list(const DeviceOptions& options) {
   }
   for (const auto& p : problems)
     std::cout << "could not list " << p.get<std::string>() << "\n";
-  std::cout << "drivers:";
-  for (const devices::DriverInfo& d : registry.drivers())
-    std::cout << " " << d.name << " (" << devices::to_string(d.bus) << ")";
-  std::cout << "\n";
+  std::cout << "drivers:\n";
+  for (const devices::DriverInfo& d : registry.drivers()) {
+    const nlohmann::json j = driver_json(d);
+    std::cout << "  " << d.name << " (" << j["bus"].get<std::string>() << ", "
+              << j["class"].get<std::string>() << (d.make_twin ? ", simulated twin" : "")
+              << "): " << d.summary;
+    if (!j["usb_ids"].empty()) {
+      std::cout << "; claims";
+      for (const auto& id : j["usb_ids"])
+        std::cout << " " << id.get<std::string>();
+    }
+    std::cout << "; force channels: ";
+    if (d.device_class == devices::DeviceClass::HeadTracker)
+      std::cout << "none";
+    else if (j["channels"].empty())
+      std::cout << "by their shape (3 axes a vector, 1 a finger)";
+    for (std::size_t i = 0; i < j["channels"].size(); ++i)
+      std::cout << (i > 0 ? ", " : "") << j["channels"][i].get<std::string>();
+    std::cout << "\n";
+  }
   return 0;
 }
 
