@@ -149,6 +149,14 @@ TEST(SceneFile, ProcedureTableSetsTheTargets) {
             std::string::npos);
 }
 
+TEST(SceneFile, SimulationTableTurnsTheSweepOn) {
+  EXPECT_FALSE(default_scene().simulation.continuous_collision);
+  EXPECT_TRUE(parse_scene("[simulation]\ncontinuous_collision = true", "scene.toml")
+                  .simulation.continuous_collision);
+  EXPECT_THROW((void)parse_scene("[simulation]\ncontinuous_collision = 1", "scene.toml"),
+               std::exception);
+}
+
 TEST(SceneFile, SimulationTableSetsMultirateStepping) {
   EXPECT_EQ(default_scene().simulation.far_field_interval, 1);
   const SceneDescription large =

@@ -37,7 +37,10 @@ class SceneReader {
       scene.rates.display_hz = positive(*t, "rates", "display_hz", scene.rates.display_hz);
     }
     if (const toml::table* t = table_at(root, "", "simulation")) {
-      only_keys(*t, "simulation", {"far_field_interval", "stale_margin_ticks"});
+      only_keys(*t, "simulation",
+                {"far_field_interval", "stale_margin_ticks", "continuous_collision"});
+      scene.simulation.continuous_collision = boolean(
+          *t, "simulation", "continuous_collision", scene.simulation.continuous_collision);
       scene.simulation.far_field_interval = static_cast<int>(integer(
           *t, "simulation", "far_field_interval", scene.simulation.far_field_interval, 1, 256));
       scene.simulation.stale_margin_ticks = static_cast<int>(integer(

@@ -73,6 +73,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
     }
   }
   world_.options().haptic.max_force_N = max_force_N_;
+  world_.options().haptic.continuous = scene.simulation.continuous_collision;
   // The coupling spring is what the hand feels in contact: never stiffer than the device renders.
   const double device_k = options_.device_spec.max_stiffness_N_per_m;
   if (device_k > 0.0) {
