@@ -31,36 +31,17 @@
 #include "bisturi/scene/volume/phantoms.h"
 #include "bisturi/sim/collision.h"
 #include "bisturi/sim/world.h"
+#include "sim_bench_support.h"
 
 namespace {
 
 using namespace bisturi;
 using namespace bisturi::sim;
-
-struct Shape {
-  PolygonMesh polygons;  // a Dlfl does not copy: each body is built from these
-  double centre_mm = 0.0;
-  double radius_mm = 0.0;
-};
-
-/// A sphere of radius_mm (1 mm voxels), cached per radius.
-const Shape& sphere(double radius_mm) {
-  static std::map<double, Shape> cache;
-  auto it = cache.find(radius_mm);
-  if (it != cache.end()) return it->second;
-  PhantomOptions o;
-  o.shape = PhantomShape::Sphere;
-  const auto dims = static_cast<std::int64_t>(2.0 * radius_mm + 6.0);
-  o.dims = {dims, dims, dims};
-  o.spacing = glm::dvec3(1.0);
-  o.a = radius_mm;
-  Shape s;
-  s.polygons = extract_isosurface_mesh(make_phantom(o));
-  s.centre_mm = double(dims - 1) / 2.0;
-  s.radius_mm = radius_mm;
-  std::fprintf(stderr, "sphere r=%.0f mm: %zu vertices\n", radius_mm, s.polygons.positions.size());
-  return cache.emplace(radius_mm, std::move(s)).first->second;
-}
+using bench::percentile;
+using bench::Shape;
+using bench::sphere;
+using bench::anchor_below;
+using bench::probe_tip;
 
 /// Radii that give about 2k, 20k and 100k vertices.
 double radius_for(std::int64_t vertices) {
@@ -74,26 +55,11 @@ double radius_for(std::int64_t vertices) {
   }
 }
 
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  const auto i = static_cast<std::size_t>(q * double(v.size() - 1) + 0.5);
-  return v[std::min(i, v.size() - 1)];
-}
-
 /// One world step with the tip at device_m, timed: its wall time in microseconds.
 double timed_step_us(SimWorld& world, const glm::dvec3& device_m) {
   const auto t0 = std::chrono::steady_clock::now();
   benchmark::DoNotOptimize(world.step(device_m));
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() * 1e6;
-}
-
-/// The body's vertices below z_m anchored (the benches hold a sphere's lower third).
-void anchor_below(SoftBody& body, double z_m) {
-  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
-    const VertexId v(i);
-    if (body.mesh().alive(v) && body.position(v).z < z_m) body.set_anchored(v, true);
-  }
 }
 
 /// The bench sphere in `world`, default material, its lower third anchored; returns its index.
@@ -102,15 +68,6 @@ std::uint32_t add_bench_sphere(SimWorld& world, const Shape& shape) {
       world.add_body(SoftBody(build_oriented_manifold(shape.polygons), Material{}));
   anchor_below(world.body(id), shape.centre_mm * 1e-3 - shape.radius_mm * 1e-3 / 3.0);
   return id;
-}
-
-/// The bench probe's tip at t_ms milliseconds: a 2 Hz sine from 1 mm above the sphere's rest top to
-/// 2 mm below it, lowered by lower_m.
-glm::dvec3 probe_tip(const Shape& shape, double t_ms, double lower_m = 0.0) {
-  const double c = shape.centre_mm * 1e-3;
-  const double r = shape.radius_mm * 1e-3;
-  const double depth = 0.0015 * (1.0 - std::cos(2.0 * 3.141592653589793 * 2.0 * t_ms * 1e-3));
-  return {c, c, c + r + 0.001 - depth - lower_m};
 }
 
 // Full step: the probe presses 0..3 mm into the top of the sphere and back (a 2 Hz sine), the
@@ -319,43 +276,18 @@ void BM_ForceConvergence(benchmark::State& state) {
   const Shape& shape = sphere(radius_for(state.range(0)));
   const double lower = double(state.range(1)) * 1e-6;
   const int interval = static_cast<int>(state.range(2));
-  constexpr int kRuns = 5;
-  for (auto _ : state) {
-    std::vector<std::unique_ptr<SimWorld>> worlds;
-    for (int k = 0; k < kRuns; ++k) {
-      WorldOptions options;
-      options.embree_threads = 1;
-      options.integrator.dt_s = 1e-3 / double(1 << k);
-      options.integrator.far_field_interval = interval;
-      worlds.push_back(std::make_unique<SimWorld>(options));
-      add_bench_sphere(*worlds.back(), shape);
-    }
-    double force2[kRuns] = {}, diff2[kRuns] = {};
-    int flips[kRuns] = {};
-    bool contact[kRuns] = {};
-    for (int s = 0; s < 3200; ++s) {
-      const glm::dvec3 tip = probe_tip(shape, s, lower);
-      glm::dvec3 f[kRuns];
-      for (int k = 0; k < kRuns; ++k) {
-        HapticOutput out;
-        for (int j = 0; j < (1 << k); ++j) {
-          out = worlds[std::size_t(k)]->step(tip);
-          flips[k] += out.contact != contact[k] ? 1 : 0;
-          contact[k] = out.contact;
-        }
-        f[k] = out.force_N;
-        force2[k] += glm::dot(f[k], f[k]);
-      }
-      for (int k = 0; k < kRuns; ++k)
-        diff2[k] += glm::dot(f[k] - f[kRuns - 1], f[k] - f[kRuns - 1]);
-    }
-    for (int k = 0; k < kRuns; ++k) {
-      const std::string n = std::to_string(1 << k);
-      state.counters["force_" + n + "_mN"] = 1e3 * std::sqrt(force2[k] / 3200.0);
-      state.counters["diff_" + n] = std::sqrt(diff2[k] / std::max(force2[kRuns - 1], 1e-300));
-      state.counters["flips_" + n] = flips[k] / 3.2;
-    }
-  }
+  bench::force_convergence(
+      state,
+      [&](double dt) {
+        WorldOptions options;
+        options.embree_threads = 1;
+        options.integrator.dt_s = dt;
+        options.integrator.far_field_interval = interval;
+        auto world = std::make_unique<SimWorld>(options);
+        add_bench_sphere(*world, shape);
+        return world;
+      },
+      [&](int ms) { return probe_tip(shape, ms, lower); }, 3200);
 }
 BENCHMARK(BM_ForceConvergence)
     ->Args({2000, 0, 1})

@@ -10,49 +10,30 @@
 
 #include <benchmark/benchmark.h>
 
-#include <glm/geometric.hpp>
-
-#include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <memory>
-#include <string>
 #include <vector>
 
 #include "bisturi/scene/oriented_builder.h"
-#include "bisturi/scene/volume/marching_cubes.h"
-#include "bisturi/scene/volume/phantoms.h"
 #include "bisturi/sim/tissue.h"
 #include "bisturi/sim/world.h"
+#include "sim_bench_support.h"
 
 namespace {
 
 using namespace bisturi;
 using namespace bisturi::sim;
+using bench::percentile;
 
-constexpr double kRadius_mm = 28.0;
-constexpr std::int64_t kDims = 62;  // 2 r + 6 voxels
-constexpr double kCentre_m = (kDims - 1) / 2.0 * 1e-3;
-
-const PolygonMesh& sphere_polygons() {
-  static const PolygonMesh mesh = [] {
-    PhantomOptions o;
-    o.shape = PhantomShape::Sphere;
-    o.dims = {kDims, kDims, kDims};
-    o.spacing = glm::dvec3(1.0);
-    o.a = kRadius_mm;
-    return extract_isosurface_mesh(make_phantom(o));
-  }();
-  return mesh;
+/// The default organ's size.
+const bench::Shape& organ() {
+  return bench::sphere(28.0);
 }
 
 SoftBody anchored_sphere() {
-  SoftBody body(build_oriented_manifold(sphere_polygons()), Material{});
-  const double below = kCentre_m - kRadius_mm * 1e-3 / 3.0;
-  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
-    const VertexId v(i);
-    if (body.mesh().alive(v) && body.position(v).z < below) body.set_anchored(v, true);
-  }
+  const bench::Shape& shape = organ();
+  SoftBody body(build_oriented_manifold(shape.polygons), Material{});
+  bench::anchor_below(body, (shape.centre_mm - shape.radius_mm / 3.0) * 1e-3);
   return body;
 }
 
@@ -63,29 +44,16 @@ VolumeOptions liver_cells(double cell_mm) {
   return o;
 }
 
-/// The probe's tip at `step` milliseconds: a 2 Hz sine from 1 mm above the rest top to 2 mm
-/// below it, lowered by lower_m.
-glm::dvec3 probe_tip(std::uint64_t step, double lower_m = 0.0) {
-  const double depth = 0.0015 * (1.0 - std::cos(2.0 * 3.141592653589793 * 2.0 * double(step) * 1e-3));
-  return {kCentre_m, kCentre_m, kCentre_m + kRadius_mm * 1e-3 + 0.001 - depth - lower_m};
-}
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0.0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * double(v.size() - 1) + 0.5))];
-}
-
 /// The step times (us) of `steps` probe steps after 200 to settle.
 std::vector<double> step_times(SimWorld& world, int steps, double* cg_mean = nullptr) {
   std::uint64_t s = 0;
   for (; s < 200; ++s)
-    world.step(probe_tip(s));
+    world.step(bench::probe_tip(organ(), double(s)));
   std::vector<double> us;
   double cg = 0.0;
   for (int k = 0; k < steps; ++k, ++s) {
     const auto t0 = std::chrono::steady_clock::now();
-    benchmark::DoNotOptimize(world.step(probe_tip(s)));
+    benchmark::DoNotOptimize(world.step(bench::probe_tip(organ(), double(s))));
     us.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() *
                  1e6);
     cg += world.last_stats(0).cg_iterations;
@@ -152,38 +120,18 @@ BENCHMARK(BM_VolumeStep)
 // (diff_k).
 void BM_VolumeForceConvergence(benchmark::State& state) {
   const double lower = double(state.range(0)) * 1e-6;
-  constexpr int kRuns = 5;
-  constexpr int kMilliseconds = 1600;
-  for (auto _ : state) {
-    std::vector<std::unique_ptr<SimWorld>> worlds;
-    for (int k = 0; k < kRuns; ++k) {
-      WorldOptions options;
-      options.integrator.dt_s = 1e-3 / double(1 << k);
-      worlds.push_back(std::make_unique<SimWorld>(options));
-      worlds.back()->add_body(anchored_sphere());
-      worlds.back()->set_volume(0, liver_cells(6.0));
-      worlds.back()->prepare();
-    }
-    double force2[kRuns] = {}, diff2[kRuns] = {};
-    for (int s = 0; s < kMilliseconds; ++s) {
-      const glm::dvec3 tip = probe_tip(std::uint64_t(s), lower);
-      glm::dvec3 f[kRuns];
-      for (int k = 0; k < kRuns; ++k) {
-        HapticOutput out;
-        for (int j = 0; j < (1 << k); ++j)
-          out = worlds[std::size_t(k)]->step(tip);
-        f[k] = out.force_N;
-        force2[k] += glm::dot(f[k], f[k]);
-      }
-      for (int k = 0; k < kRuns; ++k)
-        diff2[k] += glm::dot(f[k] - f[kRuns - 1], f[k] - f[kRuns - 1]);
-    }
-    for (int k = 0; k < kRuns; ++k) {
-      const std::string n = std::to_string(1 << k);
-      state.counters["force_" + n + "_mN"] = 1e3 * std::sqrt(force2[k] / kMilliseconds);
-      state.counters["diff_" + n] = std::sqrt(diff2[k] / std::max(force2[kRuns - 1], 1e-300));
-    }
-  }
+  bench::force_convergence(
+      state,
+      [](double dt) {
+        WorldOptions options;
+        options.integrator.dt_s = dt;
+        auto world = std::make_unique<SimWorld>(options);
+        world->add_body(anchored_sphere());
+        world->set_volume(0, liver_cells(6.0));
+        world->prepare();
+        return world;
+      },
+      [&](int ms) { return bench::probe_tip(organ(), ms, lower); }, 1600);
 }
 BENCHMARK(BM_VolumeForceConvergence)->Arg(0)->Arg(2000)->Iterations(1)->Unit(benchmark::kSecond);
 

@@ -107,6 +107,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
     }
     names_.push_back(d.name);
     const std::uint32_t index = world_.add_body(std::move(body));
+    contact_modulus_Pa_.push_back(0.0);  // a membrane's
     if (d.model == SolidDescription::Model::Volume && d.simulate) {
       sim::VolumeOptions volume;
       volume.cell_m = d.cell_mm * sim::kMetresPerMillimetre;
@@ -117,13 +118,11 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
       } catch (const sim::SimInputError& e) {
         throw sim::SimInputError("solid '" + d.name + "': " + e.what());
       }
-      const double e_star = volume.material.youngs_modulus_kPa * 1e3 /
-                            (1.0 - volume.material.poisson_ratio * volume.material.poisson_ratio);
-      contact_modulus_Pa_.resize(index + 1, 0.0);
-      contact_modulus_Pa_[index] = e_star;
+      contact_modulus_Pa_.back() =
+          volume.material.youngs_modulus_kPa * 1e3 /
+          (1.0 - volume.material.poisson_ratio * volume.material.poisson_ratio);
     }
   }
-  contact_modulus_Pa_.resize(world_.body_count(), 0.0);
   // Everything the first step would build lazily (solver structure, BVHs, scratch) is built now,
   // before the haptic clock starts: tick 1 costs what tick 2 costs.
   world_.prepare();

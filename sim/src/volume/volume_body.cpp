@@ -50,7 +50,7 @@ VolumeBody::VolumeBody(const SoftBody& body, const VolumeOptions& options)
   target_stiffness_N_per_m_ = options.target_stiffness_N_per_m > 0.0
                                   ? options.target_stiffness_N_per_m
                                   : 20.0 * volume_.youngs_modulus_Pa() * volume_.finest_cell_m();
-  embed_slots(body, 0);
+  embed_slots(body);
   for (std::uint32_t i = 0; i < embedded_.size(); ++i) {
     if (!embedded_[i] || !body.anchored(VertexId(i))) continue;
     for (const std::uint32_t node : volume_.lattice().cells[embedding_[i].cell])
@@ -58,19 +58,25 @@ VolumeBody::VolumeBody(const SoftBody& body, const VolumeOptions& options)
   }
 }
 
-void VolumeBody::embed_slots(const SoftBody& body, std::size_t from) {
+void VolumeBody::embed_slots(const SoftBody& body) {
   const Dlfl& mesh = body.mesh();
   const std::size_t capacity = mesh.vertex_capacity();
   embedding_.resize(capacity);
   embedded_.resize(capacity, 0);
   loaded_.resize(capacity, 0);
-  for (std::size_t i = from; i < capacity; ++i) {
+  // The vertices not yet embedded, at rest, embedded in one call.
+  std::vector<std::uint32_t> slots;
+  std::vector<glm::dvec3> rest;
+  for (std::size_t i = 0; i < capacity; ++i) {
     const VertexId v(static_cast<std::uint32_t>(i));
     if (!mesh.alive(v) || embedded_[i]) continue;
-    const glm::dvec3 rest = body.rest_position(v);
-    const std::vector<EmbeddedPoint> one = embed_points(volume_.lattice(), {&rest, 1});
-    embedding_[i] = one.front();
-    embedded_[i] = 1;
+    slots.push_back(v.idx);
+    rest.push_back(body.rest_position(v));
+  }
+  const std::vector<EmbeddedPoint> points = embed_points(volume_.lattice(), rest);
+  for (std::size_t k = 0; k < slots.size(); ++k) {
+    embedding_[slots[k]] = points[k];
+    embedded_[slots[k]] = 1;
   }
 }
 
@@ -79,7 +85,7 @@ void VolumeBody::sync_topology(const SoftBody& body) {
   const Dlfl& mesh = body.mesh();
   for (std::size_t i = 0; i < embedded_.size(); ++i)
     if (embedded_[i] && !mesh.alive(VertexId(static_cast<std::uint32_t>(i)))) embedded_[i] = 0;
-  embed_slots(body, 0);
+  embed_slots(body);
 }
 
 std::size_t VolumeBody::embedded_vertices() const {

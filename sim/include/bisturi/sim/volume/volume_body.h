@@ -54,7 +54,8 @@ class VolumeBody {
   [[nodiscard]] std::size_t embedded_vertices() const;
 
  private:
-  void embed_slots(const SoftBody& body, std::size_t from);
+  /// Embeds the alive vertex slots not embedded yet (at their rest positions).
+  void embed_slots(const SoftBody& body);
   /// The body's loads as point loads on the lattice (into loads_).
   void gather_loads(const SoftBody& body);
   void write_surface(SoftBody& body) const;
