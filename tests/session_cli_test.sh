@@ -188,7 +188,10 @@ TOML
     # The glove turned 90 degrees about z and moved in the scene: its twin moves as the device
     # would there (the scripted procedure goes through the inverse transform), so the session is
     # the unturned one's: contacts, a grasp and its release, every channel's peak force within
-    # 10 % (a finger's contact follows the twin's quantised poses), and it replays exactly.
+    # 10 % (a finger's contact follows the twin's quantised poses), and it replays exactly. Both
+    # step the tissue at a fixed 500 Hz: where the rate controller changes the rate is up to the
+    # machine's load, and a finger pressing the vessel's membrane feels the difference (peaks of
+    # 1.73 to 2.11 N on the middle finger in twelve sessions, either way turned).
     "$bisturi" run --print-default-scene > "$work/turned.toml" || fail "print-default-scene"
     sed -i 's|^max_force_N = 3.0|max_force_N = 3.0\ndevice_to_scene_rotation_deg = [0.0, 0.0, 90.0]\ndevice_to_scene_translation_mm = [100.0, -20.0, 5.0]|' "$work/turned.toml"
     grep -q "device_to_scene_rotation_deg" "$work/turned.toml" || fail "could not turn the glove"
@@ -198,7 +201,7 @@ TOML
       rm -rf "$work/$name"
       # shellcheck disable=SC2086
       "$bisturi" run $scene --duration 5 --eye-width 64 --eye-height 64 --no-openxr \
-        --out "$work/$name" --record "$work/$name.btrace" > "$work/$name.txt" 2>&1 ||
+        --tissue-hz 500 --out "$work/$name" --record "$work/$name.btrace" > "$work/$name.txt" 2>&1 ||
         { cat "$work/$name.txt"; fail "bisturi run ($name) exited with $?"; }
       "$bisturi" trace forces "$work/$name.btrace" --json | tr -d ' \n' |
         grep -o '"max_N":[0-9.e-]*' | cut -d: -f2 > "$work/$name.peak"

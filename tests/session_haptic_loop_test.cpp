@@ -78,30 +78,53 @@ TEST(HapticLoop, EachGloveFingerFeelsItsOwnContact) {
   for (devices::ForceChannel& c : channels)
     c.max_force_N = 5.0;
   SessionSim sim(scene, build_solids(scene), channels);
-  // The hand straight above the organ's top, the probe 10.5 mm in: the straight middle finger
-  // (the longest, above the tip) reaches 1.5 mm into the tissue; the others stay out of it.
+  // The hand turned 110 degrees about y, its shaft along +x and sloping 20 degrees down to the
+  // hand, above the organ's top: the straight middle finger's tip (9 mm back along the shaft)
+  // lies 3 mm below the probe's tip, over the top; the ring and little fingers lie deep inside
+  // (first found there, they are not touches), the thumb and index above. The hand comes down
+  // in 0.05 mm steps, the probe never reaching the organ: the middle finger's touch starts where
+  // it is first found, at no force, and its force then grows with the press, never by more in
+  // one step than the press along the surface's slanted normal.
   devices::HapticState state;
-  state.end_effector_poses = {at_mm(kOrganTop_mm - glm::dvec3(0, 0, 10.5))};
   state.finger_joint_angles_rad.assign(15, 0.0);
-  const auto tips = fingertips_mm(kOrganTop_mm - glm::dvec3(0, 0, 10.5), glm::dquat(1, 0, 0, 0),
-                                  60.0, state.finger_joint_angles_rad);
-  EXPECT_LT(tips[2].z, kOrganTop_mm.z);
+  const double half_turn = glm::radians(110.0) / 2.0;
+  const glm::dvec3 finger_from_tip_mm = 9.0 * glm::dvec3(std::cos(glm::radians(20.0)), 0.0,
+                                                         -std::sin(glm::radians(20.0)));
+  const glm::dvec3 start_mm = kOrganTop_mm - finger_from_tip_mm + glm::dvec3(0.0, 0.0, 0.5);
+  double first_touch_mm = -1.0;
+  double previous_N = 0.0;
+  for (double lowered_mm = 0.0; lowered_mm < 2.0; lowered_mm += 0.05) {
+    devices::Pose pose = at_mm(start_mm - glm::dvec3(0, 0, lowered_mm));
+    pose.orientation = {std::cos(half_turn), 0.0, std::sin(half_turn), 0.0};
+    state.end_effector_poses = {pose};
+    const TickOutput& out = sim.tick(state);
+    const double finger_N = out.finger_contact_N[2];
+    EXPECT_LE(finger_N - previous_N, 1.25 * 300.0 * 0.05e-3) << "a jump at " << lowered_mm;
+    if (first_touch_mm < 0.0 && finger_N > 0.0) first_touch_mm = lowered_mm;
+    previous_N = finger_N;
+    EXPECT_EQ(out.finger_contact_N[3], 0.0);
+    EXPECT_EQ(out.finger_contact_N[4], 0.0);
+    EXPECT_FALSE(out.contact) << "the probe stays out of the organ";
+  }
+  ASSERT_GE(first_touch_mm, 0.0) << "the middle finger never touched";
+  // The press since the touch began (a step before the first force) at the finger's
+  // stiffness (300 N/m), within a quarter.
+  const double pressed_mm = 1.95 - (first_touch_mm - 0.05);
+  EXPECT_GT(pressed_mm, 1.0);
+  EXPECT_GT(previous_N, 0.75 * 300.0 * pressed_mm * 1e-3) << "touched at " << first_touch_mm;
   const TickOutput& straight = sim.tick(state);
-  ASSERT_EQ(straight.finger_contact_N.size(), 5u);
-  EXPECT_GT(straight.finger_contact_N[2], 0.1) << "the middle finger is in the tissue";
-  EXPECT_EQ(straight.finger_contact_N[3], 0.0);
-  EXPECT_EQ(straight.finger_contact_N[4], 0.0);
   std::vector<double> command;
   sim.command_for(straight, SessionSim::tip_of(state), command);
-  EXPECT_GT(command[2], 0.1);
+  EXPECT_NEAR(command[2], straight.finger_contact_N[2], 1e-12);
   EXPECT_EQ(command[3], 0.0);
   EXPECT_EQ(command[4], 0.0);
-  EXPECT_GT(command[0], 0.0) << "the thumb holds the pressed instrument";
-  EXPECT_NEAR(command[0], std::min(glm::length(straight.force_N), 3.0), 1e-12);
 
-  // Curling the middle finger lifts it out: only its own channel changes.
+  // Curling the middle finger lifts it out sideways: it holds the plane it pressed for a few
+  // steps (so a rim does not flicker it), then only its own channel has gone to zero.
   for (std::size_t j = 6; j < 9; ++j)
     state.finger_joint_angles_rad[j] = 0.6;
+  for (int i = 0; i < 8; ++i)
+    sim.tick(state);
   const TickOutput& curled = sim.tick(state);
   EXPECT_EQ(curled.finger_contact_N[2], 0.0);
   sim.command_for(curled, SessionSim::tip_of(state), command);

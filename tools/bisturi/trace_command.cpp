@@ -114,9 +114,9 @@ void add_trace_command(CLI::App& app, TraceOptions& options, int (*&run)(const T
 
   CLI::App* forces = trace->add_subcommand(
       "forces",
-      "what the recorded force commands did, per channel: the largest force, commands at the "
-      "limit, the largest change in one tick against the device's rate limit, reversals and "
-      "chatter (fault zeros counted apart)");
+      "what the recorded force commands did, per channel: the largest force, the impulse (force "
+      "over time), commands at the limit, the largest change in one tick against the device's "
+      "rate limit, reversals and chatter (fault zeros counted apart)");
   forces->add_option("TRACE", options.input, "trace file")->required()->check(CLI::ExistingFile);
   forces->add_option("--limit-N", options.limit_N,
                      "the session's force limit (the scene's max_force_N), when below a "

@@ -9,8 +9,9 @@
 //                            every record decoded: time, device, direction, report fields, force
 //                            commands as vectors (exit status 2 at a bad chunk)
 //   forces TRACE [--limit-N F] [--json]
-//                            per force channel: the largest force, ticks at the limit, the largest
-//                            change in one tick against the device's rate limit, chatter
+//                            per force channel: the largest force, the impulse, ticks at the
+//                            limit, the largest change in one tick against the device's rate
+//                            limit, chatter
 
 #include <cstdint>
 #include <optional>

@@ -41,8 +41,11 @@ struct ChannelStats {
   double chatter_sum_sq = 0.0;
   std::uint64_t chatter_samples = 0;
   double chatter_max_N = 0.0;
+  double impulse_N_s = 0.0;  // the magnitude's integral over time: what the hand took in all
   // State between commands.
   std::vector<double> last;
+  double last_time_s = -1.0;
+  double last_magnitude_N = 0.0;
   double last_change = 0.0;   // signed change of the magnitude at the last command
   std::deque<double> window;  // recent magnitudes, for the chatter's moving mean
 };
@@ -60,6 +63,10 @@ void add_command(ChannelStats& s, const std::vector<double>& forces, double time
   const double m = magnitude(forces, s.offset, n);
   ++s.commands;
   s.max_N = std::max(s.max_N, m);
+  // Each command holds until the next one.
+  if (s.last_time_s >= 0.0) s.impulse_N_s += s.last_magnitude_N * (time_s - s.last_time_s);
+  s.last_time_s = time_s;
+  s.last_magnitude_N = m;
   if (m >= s.limit_N * (1.0 - 1e-9)) ++s.at_limit;
   std::vector<double> now(forces.begin() + static_cast<std::ptrdiff_t>(s.offset),
                           forces.begin() + static_cast<std::ptrdiff_t>(s.offset + n));
@@ -103,6 +110,7 @@ json channel_json(const ChannelStats& s) {
       {"allowed_step_N", s.allowed_step_N},
       {"commands", s.commands},
       {"max_N", s.max_N},
+      {"impulse_N_s", s.impulse_N_s},
       {"at_limit", s.at_limit},
       {"largest_step_N", s.largest_step_N},
       {"largest_step_time_s", s.largest_step_time_s},
@@ -190,6 +198,7 @@ int run_trace_forces(const TraceOptions& options) {
                 << "), fault zeros " << d["fault_zeros"] << "\n";
       for (const json& c : d["channels"]) {
         std::cout << "  " << c["channel"].get<std::string>() << ": max " << c["max_N"]
+                  << " N, impulse " << c["impulse_N_s"]
                   << " N (limit " << c["limit_N"] << ", " << c["at_limit"]
                   << " at it); largest step " << c["largest_step_N"] << " N at "
                   << c["largest_step_time_s"] << " s (rate allows " << c["allowed_step_N"] << ", "

@@ -319,8 +319,13 @@ void SessionSim::finger_contacts(const glm::dvec3& tip_m, const glm::dquat& hand
       depth = std::clamp(glm::dot(touch.plane_point_m - p, touch.plane_normal), 0.0, touch.depth_m);
       ++touch.held_steps;
     }
+    // A touch found below the surface (the finger moved on between two steps, or the surface
+    // came to it) starts from the depth it was found at, so the force grows with the press
+    // from zero rather than jumping in with whatever depth the step's timing gave.
+    if (depth > 0.0 && !touch.touching) touch.entry_depth_m = depth;
     touch.touching = depth > 0.0;
-    out_.finger_contact_N[f] = finger_stiffness_N_per_m_ * depth;
+    out_.finger_contact_N[f] =
+        finger_stiffness_N_per_m_ * std::max(0.0, depth - touch.entry_depth_m);
   }
 }
 

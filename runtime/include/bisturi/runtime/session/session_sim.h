@@ -174,6 +174,7 @@ class SessionSim {
     glm::dvec3 plane_point_m{0.0};
     glm::dvec3 plane_normal{0.0};
     double depth_m = 0.0;         ///< at the last step the closest point was straight ahead
+    double entry_depth_m = 0.0;   ///< where the touch began: the force grows from there
     std::uint32_t held_steps = 0;  ///< steps since then
   };
   /// Steps a touching finger keeps its last plane while the closest point lies sideways.
