@@ -624,3 +624,68 @@ TEST(VirtualTransport, QueuesTimeoutsAndThreads) {
   EXPECT_THROW(pair.host->read(0us), bd::DeviceDisconnected);
   EXPECT_THROW(pair.host->write(bd::Bytes{1}), bd::DeviceDisconnected);
 }
+
+TEST(VirtualTransport, APreemptingWriteOvertakesAStuckWrite) {
+  auto pair = bd::make_virtual_pair({});
+  pair.host->write(bd::Bytes{1});
+  // The device holds off: the host's next write is stuck for 300 ms.
+  pair.device->stall_next_host_write(300ms);
+  std::atomic<bool> returned{false};
+  std::thread stuck([&] {
+    pair.host->write(bd::Bytes{2});
+    returned.store(true);
+  });
+  std::this_thread::sleep_for(20ms);
+  ASSERT_FALSE(returned.load());
+  // From another thread, past the stuck write and ahead of the queue; only host to device.
+  EXPECT_TRUE(pair.host->write_preempting(bd::Bytes{0, 0}));
+  EXPECT_FALSE(pair.device->write_preempting(bd::Bytes{7}));
+  auto first = pair.device->read(0us);
+  ASSERT_TRUE(first.has_value());
+  EXPECT_EQ(*first, (bd::Bytes{0, 0}));
+  EXPECT_FALSE(returned.load()) << "the zero did not wait for the stuck write";
+  EXPECT_EQ((*pair.device->read(0us))[0], 1);
+  stuck.join();
+  EXPECT_EQ((*pair.device->read(0us))[0], 2);
+  // Four slots of 64 bytes: a fifth waiting report, or a longer one, is refused.
+  for (int i = 0; i < 4; ++i)
+    EXPECT_TRUE(pair.host->write_preempting(bd::Bytes{static_cast<std::uint8_t>(i)}));
+  EXPECT_FALSE(pair.host->write_preempting(bd::Bytes{9}));
+  for (int i = 0; i < 4; ++i)
+    EXPECT_EQ((*pair.device->read(0us))[0], i) << "in the order written";
+  EXPECT_FALSE(pair.host->write_preempting(bd::Bytes(65, 0)));
+}
+
+TEST(Device, TheHidGloveAndTheArmZeroPastAStuckWrite) {
+  // Each driver's preempting zero reaches its twin (which takes it as soon as it is written)
+  // and turns off every force the host had set.
+  bd::VirtualClock clock;
+  bd::SimulatedGlove glove(bd::DeviceScript{}, "GLOVE-1", 1000.0);
+  bd::SimulatedArm arm(bd::DeviceScript{}, "ARM-1", 1000.0);
+  for (bd::SimulatedDevice* twin : {static_cast<bd::SimulatedDevice*>(&glove),
+                                    static_cast<bd::SimulatedDevice*>(&arm)}) {
+    auto pair = bd::make_virtual_pair(twin->descriptor());
+    twin->attach(std::move(pair.device));
+    std::unique_ptr<bd::Device> device = bd::builtin_registry().open(std::move(pair.host), clock);
+    bd::HapticDevice* haptic = bd::as_haptic(device.get());
+    ASSERT_NE(haptic, nullptr);
+    const std::vector<double> forces(haptic->capabilities().force_components(), 0.5);
+    haptic->send_forces(forces);
+    const auto felt = [&] {
+      if (twin == &arm) {
+        const bd::Vec3 f = arm.applied_force_N();
+        return std::abs(f.x) + std::abs(f.y) + std::abs(f.z);
+      }
+      double sum = 0.0;
+      for (const double f : glove.actuator_forces_N())
+        sum += std::abs(f);
+      return sum;
+    };
+    ASSERT_GT(felt(), 0.1) << device->driver_name();
+    EXPECT_FALSE(device->send_zero_preempting()) << "not prepared yet";
+    device->prepare_preempting_zero();
+    ASSERT_TRUE(device->send_zero_preempting()) << device->driver_name();
+    EXPECT_EQ(felt(), 0.0) << device->driver_name();
+    device->close();
+  }
+}

@@ -153,6 +153,56 @@ TEST(HapticLoop, TheSupervisorZeroesAStalledTickWithinTheWatchdogLimit) {
   EXPECT_EQ(rig.loop->counters().supervisor_zeros, 1u);
 }
 
+TEST(HapticLoop, ATickStuckInTheDevicesWriteIsZeroedPastIt) {
+  const SceneDescription scene = arm_scene("[0.0, 0.0, 0.0]");
+  Rig rig(scene, pressing_arm(DeviceFrame{}));
+  rig.run_to(milliseconds(1000));
+  ASSERT_GT(glm::length(rig.applied()), 0.01);
+  const auto wall0 = std::chrono::steady_clock::now();
+  const Nanoseconds virtual0 = rig.clock.now();
+  const auto now = [&] {
+    return virtual0 + std::chrono::duration_cast<Nanoseconds>(std::chrono::steady_clock::now() -
+                                                              wall0);
+  };
+  std::atomic<bool> run{true};
+  std::thread supervisor([&] {
+    while (run.load()) {
+      std::this_thread::sleep_for(std::chrono::microseconds(250));
+      (void)rig.loop->zero_if_stalled(now(), milliseconds(3));
+    }
+  });
+  // The arm holds off the host's next write for 2 s: the tick that sends it is stuck inside the
+  // driver with the device in hand. The zero must not wait for it.
+  rig.arm_twin->stall_host_writes(seconds(2));
+  rig.clock.set(now());
+  std::atomic<bool> tick_returned{false};
+  std::thread ticking([&] {
+    (void)rig.loop->tick(rig.clock.now());
+    tick_returned.store(true);
+  });
+  const auto stall_start = std::chrono::steady_clock::now();
+  double zero_after_ms = -1.0;
+  while (zero_after_ms < 0 && !tick_returned.load()) {
+    if (rig.applied() == glm::dvec3(0.0))
+      zero_after_ms =
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - stall_start)
+              .count();
+    std::this_thread::sleep_for(std::chrono::microseconds(100));
+  }
+  ticking.join();
+  run.store(false);
+  supervisor.join();
+  ASSERT_GE(zero_after_ms, 0.0) << "the arm saw zero only after the stuck write returned";
+  std::printf("stuck write to zero output: %.2f ms (the write stays stuck for 2000 ms)\n",
+              zero_after_ms);
+  // Once the write returns, the tick finishes the job: the guard latched, a zero sent, and the
+  // arm holds zero (the guard engages again only from a small command, then ramps in).
+  EXPECT_NE(rig.guard->state(), devices::GuardState::Engaged);
+  EXPECT_EQ(rig.loop->counters().supervisor_zeros, 1u);
+  (void)rig.loop->tick(rig.clock.now() + milliseconds(1));
+  EXPECT_EQ(rig.applied(), glm::dvec3(0.0));
+}
+
 TEST(HapticLoop, ARealStallIsZeroedByTheSupervisorThread) {
   const SceneDescription scene = arm_scene("[0.0, 0.0, 0.0]");
   Rig rig(scene, pressing_arm(DeviceFrame{}));

@@ -7,7 +7,9 @@
 # session's ticks count the fade and the zero, the bound leaves room for a loaded machine; the
 # fingers hold 0.8 N then in most runs, which the report's force_before_N says), the
 # recording stopped and named (trace-disk-full), or a stalled disk that holds up nothing: the
-# session completes and its recording replays exactly (trace-slow-disk).
+# session completes and its recording replays exactly (trace-slow-disk). A device that holds off
+# the host's write for 2 s (device-io-stall) gets the supervisor's zero past the stuck tick
+# within the same 100 ms, and the session completes and replays exactly.
 set -u
 bisturi="$1"
 work="$2/inject-$3"
@@ -45,6 +47,13 @@ case "$fault" in
     [ "$status" = 1 ] || fail "exit $status, want 1"
     grep -q "injected fault: $fault" "$report" || fail "the error does not name the fault"
     zero_within ;;
+  device-io-stall)
+    [ "$ending" = completed ] || fail "ending $ending, want completed"
+    [ "$(value supervisor_zeros)" -ge 1 ] || fail "the supervisor did not zero the stuck tick"
+    zero_within
+    "$bisturi" replay "$work.btrace" --json > "$work.replay.json" 2>&1 ||
+      { cat "$work.replay.json"; fail "the recording does not replay"; }
+    grep -q '"force_mismatches": 0' "$work.replay.json" || fail "the replay's forces differ" ;;
   trace-disk-full)
     [ "$ending" = completed ] || fail "ending $ending, want completed"
     grep -q '"recording_error": ".*No space left on device' "$report" ||

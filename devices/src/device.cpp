@@ -62,6 +62,17 @@ void Device::close() {
   transport_.reset();
 }
 
+void Device::prepare_preempting_zero() {
+  zero_reports(preempting_zero_);
+}
+
+bool Device::send_zero_preempting() noexcept {
+  if (transport_ == nullptr || preempting_zero_.empty()) return false;
+  for (const Bytes& report : preempting_zero_)
+    if (!transport_->write_preempting(report)) return false;
+  return true;
+}
+
 std::size_t Device::poll_transport(std::chrono::microseconds timeout) {
   // Only the first read may wait, and only when the caller asked: poll(0) never waits, and after
   // the first report the rest are taken only if they are already there.

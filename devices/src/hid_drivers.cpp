@@ -64,6 +64,10 @@ class HidGlove final : public HapticDevice {
   void send_zero() override {
     if (!zeros_.empty()) send_forces(zeros_);
   }
+  void zero_reports(std::vector<Bytes>& out) const override {
+    out.clear();
+    if (!zeros_.empty()) mapping_.encode_forces(zeros_, out);
+  }
 
   std::string name_ = kHidGloveDriver;
   DeviceDescriptor descriptor_;

@@ -98,6 +98,9 @@ class HidTransport final : public Transport {
     }
   }
 
+  // hid_write blocks until the kernel takes the report, for as long as the device holds off.
+  bool write_is_bounded() const override { return false; }
+
  private:
   hid_device* handle_;
   DeviceDescriptor descriptor_;

@@ -96,6 +96,11 @@ void SimulatedDevice::disconnect() {
   if (link_) link_->disconnect();
 }
 
+void SimulatedDevice::stall_host_writes(Nanoseconds duration) {
+  std::lock_guard lock(mutex_);
+  if (link_) link_->stall_next_host_write(duration);
+}
+
 bool SimulatedDevice::attached() const {
   std::lock_guard lock(mutex_);
   return link_ && link_->connected();

@@ -37,6 +37,10 @@ ProtocolError::ProtocolError(const std::string& device, std::size_t offset,
 
 Transport::~Transport() = default;
 
+bool Transport::write_preempting(std::span<const std::uint8_t>) noexcept {
+  return false;
+}
+
 bool Transport::read_into(Bytes& report, std::chrono::microseconds timeout) {
   std::optional<Bytes> r = read(timeout);
   if (!r) return false;

@@ -142,9 +142,14 @@ class VendorArm final : public HapticDevice {
       throw std::invalid_argument(describe(descriptor_) + ": expected 3 force values, got " +
                                   std::to_string(forces_N.size()));
     }
+    transport().write(force_packet(forces_N, sequence_++));
+  }
+
+ private:
+  static ap::Packet force_packet(std::span<const double> forces_N, std::uint8_t sequence) {
     ap::Packet packet{};
     packet[0] = ap::kForce;
-    packet[1] = sequence_++;
+    packet[1] = sequence;
     for (std::size_t i = 0; i < 3; ++i) {
       const double mN = std::isfinite(forces_N[i]) ? std::round(forces_N[i] * 1000.0) : 0.0;
       const auto v = static_cast<std::int16_t>(std::clamp(mN, -32767.0, 32767.0));
@@ -153,13 +158,18 @@ class VendorArm final : public HapticDevice {
       packet[3 + 2 * i] = static_cast<std::uint8_t>(u >> 8);
     }
     ap::seal(packet);
-    transport().write(packet);
+    return packet;
   }
 
- private:
   void send_zero() override {
     const double zero[3] = {0, 0, 0};
     send_forces(zero);
+  }
+  // The arm does not order force packets by their sequence number (it only counts them).
+  void zero_reports(std::vector<Bytes>& out) const override {
+    const double zero[3] = {0, 0, 0};
+    const ap::Packet packet = force_packet(zero, 0);
+    out.assign(1, Bytes(packet.begin(), packet.end()));
   }
 
   std::string name_ = kVendorArmDriver;

@@ -1,8 +1,12 @@
 #include "bisturi/devices/virtual_transport.h"
 
 #include <algorithm>
+#include <array>
+#include <atomic>
 #include <condition_variable>
+#include <cstring>
 #include <stdexcept>
+#include <thread>
 
 namespace bisturi::devices {
 
@@ -38,6 +42,51 @@ class ReportQueue {
   std::size_t head_ = 0, count_ = 0;
 };
 
+/// Reports written past the queue and its lock (write_preempting): a few fixed slots, each
+/// claimed, filled and published by atomics, taken by the reader before anything queued.
+class PreemptingSlots {
+ public:
+  static constexpr std::size_t kSlots = 4, kBytes = 64;
+  bool put(std::span<const std::uint8_t> report) noexcept {
+    if (report.size() > kBytes) return false;
+    for (std::size_t i = 0; i < kSlots; ++i) {
+      std::uint32_t free = kFree;
+      if (!state_[i].compare_exchange_strong(free, kFilling, std::memory_order_acquire)) continue;
+      std::memcpy(bytes_[i].data(), report.data(), report.size());
+      size_[i] = report.size();
+      order_[i] = next_order_.fetch_add(1, std::memory_order_relaxed);
+      state_[i].store(kReady, std::memory_order_release);
+      return true;
+    }
+    return false;
+  }
+  [[nodiscard]] bool any() const {
+    for (const auto& s : state_)
+      if (s.load(std::memory_order_acquire) == kReady) return true;
+    return false;
+  }
+  /// The oldest ready report into `out`; false when none.
+  bool take(Bytes& out) {
+    std::size_t best = kSlots;
+    for (std::size_t i = 0; i < kSlots; ++i) {
+      if (state_[i].load(std::memory_order_acquire) != kReady) continue;
+      if (best == kSlots || order_[i] < order_[best]) best = i;
+    }
+    if (best == kSlots) return false;
+    out.assign(bytes_[best].begin(), bytes_[best].begin() + static_cast<std::ptrdiff_t>(size_[best]));
+    state_[best].store(kFree, std::memory_order_release);
+    return true;
+  }
+
+ private:
+  static constexpr std::uint32_t kFree = 0, kFilling = 1, kReady = 2;
+  std::array<std::atomic<std::uint32_t>, kSlots> state_{};
+  std::array<std::array<std::uint8_t, kBytes>, kSlots> bytes_{};
+  std::array<std::size_t, kSlots> size_{};
+  std::array<std::uint64_t, kSlots> order_{};
+  std::atomic<std::uint64_t> next_order_{0};
+};
+
 struct VirtualLink {
   DeviceDescriptor descriptor;
   std::size_t capacity = 0;
@@ -48,6 +97,11 @@ struct VirtualLink {
   ReportQueue queue[2];
   std::size_t dropped[2] = {0, 0};
   std::function<void()> on_report[2];
+  // Towards the device only: output reports a stuck host write must not hold up.
+  PreemptingSlots preempting;
+  std::atomic<std::int64_t> stall_next_host_write_ns{0};
+  // on_report[1] while the device side has one: a pre-empting write calls it without the lock.
+  std::atomic<const std::function<void()>*> device_listener{nullptr};
 };
 
 }  // namespace detail
@@ -71,7 +125,10 @@ std::optional<Bytes> VirtualTransport::read(std::chrono::microseconds timeout) {
   auto& link = *link_;
   std::unique_lock lock(link.mutex);
   auto& queue = link.queue[inbox(side_)];
-  auto ready = [&] { return !link.connected || !queue.empty(); };
+  const bool device_side = side_ == Side::Device;
+  auto ready = [&] {
+    return !link.connected || !queue.empty() || (device_side && link.preempting.any());
+  };
   if (!ready()) {
     if (timeout.count() <= 0) return std::nullopt;
     if (!link.changed.wait_for(lock, timeout, ready)) return std::nullopt;
@@ -79,6 +136,7 @@ std::optional<Bytes> VirtualTransport::read(std::chrono::microseconds timeout) {
   if (!link.connected) {
     throw DeviceDisconnected(describe(link.descriptor) + ": disconnected");
   }
+  if (Bytes first; device_side && link.preempting.take(first)) return first;
   Bytes report = std::move(queue.front());
   queue.pop_front();
   return report;
@@ -88,7 +146,10 @@ bool VirtualTransport::read_into(Bytes& report, std::chrono::microseconds timeou
   auto& link = *link_;
   std::unique_lock lock(link.mutex);
   auto& queue = link.queue[inbox(side_)];
-  auto ready = [&] { return !link.connected || !queue.empty(); };
+  const bool device_side = side_ == Side::Device;
+  auto ready = [&] {
+    return !link.connected || !queue.empty() || (device_side && link.preempting.any());
+  };
   if (!ready()) {
     if (timeout.count() <= 0) return false;
     if (!link.changed.wait_for(lock, timeout, ready)) return false;
@@ -96,6 +157,7 @@ bool VirtualTransport::read_into(Bytes& report, std::chrono::microseconds timeou
   if (!link.connected) {
     throw DeviceDisconnected(describe(link.descriptor) + ": disconnected");
   }
+  if (device_side && link.preempting.take(report)) return true;
   std::swap(report, queue.front());  // the reader's old buffer stays for the next report
   queue.pop_front();
   return true;
@@ -104,6 +166,11 @@ bool VirtualTransport::read_into(Bytes& report, std::chrono::microseconds timeou
 void VirtualTransport::write(std::span<const std::uint8_t> report) {
   auto& link = *link_;
   const int target = 1 - inbox(side_);
+  if (side_ == Side::Host) {
+    // A stalled device: the write returns only when the stall is over.
+    const std::int64_t stall_ns = link.stall_next_host_write_ns.exchange(0);
+    if (stall_ns > 0) std::this_thread::sleep_for(std::chrono::nanoseconds(stall_ns));
+  }
   std::function<void()> callback;
   {
     std::lock_guard lock(link.mutex);
@@ -120,6 +187,24 @@ void VirtualTransport::write(std::span<const std::uint8_t> report) {
   }
   link.changed.notify_all();
   if (callback) callback();
+}
+
+bool VirtualTransport::write_preempting(std::span<const std::uint8_t> report) noexcept {
+  if (side_ != Side::Host || !link_->preempting.put(report)) return false;
+  // The report has left the host. What follows is the device's side taking it: a twin's
+  // listener (under the twin's own lock, the simulated hardware's) or a reader woken here.
+  link_->changed.notify_all();
+  if (const std::function<void()>* listener = link_->device_listener.load()) {
+    try {
+      (*listener)();
+    } catch (...) {  // the device's trouble, not the sender's: the report is delivered
+    }
+  }
+  return true;
+}
+
+void VirtualTransport::stall_next_host_write(std::chrono::nanoseconds duration) {
+  link_->stall_next_host_write_ns.store(duration.count());
 }
 
 void VirtualTransport::disconnect() {
@@ -149,7 +234,11 @@ std::size_t VirtualTransport::dropped() const {
 
 void VirtualTransport::set_on_report(std::function<void()> callback) {
   std::lock_guard lock(link_->mutex);
-  link_->on_report[inbox(side_)] = std::move(callback);
+  const int box = inbox(side_);
+  if (side_ == Side::Device) link_->device_listener.store(nullptr);
+  link_->on_report[box] = std::move(callback);
+  if (side_ == Side::Device && link_->on_report[box])
+    link_->device_listener.store(&link_->on_report[box]);
 }
 
 VirtualPair make_virtual_pair(DeviceDescriptor descriptor, std::size_t queue_capacity) {

@@ -330,6 +330,7 @@ int run_run(const RunOptions& options) {
         {"motion_to_photon_ms", summary_json(r.motion_to_photon_ms)},
         {"action_to_response_ms", summary_json(r.action_to_response_ms)}}},
       {"max_force_N", r.max_force_N},
+      {"haptic_write_bounded", r.haptic_write_bounded},
       {"haptic_nominal_period_ms", nominal_ms},
       {"counts",
        {{"overruns", r.overruns},

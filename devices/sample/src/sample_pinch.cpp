@@ -64,9 +64,15 @@ class SamplePinch final : public HapticDevice {
       throw std::invalid_argument(describe(descriptor_) + ": expected 2 force values, got " +
                                   std::to_string(forces_N.size()));
     }
+    transport().write(force_packet(forces_N, sequence_++));
+  }
+
+ private:
+  static std::array<std::uint8_t, pp::kPacketSize> force_packet(std::span<const double> forces_N,
+                                                                 std::uint8_t sequence) {
     std::array<std::uint8_t, pp::kPacketSize> packet{};
     packet[0] = pp::kForce;
-    packet[1] = sequence_++;
+    packet[1] = sequence;
     for (std::size_t i = 0; i < 2; ++i) {
       // An actuator only pulls: a negative or non-finite command is no force.
       const double N =
@@ -76,13 +82,19 @@ class SamplePinch final : public HapticDevice {
       packet[3 + 2 * i] = static_cast<std::uint8_t>(mN >> 8);
     }
     packet[15] = balance(std::span(packet).first(15));
-    transport().write(packet);
+    return packet;
   }
 
- private:
   void send_zero() override {
     const double zero[2] = {0.0, 0.0};
     send_forces(zero);
+  }
+  // The same packet for the supervisor's preempting zero (the device only counts sequence
+  // numbers).
+  void zero_reports(std::vector<Bytes>& out) const override {
+    const double zero[2] = {0.0, 0.0};
+    const auto packet = force_packet(zero, 0);
+    out.assign(1, Bytes(packet.begin(), packet.end()));
   }
 
   std::string name_ = kSamplePinchDriver;

@@ -75,7 +75,9 @@ GuardedHaptic::GuardedHaptic(HapticDevice& device, ForceGuard& guard, Clock& clo
       clock_(&clock),
       writer_(writer),
       index_(index),
-      output_(guard.force_components(), 0.0) {}
+      output_(guard.force_components(), 0.0) {
+  device.prepare_preempting_zero();
+}
 
 std::size_t GuardedHaptic::poll(std::chrono::microseconds timeout) {
   // The guard hears of every report handled, also when a later one in the same poll is malformed

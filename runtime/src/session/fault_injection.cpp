@@ -10,9 +10,10 @@ namespace bisturi::runtime {
 
 namespace {
 
-constexpr std::array<FaultKind, 6> kAll = {FaultKind::TissueHang,   FaultKind::TissueThrow,
-                                           FaultKind::RenderThrow,  FaultKind::DeviceUnplug,
-                                           FaultKind::TraceDiskFull, FaultKind::TraceSlowDisk};
+constexpr std::array<FaultKind, 7> kAll = {
+    FaultKind::TissueHang,    FaultKind::TissueThrow,   FaultKind::RenderThrow,
+    FaultKind::DeviceUnplug,  FaultKind::TraceDiskFull, FaultKind::TraceSlowDisk,
+    FaultKind::DeviceIoStall};
 
 }  // namespace
 
@@ -30,6 +31,8 @@ const char* to_string(FaultKind kind) {
       return "trace-disk-full";
     case FaultKind::TraceSlowDisk:
       return "trace-slow-disk";
+    case FaultKind::DeviceIoStall:
+      return "device-io-stall";
   }
   return "?";
 }

@@ -39,6 +39,13 @@ void FaultInjector::finish() {
     report_.injected.push_back(FaultOutcome{faults_[next_]});
 }
 
+void FaultInjector::zero_went_out(devices::Nanoseconds at) {
+  // The supervisor's zero past a stuck tick: the haptic thread cannot see it before it returns.
+  if (fault_at_ns_.load() < 0) return;
+  std::int64_t none = -1;
+  zero_at_ns_.compare_exchange_strong(none, at.count());
+}
+
 void FaultInjector::settle_last() {
   if (report_.injected.empty()) return;
   FaultOutcome& o = report_.injected.back();
@@ -69,6 +76,11 @@ void FaultInjector::inject(const InjectedFault& f, std::uint64_t ticks) {
       break;
     case FaultKind::TraceDiskFull:
       if (writer_ != nullptr) writer_->fail_next_write("No space left on device (injected fault)");
+      break;
+    case FaultKind::DeviceIoStall:
+      if (!devices_.stall_haptic_io(std::chrono::milliseconds(
+              static_cast<std::int64_t>(kFaultHangSeconds * 1000.0))))
+        o.injected_s = -1.0;  // hardware: not ours to stall
       break;
     case FaultKind::TraceSlowDisk:
       if (writer_ != nullptr)

@@ -28,6 +28,9 @@ class FaultInjector {
   void watch_with(HapticThreadFlags& flags);
   /// Makes the faults due by `ticks` haptic ticks happen. The watching thread's.
   void poll(std::uint64_t ticks);
+  /// The supervisor zeroed the output at clock time `at` (past a stuck tick): the current
+  /// fault's zero, unless a tick saw one first. Any thread.
+  void zero_went_out(devices::Nanoseconds at);
   /// After the haptic thread ended: the last fault's outcome, and those never made.
   void finish();
 

@@ -52,6 +52,7 @@ void HapticLoop::recording_failed(const char* why) noexcept {
 void HapticLoop::lose_device(devices::Nanoseconds t, const std::string& why) noexcept {
   if (lost_) return;
   lost_ = true;
+  device_live_.store(false, std::memory_order_release);
   counters_.haptic_lost_s = seconds(t);
   counters_.haptic_lost_reason = why;
 }
@@ -175,6 +176,12 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
   }
   const bool was_lost = lost_;
   if (!lost_) send(t);
+  if (preempted_.exchange(false, std::memory_order_acq_rel)) {
+    // The supervisor's zero went past this tick's stuck write: latch, note and zero here too,
+    // so the guard holds zero from now on and the trace says where it happened.
+    std::lock_guard lock(device_mutex_);
+    (void)zero_for_stall_locked();
+  }
   // A tick without a force command is noted, so the replay counts it too.
   if (was_lost) note("tick");
   if (stopped_.load(std::memory_order_acquire)) return TickStatus::Stopped;
@@ -238,8 +245,17 @@ bool HapticLoop::zero_if_stalled(devices::Nanoseconds now, devices::Nanoseconds 
   const auto start = tick_start_ns_.load(std::memory_order_acquire);
   if (start < 0 || now.count() - start <= limit.count()) return false;
   if (zeroed_for_stall_.load(std::memory_order_acquire)) return false;
-  // A tick stuck inside the device's own I/O holds the lock: the zero goes out when it returns.
-  std::lock_guard lock(device_mutex_);
+  std::unique_lock lock(device_mutex_, std::try_to_lock);
+  if (!lock.owns_lock()) {
+    // The tick is stuck inside the device's I/O: the driver's zero goes past it. Where the
+    // transport cannot, the next look tries again (the zero then goes out when the tick lets go).
+    if (stopped_.load(std::memory_order_acquire) || !device_live_.load(std::memory_order_acquire))
+      return false;
+    if (!parts_.haptic->device().send_zero_preempting()) return false;
+    zeroed_for_stall_.store(true, std::memory_order_release);
+    preempted_.store(true, std::memory_order_release);
+    return true;
+  }
   if (zeroed_for_stall_.exchange(true, std::memory_order_acq_rel)) return false;
   return zero_for_stall_locked();
 }

@@ -9,7 +9,7 @@
 // that cannot be written is counted and the session goes on (HapticLoopCounters). stop() sends
 // zero through the guard and latches; zero_if_stalled() is the supervisor thread's (run_session
 // starts it): both may run on another thread than tick(), and share one lock with it around the
-// device.
+// device, which the supervisor only tries: it never waits for a tick.
 
 #include <atomic>
 #include <cstdint>
@@ -150,7 +150,10 @@ class HapticLoop {
   void stop() noexcept;
   /// The supervisor: when the last tick began more than `limit` before `now` and the output has
   /// not been zeroed for this stall, sends zero through the guard (after a "watchdog_zero" note;
-  /// the guard latches on the overrun itself). Returns true when it zeroed. Never throws.
+  /// the guard latches on the overrun itself). When the tick holds the device (stuck inside its
+  /// I/O) it waits for nothing: the driver's zero goes past the stuck write
+  /// (Device::send_zero_preempting), and the tick latches the guard, notes and sends zero once
+  /// the write returns. Returns true when a zero went out. Never throws.
   bool zero_if_stalled(devices::Nanoseconds now, devices::Nanoseconds limit) noexcept;
   /// The supervisor's zero, unconditionally (the replay, where the trace says it happened).
   void zero_now() noexcept;
@@ -217,6 +220,9 @@ class HapticLoop {
   std::atomic<bool> stopped_{false};
   std::atomic<devices::Nanoseconds::rep> tick_start_ns_{-1};  ///< clock time of the last tick
   std::atomic<bool> zeroed_for_stall_{false};
+  /// A zero went past the tick's stuck device I/O: the tick finishes the job when it returns.
+  std::atomic<bool> preempted_{false};
+  std::atomic<bool> device_live_{true};  ///< lost_, for the supervisor's lock-free path
 };
 
 }  // namespace bisturi::runtime

@@ -30,9 +30,10 @@ void watch_fault(const HapticLoop& loop, const devices::GuardedHaptic& guarded, 
   }
   flags.output_now_N->store(largest, std::memory_order_relaxed);
   const std::int64_t fault = flags.fault_at_ns->load(std::memory_order_acquire);
-  if (fault >= 0 && largest == 0.0 && now.count() >= fault &&
-      flags.zero_at_ns->load(std::memory_order_relaxed) < 0)
-    flags.zero_at_ns->store(now.count(), std::memory_order_release);
+  if (fault >= 0 && largest == 0.0 && now.count() >= fault) {
+    std::int64_t none = -1;  // the supervisor may have seen the zero first
+    flags.zero_at_ns->compare_exchange_strong(none, now.count(), std::memory_order_acq_rel);
+  }
 }
 
 }  // namespace

@@ -239,6 +239,16 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   devices::ForceGuardConfig guard_config = devices::force_guard_config_from_json(
       session_trace_config("", {}, scene.rates.haptic_hz, 0, lag));
   report.max_force_N = choice.haptic->max_force_N;
+  report.haptic_write_bounded = session_devices.haptic_write_bounded();
+  if (!report.haptic_write_bounded && options.progress) {
+    SessionProgress said;
+    said.stage = "start";
+    said.warning = "the haptic device '" + choice.haptic->name +
+                   "' is written through a transport without a bounded write (hidapi): a device "
+                   "that stops taking reports holds the haptic tick, and no zero reaches it "
+                   "before it takes reports again";
+    options.progress(said);
+  }
 
   sim_options.device_frame = device_frame_of(*choice.haptic);
   sim_options.device_spec = glove->capabilities().spec;
@@ -351,7 +361,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   std::thread supervisor([&] {
     while (supervising.load(std::memory_order_relaxed)) {
       std::this_thread::sleep_for(std::chrono::microseconds(250));
-      (void)loop.zero_if_stalled(clock.now(), stall_limit);
+      if (loop.zero_if_stalled(clock.now(), stall_limit)) faults.zero_went_out(clock.now());
     }
   });
 

@@ -136,8 +136,10 @@ SessionDevices::SessionDevices(const SceneDescription& scene, const Procedure& p
   const std::string where = scene.file.empty() ? scene.name + " scene" : scene.file.string();
   try {
     haptic_device_ =
-        open_one(*choice_.haptic, procedure.glove, registry, clock, writer, &haptic_index_);
-    head_device_ = open_one(*choice_.head, procedure.head, registry, clock, writer, nullptr);
+        open_one(*choice_.haptic, procedure.glove, registry, clock, writer, &haptic_index_,
+                 &haptic_write_bounded_);
+    head_device_ =
+        open_one(*choice_.head, procedure.head, registry, clock, writer, nullptr, nullptr);
   } catch (const SceneFileError& e) {
     throw SceneFileError(where + ": " + e.what());
   } catch (const devices::DeviceError& e) {
@@ -164,7 +166,8 @@ std::unique_ptr<devices::Device> SessionDevices::open_one(const DeviceDescriptio
                                                           const devices::Registry& registry,
                                                           devices::Clock& clock,
                                                           devices::TraceWriter* writer,
-                                                          std::uint16_t* trace_index) {
+                                                          std::uint16_t* trace_index,
+                                                          bool* write_bounded) {
   const devices::DriverInfo* driver = driver_for(d, registry);
   std::unique_ptr<devices::Transport> transport;
   if (d.simulated) {
@@ -190,6 +193,7 @@ std::unique_ptr<devices::Device> SessionDevices::open_one(const DeviceDescriptio
     transport = source->open(found);
     summary_.push_back(d.name + ": " + driver->name + " (" + devices::describe(found) + ")");
   }
+  if (write_bounded != nullptr) *write_bounded = transport->write_is_bounded();
   if (writer != nullptr) {
     devices::RecordedDevice r =
         devices::open_recorded(registry, std::move(transport), *writer, clock);
@@ -212,6 +216,12 @@ bool SessionDevices::unplug_haptic() {
   // The haptic device is opened first: a simulated one's twin is the first.
   if (!choice_.haptic->simulated || twins_.empty()) return false;
   twins_.front()->disconnect();
+  return true;
+}
+
+bool SessionDevices::stall_haptic_io(devices::Nanoseconds duration) {
+  if (!choice_.haptic->simulated || twins_.empty()) return false;
+  twins_.front()->stall_host_writes(duration);
   return true;
 }
 

@@ -111,6 +111,13 @@ class Device {
   bool is_open() const { return transport_ != nullptr; }
   // Sends zero forces when it can, then releases the transport. Idempotent, never throws.
   virtual void close();
+  // Encodes the driver's "all forces off" reports now, so that send_zero_preempting() needs
+  // nothing but the transport. Once, outside the haptic tick (GuardedHaptic's constructor).
+  void prepare_preempting_zero();
+  // Writes those reports past any write in progress, from any thread, without waiting
+  // (Transport::write_preempting). False when they were not prepared, the driver has none or
+  // the transport cannot; the caller then zeros through the ordinary path.
+  bool send_zero_preempting() noexcept;
 
  protected:
   explicit Device(std::unique_ptr<Transport> transport, Clock& clock);
@@ -120,11 +127,14 @@ class Device {
   std::size_t poll_transport(std::chrono::microseconds timeout);
   // Hook for close(): the driver's "all forces off" bytes, written before the transport goes.
   virtual void send_zero() {}
+  // The reports send_zero() writes, without writing them (none: no preempting zero).
+  virtual void zero_reports(std::vector<Bytes>& out) const { out.clear(); }
 
  private:
   std::unique_ptr<Transport> transport_;
   Clock* clock_;
   Bytes report_;  ///< poll_transport's buffer, reused report after report
+  std::vector<Bytes> preempting_zero_;
 };
 
 // Gloves and arms. send_forces takes forces that went through the ForceGuard.

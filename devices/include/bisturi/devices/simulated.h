@@ -59,6 +59,8 @@ class SimulatedDevice {
   VirtualBus::Connector connector();
   // Simulates an unplug of the current link (both sides see DeviceDisconnected).
   void disconnect();
+  // Simulates a device that holds off its endpoint: the host's next write blocks for `duration`.
+  void stall_host_writes(Nanoseconds duration);
   bool attached() const;
 
   // Sends the input report due at time t, at most one per call and one per period. Returns

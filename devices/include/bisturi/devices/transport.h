@@ -78,6 +78,13 @@ class Transport {
   // when the descriptor uses report ids; raw USB: one interrupt packet). Throws
   // DeviceDisconnected when the device is gone.
   virtual void write(std::span<const std::uint8_t> report) = 0;
+  // Sends one report from any thread while another may be inside write(), without waiting for
+  // it: no lock, no allocation, bounded. The force path's emergency zero goes this way when the
+  // haptic tick is stuck in the device's I/O. False where the transport cannot (the default).
+  virtual bool write_preempting(std::span<const std::uint8_t> report) noexcept;
+  // Whether write() returns within a bound the transport sets (a timeout), whatever the device
+  // does. False where a stalled device can hold it indefinitely (hidapi's hid_write).
+  virtual bool write_is_bounded() const { return true; }
 };
 
 // Something that lists devices and opens transports to them: hidapi, libusb, a virtual bus, a

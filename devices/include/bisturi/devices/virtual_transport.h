@@ -35,6 +35,12 @@ class VirtualTransport final : public Transport {
   std::optional<Bytes> read(std::chrono::microseconds timeout) override;
   bool read_into(Bytes& report, std::chrono::microseconds timeout) override;
   void write(std::span<const std::uint8_t> report) override;
+  // Host side: the report goes to the device side ahead of the queue, past a write() in
+  // progress (up to 4 waiting, 64 bytes each). The device side reads it before queued ones.
+  bool write_preempting(std::span<const std::uint8_t> report) noexcept override;
+  // Either side: the host's next write() blocks for `duration` first, as a device that holds
+  // off its endpoint makes it (fault injection).
+  void stall_next_host_write(std::chrono::nanoseconds duration);
 
   Side side() const { return side_; }
   // Breaks the link for both sides: reads and writes then throw DeviceDisconnected (queued

@@ -39,6 +39,12 @@ class RecordingTransport final : public Transport {
   std::optional<Bytes> read(std::chrono::microseconds timeout) override;
   bool read_into(Bytes& report, std::chrono::microseconds timeout) override;
   void write(std::span<const std::uint8_t> report) override;
+  /// Forwarded and not recorded (recording may wait on the writer): the haptic loop records the
+  /// zero it sends once the stalled write returns.
+  bool write_preempting(std::span<const std::uint8_t> report) noexcept override {
+    return inner_->write_preempting(report);
+  }
+  bool write_is_bounded() const override { return inner_->write_is_bounded(); }
 
   std::uint16_t index() const { return index_; }
   bool disconnected() const { return disconnected_.load(); }

@@ -215,6 +215,9 @@ struct SessionReport {
   std::vector<EventReport> events;
   std::vector<ForceSample> force;
   double max_force_N = 0.0;
+  /// Whether the haptic device's writes return within a bound (false for hidapi's hid_write:
+  /// a device that holds off keeps the tick waiting, and only the supervisor's zero goes out).
+  bool haptic_write_bounded = true;
   std::uint64_t final_state_hash = 0;
   std::filesystem::path trace;
   HeadsetReport headset;

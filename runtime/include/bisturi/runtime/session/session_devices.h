@@ -80,13 +80,18 @@ class SessionDevices {
   /// Breaks a simulated haptic device's link as an unplug would (an injected fault): false for
   /// hardware, which only a hand can unplug.
   bool unplug_haptic();
+  /// Makes a simulated haptic device hold off the host's next write for `duration` (an injected
+  /// fault): false for hardware.
+  bool stall_haptic_io(devices::Nanoseconds duration);
+  /// Whether the haptic device's writes return within a bound (Transport::write_is_bounded).
+  [[nodiscard]] bool haptic_write_bounded() const { return haptic_write_bounded_; }
 
  private:
   std::unique_ptr<devices::Device> open_one(const DeviceDescription& d,
                                             const devices::DeviceScript& script,
                                             const devices::Registry& registry,
                                             devices::Clock& clock, devices::TraceWriter* writer,
-                                            std::uint16_t* trace_index);
+                                            std::uint16_t* trace_index, bool* write_bounded);
 
   DeviceChoice choice_;
   double haptic_hz_;
@@ -95,6 +100,7 @@ class SessionDevices {
   std::unique_ptr<devices::Device> haptic_device_, head_device_;
   devices::HapticDevice* haptic_ = nullptr;
   devices::Tracker* head_ = nullptr;
+  bool haptic_write_bounded_ = true;
   std::uint16_t haptic_index_ = 0;
   std::vector<devices::ChannelRole> haptic_roles_;
   std::vector<std::string> summary_;
