@@ -3,6 +3,7 @@
 // tests/session_tick_allocations_test.cpp): an arm and a head tracker on virtual transports with
 // their twins, the force guard, the session's simulation, and the loop, on a virtual clock.
 
+#include <atomic>
 #include <chrono>
 #include <functional>
 #include <memory>
@@ -144,6 +145,8 @@ struct Rig {
     parts.frame = options.device_frame;
     parts.clock = &clock;
     parts.head = devices::as_tracker(head_device.get());
+    parts.display_live = &display_live;
+    parts.display_alive_ns = &display_alive_ns;
     parts.step_twins = [this](Nanoseconds t) {
       if (twins_running) twins_running(true);
       if (!arm_muted) arm_twin->step(t);
@@ -181,6 +184,8 @@ struct Rig {
   std::unique_ptr<HangableSteps> hangable;
   std::unique_ptr<HapticLoop> loop;
   bool arm_muted = false;  ///< the arm's twin sends nothing
+  std::atomic<bool> display_live{true};
+  std::atomic<std::int64_t> display_alive_ns{-1};  ///< the renderer's; -1: not watched
   /// Called with true before the twins step inside a tick and false after (a test that looks at
   /// the tick alone sets it: the twins stand in for the hardware).
   std::function<void(bool)> twins_running;

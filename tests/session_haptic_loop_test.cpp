@@ -153,6 +153,32 @@ TEST(HapticLoop, TheSupervisorZeroesAStalledTickWithinTheWatchdogLimit) {
   EXPECT_EQ(rig.loop->counters().supervisor_zeros, 1u);
 }
 
+TEST(HapticLoop, AFrozenPictureStopsTheForces) {
+  const SceneDescription scene = arm_scene("[0.0, 0.0, 0.0]");
+  Rig rig(scene, pressing_arm(DeviceFrame{}));
+  rig.run_to(milliseconds(1000));
+  ASSERT_GT(glm::length(rig.applied()), 0.01);
+  // The renderer comes round for the last time; the forces go on for the display timeout
+  // (200 ms) and stop after it.
+  rig.display_alive_ns.store(rig.clock.now().count());
+  rig.run_to(milliseconds(1190));
+  EXPECT_GT(glm::length(rig.applied()), 0.01) << "held before the timeout";
+  rig.run_to(milliseconds(1202));
+  EXPECT_EQ(rig.applied(), glm::dvec3(0.0));
+  rig.run_to(milliseconds(1500));
+  EXPECT_EQ(rig.applied(), glm::dvec3(0.0));
+  EXPECT_EQ(rig.loop->counters().display_stalls, 1u);
+  EXPECT_GE(rig.loop->counters().display_held_ticks, 290u);
+  // It comes round again: the forces come back (ramped, not at once).
+  for (int i = 0; i < 500; ++i) {
+    rig.display_alive_ns.store(rig.clock.now().count());
+    rig.clock.advance(milliseconds(1));
+    (void)rig.loop->tick(rig.clock.now());
+  }
+  EXPECT_GT(glm::length(rig.applied()), 0.01);
+  EXPECT_EQ(rig.loop->counters().display_stalls, 1u);
+}
+
 TEST(HapticLoop, ATickStuckInTheDevicesWriteIsZeroedPastIt) {
   const SceneDescription scene = arm_scene("[0.0, 0.0, 0.0]");
   Rig rig(scene, pressing_arm(DeviceFrame{}));

@@ -9,7 +9,8 @@
 # recording stopped and named (trace-disk-full), or a stalled disk that holds up nothing: the
 # session completes and its recording replays exactly (trace-slow-disk). A device that holds off
 # the host's write for 2 s (device-io-stall) gets the supervisor's zero past the stuck tick
-# within the same 100 ms, and the session completes and replays exactly.
+# within the same 100 ms, and the session completes and replays exactly; a renderer stuck in a
+# frame for 2 s (render-hang) holds the forces at zero from its display timeout on.
 set -u
 bisturi="$1"
 work="$2/inject-$3"
@@ -47,6 +48,18 @@ case "$fault" in
     [ "$status" = 1 ] || fail "exit $status, want 1"
     grep -q "injected fault: $fault" "$report" || fail "the error does not name the fault"
     zero_within ;;
+  render-hang)
+    # A frozen picture: the forces stop once the renderer has not come round for the report's
+    # display timeout (200 ms), and the session goes on when it does.
+    [ "$ending" = completed ] || fail "ending $ending, want completed"
+    [ "$(value display_stalls)" -ge 1 ] || fail "the report counts no display stall"
+    [ "$zero" != null ] || fail "the force never reached zero"
+    timeout_ms=$(value display_timeout_ms)
+    awk -v z="$zero" -v t="$timeout_ms" 'BEGIN { exit !(z <= t + 100) }' ||
+      fail "zero after $zero ms (want within the $timeout_ms ms display timeout + 100 ms)"
+    "$bisturi" replay "$work.btrace" --json > "$work.replay.json" 2>&1 ||
+      { cat "$work.replay.json"; fail "the recording does not replay"; }
+    grep -q '"force_mismatches": 0' "$work.replay.json" || fail "the replay's forces differ" ;;
   device-io-stall)
     [ "$ending" = completed ] || fail "ending $ending, want completed"
     [ "$(value supervisor_zeros)" -ge 1 ] || fail "the supervisor did not zero the stuck tick"

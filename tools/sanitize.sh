@@ -18,7 +18,8 @@ if [ "${2:-}" = "-j" ] && [ -n "${3:-}" ]; then jobs="$3"; fi
 # ThreadSanitizer cannot follow a fork of a threaded process ("starting new threads after
 # multi-threaded fork is not supported").
 tsan_default="session_test:*TripleBuffer* session_tissue_thread_test sim_threads_test \
-sim_fiber_test session_haptic_loop_test:-*AFailedTraceWrite* trace_test:-*Killed*"
+sim_fiber_test session_haptic_loop_test:-*AFailedTraceWrite* trace_test:-*Killed* \
+devices_test:*Preempt*:*StuckWrite*"
 asan_default="devices_test devices_spec_test devices_usb_async_test devices_descriptor_files_test \
 devices_sample_test devices_example_test trace_test session_devices_test dlfl_operators_test \
 dlfl_figures_test dlfl_random_test mesh_io_test polygon_import_test oriented_builder_test \

@@ -10,10 +10,10 @@ namespace bisturi::runtime {
 
 namespace {
 
-constexpr std::array<FaultKind, 7> kAll = {
+constexpr std::array<FaultKind, 8> kAll = {
     FaultKind::TissueHang,    FaultKind::TissueThrow,   FaultKind::RenderThrow,
-    FaultKind::DeviceUnplug,  FaultKind::TraceDiskFull, FaultKind::TraceSlowDisk,
-    FaultKind::DeviceIoStall};
+    FaultKind::RenderHang,    FaultKind::DeviceUnplug,  FaultKind::DeviceIoStall,
+    FaultKind::TraceDiskFull, FaultKind::TraceSlowDisk};
 
 }  // namespace
 
@@ -25,6 +25,8 @@ const char* to_string(FaultKind kind) {
       return "tissue-throw";
     case FaultKind::RenderThrow:
       return "render-throw";
+    case FaultKind::RenderHang:
+      return "render-hang";
     case FaultKind::DeviceUnplug:
       return "device-unplug";
     case FaultKind::TraceDiskFull:

@@ -71,6 +71,9 @@ void FaultInjector::inject(const InjectedFault& f, std::uint64_t ticks) {
     case FaultKind::RenderThrow:
       fail_render.store(true);
       break;
+    case FaultKind::RenderHang:
+      hang_render.store(true);
+      break;
     case FaultKind::DeviceUnplug:
       if (!devices_.unplug_haptic()) o.injected_s = -1.0;  // hardware: not ours to pull
       break;

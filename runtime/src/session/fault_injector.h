@@ -35,7 +35,8 @@ class FaultInjector {
   void finish();
 
   /// Read by the tissue thread's step and the renderer's frame: set, they fail as told once.
-  std::atomic<bool> hang_tissue{false}, fail_tissue{false}, fail_render{false};
+  std::atomic<bool> hang_tissue{false}, fail_tissue{false}, fail_render{false},
+      hang_render{false};
 
  private:
   void settle_last();

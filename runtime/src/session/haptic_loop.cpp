@@ -163,7 +163,14 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
   fade_if_stale(k, use.late);
   // No force the trainee cannot see the cause of: while the headset shows nothing, zero.
   if (parts_.display_live != nullptr) {
-    const bool held = !parts_.display_live->load(std::memory_order_acquire);
+    bool held = !parts_.display_live->load(std::memory_order_acquire);
+    if (parts_.display_alive_ns != nullptr) {
+      const std::int64_t alive = parts_.display_alive_ns->load(std::memory_order_acquire);
+      if (alive >= 0 && parts_.clock->now().count() - alive > parts_.display_timeout.count()) {
+        held = true;
+        if (!display_held_) ++counters_.display_stalls;
+      }
+    }
     if (held != display_held_) note(held ? "display_hold" : "display_live");
     display_held_ = held;
   }

@@ -86,6 +86,7 @@ struct HapticLoopCounters {
   std::uint64_t guard_latches = 0;     ///< steps on which the guard latched
   std::uint64_t supervisor_zeros = 0;  ///< stalls the supervisor zeroed the output for
   std::uint64_t display_held_ticks = 0;  ///< ticks held at zero: the headset showed nothing
+  std::uint64_t display_stalls = 0;      ///< holds begun because the renderer stopped
   /// Ticks whose step was older than its due step by more than the staleness margin (their
   /// force faded towards zero), and the longest such run.
   std::uint64_t stale_ticks = 0;
@@ -128,6 +129,11 @@ struct HapticLoopParts {
   /// send zero then, and each change is noted ("display_hold", "display_live") for the replay.
   /// Null: always shown (files, the replay, which follows the notes: hold_display).
   const std::atomic<bool>* display_live = nullptr;
+  /// Live: the clock time the renderer last came round (RenderLoopContext::alive_ns). Older than
+  /// display_timeout, the trainee sees a frozen picture: the ticks send zero as while the
+  /// headset shows nothing (the same notes). Null: not watched.
+  const std::atomic<std::int64_t>* display_alive_ns = nullptr;
+  devices::Nanoseconds display_timeout{std::chrono::milliseconds(200)};
   /// Ticks a tick may go on using an older step than the due one before its force fades to zero
   /// (over kStaleFadeTicks): a hung tissue thread never leaves a spring to a frozen surface.
   std::uint32_t stale_margin_ticks = 4;

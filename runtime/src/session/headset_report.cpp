@@ -28,6 +28,8 @@ std::string to_json(const HeadsetReport& r) {
                             {"sessions_lost", r.sessions_lost},
                             {"sessions_recreated", r.sessions_recreated},
                             {"ticks_without_display", r.ticks_without_display},
+                            {"display_stalls", r.display_stalls},
+                            {"display_timeout_ms", r.display_timeout_ms},
                             {"shared_device", r.shared_device},
                             {"frames_crossed_cpu", r.frames_crossed_cpu},
                             {"frames_read_back", r.frames_read_back},

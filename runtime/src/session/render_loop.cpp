@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bisturi/devices/trace/trace_format.h"
+#include "bisturi/runtime/session/fault_injection.h"
 #include "bisturi/runtime/render/errors.h"
 #include "bisturi/runtime/render/instrument_mesh.h"
 #include "bisturi/runtime/render/openxr_sink.h"
@@ -356,9 +357,15 @@ void run_render_loop(const RenderLoopContext& c) {
   // The first frame waits for the first snapshot (the haptic thread's start).
   while (!stop.load(std::memory_order_relaxed) && !handoff.take())
     std::this_thread::sleep_for(std::chrono::microseconds(200));
+  const auto came_round = [&] {
+    if (c.alive_ns != nullptr) c.alive_ns->store(clock.now().count(), std::memory_order_release);
+  };
   while (!stop.load(std::memory_order_relaxed)) {
+    came_round();
     if (c.fail_next_frame != nullptr && c.fail_next_frame->exchange(false))
       throw std::runtime_error("injected fault: render-throw");
+    if (c.hang_next_frame != nullptr && c.hang_next_frame->exchange(false))
+      std::this_thread::sleep_for(std::chrono::duration<double>(kFaultHangSeconds));
     render::HeadsetFrame xr_frame;
     if (xr) {
       // The runtime's frame: paced by xrWaitFrame, posed by its views.

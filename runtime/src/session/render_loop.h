@@ -53,6 +53,11 @@ struct RenderLoopContext {
   devices::ControllerFeed* controller = nullptr;
   /// Set (an injected render-throw): the next frame throws, as a failing renderer would.
   std::atomic<bool>* fail_next_frame = nullptr;
+  /// Set (an injected render-hang): the next frame stops for kFaultHangSeconds first.
+  std::atomic<bool>* hang_next_frame = nullptr;
+  /// Clock time (the devices' clock) at which the loop last came round: a frame shown, or the
+  /// runtime's frame skipped. The haptic loop holds its forces at zero when it is too old.
+  std::atomic<std::int64_t>* alive_ns = nullptr;
 };
 
 /// Runs until `stop`. Throws render::RenderError (no Vulkan device) and what the sinks throw.

@@ -123,6 +123,7 @@ void add_loop_counters(const HapticLoop& loop, SessionReport& report) {
   report.head_tracker_lost_reason = c.head_lost_reason;
   report.recording_error = c.recording_error;
   report.headset.ticks_without_display = c.display_held_ticks;
+  report.headset.display_stalls = c.display_stalls;
 }
 
 }  // namespace
@@ -297,12 +298,13 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
 
   // ---- Render thread ----
   std::atomic<bool> display_live{true};  // false while a headset shows nothing: no forces
+  std::atomic<std::int64_t> display_alive_ns{-1};  // when the renderer last came round
   std::thread render_thread([&] {
     try {
       run_render_loop({scene, options, report, initial, handoff, head_handoff, stop, render_ready,
                        frames, event_response, event_times, display_live, writer.get(),
                        controller_feed.opened() ? &controller_feed : nullptr,
-                       &faults.fail_render});
+                       &faults.fail_render, &faults.hang_render, &display_alive_ns});
     } catch (const std::exception& e) {
       render_error = e.what();
       render_ready.store(true);
@@ -333,6 +335,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   parts.head = head;
   parts.step_twins = [&](Nanoseconds t) { session_devices.step_twins(t); };
   parts.display_live = &display_live;
+  parts.display_alive_ns = &display_alive_ns;
+  report.headset.display_timeout_ms = ms(parts.display_timeout);
   parts.head_state = [&](const devices::TrackerState& hs) {
     // The head pose straight to the renderer (motion-to-photon starts at its sample).
     render::HeadPose& hp = head_handoff.back();

@@ -16,6 +16,7 @@ enum class FaultKind : std::uint8_t {
   TissueHang,     ///< the tissue thread stops inside a step for kFaultHangSeconds
   TissueThrow,    ///< the tissue step throws: no more steps, the session goes on without force
   RenderThrow,    ///< the renderer throws: the session ends on an error
+  RenderHang,     ///< a frame stops for kFaultHangSeconds: the picture freezes, the forces stop
   DeviceUnplug,   ///< the haptic device disconnects (a simulated device's link breaks)
   TraceDiskFull,  ///< the trace's next write fails as on a full disk: the recording stops
   TraceSlowDisk,  ///< the trace's writes stall for kFaultHangSeconds: the force path must not

@@ -39,6 +39,10 @@ struct HeadsetReport {
   std::uint64_t sessions_recreated = 0;
   /// Haptic ticks whose forces were held at zero because the headset showed nothing.
   std::uint64_t ticks_without_display = 0;
+  /// Times the renderer stopped coming round for longer than display_timeout_ms (a hung frame,
+  /// a stalled swapchain): the forces were held at zero until it came back.
+  std::uint64_t display_stalls = 0;
+  double display_timeout_ms = 0.0;
   bool shared_device = false;       ///< the renderer drew on the runtime's Vulkan device
   bool frames_crossed_cpu = false;  ///< any frame's pixels were read back to host memory
   std::uint64_t frames_read_back = 0;
