@@ -1,5 +1,6 @@
 #include "run_command.h"
 
+#include <signal.h>
 #include <CLI/CLI.hpp>
 #include <atomic>
 #include <csignal>
@@ -9,7 +10,6 @@
 #include <iomanip>
 #include <iostream>
 #include <nlohmann/json.hpp>
-#include <signal.h>
 #include <sstream>
 
 #include "bisturi/devices/trace/trace_format.h"
@@ -138,8 +138,8 @@ int run_run(const RunOptions& options) {
   const std::filesystem::path out(options.out);
   runtime::SceneDescription scene;
   try {
-    scene = options.scene.empty() ? runtime::default_scene()
-                                  : runtime::read_scene_file(options.scene);
+    scene =
+        options.scene.empty() ? runtime::default_scene() : runtime::read_scene_file(options.scene);
   } catch (const std::exception& e) {
     write_setup_failure(out, options.scene, e.what());
     throw;
@@ -221,7 +221,8 @@ int run_run(const RunOptions& options) {
   struct sigaction action {};
   action.sa_handler = [](int) { stop_requested.store(true); };
   sigemptyset(&action.sa_mask);
-  struct sigaction old_int {}, old_term {};
+  struct sigaction old_int {
+  }, old_term{};
   sigaction(SIGINT, &action, &old_int);
   sigaction(SIGTERM, &action, &old_term);
   runtime::SessionReport r;
@@ -357,13 +358,16 @@ int run_run(const RunOptions& options) {
       {"inputs",
        {{"haptic_silent_s", r.haptic_silent_s},
         {"haptic_longest_silence_s", r.haptic_longest_silence_s},
-        {"guard_latched_s", r.guard_latched_s}}},
+        {"guard_latched_s", r.guard_latched_s},
+        {"haptic_untracked_s", r.haptic_untracked_s},
+        {"haptic_longest_untracked_s", r.haptic_longest_untracked_s}}},
       {"faults",
-       {{"haptic_device_lost_s",
-         r.haptic_device_lost_s < 0 ? nlohmann::json(nullptr) : nlohmann::json(r.haptic_device_lost_s)},
+       {{"haptic_device_lost_s", r.haptic_device_lost_s < 0
+                                     ? nlohmann::json(nullptr)
+                                     : nlohmann::json(r.haptic_device_lost_s)},
         {"haptic_device_lost_reason", r.haptic_device_lost_reason},
-        {"head_tracker_lost_s",
-         r.head_tracker_lost_s < 0 ? nlohmann::json(nullptr) : nlohmann::json(r.head_tracker_lost_s)},
+        {"head_tracker_lost_s", r.head_tracker_lost_s < 0 ? nlohmann::json(nullptr)
+                                                          : nlohmann::json(r.head_tracker_lost_s)},
         {"head_tracker_lost_reason", r.head_tracker_lost_reason},
         {"recording_error",
          r.recording_error.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.recording_error)},
@@ -395,13 +399,17 @@ int run_run(const RunOptions& options) {
               << " ms; action-to-response p50 " << atr.p50 << " ms, max " << atr.max << " ms ("
               << atr.count << " events)\n"
               << "  " << r.clamped_forces << " clamped forces, " << r.stale_ticks
-              << " ticks on a stale step (faded), " << r.dropped_frames
-              << " dropped frames; sink " << r.sink
-              << (r.sink_note.empty() ? "" : " (" + r.sink_note + ")") << "\n"
+              << " ticks on a stale step (faded), " << r.dropped_frames << " dropped frames; sink "
+              << r.sink << (r.sink_note.empty() ? "" : " (" + r.sink_note + ")") << "\n"
               << "  report, plots and frames in " << out.string() << "\n";
     if (r.haptic_silent_s > 0.0)
-      std::cout << "  the haptic device sent nothing for " << r.haptic_silent_s << " s in all (longest "
-                << r.haptic_longest_silence_s << " s); its forces were zero meanwhile\n";
+      std::cout << "  the haptic device sent nothing for " << r.haptic_silent_s
+                << " s in all (longest " << r.haptic_longest_silence_s
+                << " s); its forces were zero meanwhile\n";
+    if (r.haptic_untracked_s > 0.0)
+      std::cout << "  the haptic device was not tracked for " << r.haptic_untracked_s
+                << " s in all (longest " << r.haptic_longest_untracked_s
+                << " s); its forces were zero meanwhile\n";
     if (r.haptic_device_lost_s >= 0)
       std::cout << "  haptic device lost at " << r.haptic_device_lost_s
                 << " s (its force zero, the instrument held): " << r.haptic_device_lost_reason

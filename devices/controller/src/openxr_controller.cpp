@@ -78,7 +78,8 @@ class OpenXrController final : public HapticDevice {
       throw ProtocolError(device, 24, "orientation is not a unit quaternion");
     if (v[7] < 0.0 || v[7] > 1.0) throw ProtocolError(device, 40, "trigger outside 0..1");
     // An inactive controller keeps its last pose (the runtime lost it): only the trigger counts.
-    if ((p[1] & cp::kActive) != 0) {
+    state_.tracked = (p[1] & cp::kActive) != 0;
+    if (state_.tracked) {
       Pose& pose = state_.end_effector_poses[0];
       pose.position_m = {v[0], v[1], v[2]};
       pose.orientation = {v[6] / norm, v[3] / norm, v[4] / norm, v[5] / norm};

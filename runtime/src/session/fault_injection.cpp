@@ -10,10 +10,10 @@ namespace bisturi::runtime {
 
 namespace {
 
-constexpr std::array<FaultKind, 8> kAll = {
+constexpr std::array<FaultKind, 9> kAll = {
     FaultKind::TissueHang,    FaultKind::TissueThrow,   FaultKind::RenderThrow,
     FaultKind::RenderHang,    FaultKind::DeviceUnplug,  FaultKind::DeviceIoStall,
-    FaultKind::TraceDiskFull, FaultKind::TraceSlowDisk};
+    FaultKind::TraceDiskFull, FaultKind::TraceSlowDisk, FaultKind::ControllerTrackingLost};
 
 }  // namespace
 
@@ -35,6 +35,8 @@ const char* to_string(FaultKind kind) {
       return "trace-slow-disk";
     case FaultKind::DeviceIoStall:
       return "device-io-stall";
+    case FaultKind::ControllerTrackingLost:
+      return "controller-tracking-lost";
   }
   return "?";
 }

@@ -74,6 +74,13 @@ void FaultInjector::inject(const InjectedFault& f, std::uint64_t ticks) {
     case FaultKind::RenderHang:
       hang_render.store(true);
       break;
+    case FaultKind::ControllerTrackingLost:
+      if (controller_fed) {
+        lose_controller.store(true);
+      } else {
+        o.injected_s = -1.0;  // no controller to lose
+      }
+      break;
     case FaultKind::DeviceUnplug:
       if (!devices_.unplug_haptic()) o.injected_s = -1.0;  // hardware: not ours to pull
       break;
@@ -81,8 +88,8 @@ void FaultInjector::inject(const InjectedFault& f, std::uint64_t ticks) {
       if (writer_ != nullptr) writer_->fail_next_write("No space left on device (injected fault)");
       break;
     case FaultKind::DeviceIoStall:
-      if (!devices_.stall_haptic_io(std::chrono::milliseconds(
-              static_cast<std::int64_t>(kFaultHangSeconds * 1000.0))))
+      if (!devices_.stall_haptic_io(
+              std::chrono::milliseconds(static_cast<std::int64_t>(kFaultHangSeconds * 1000.0))))
         o.injected_s = -1.0;  // hardware: not ours to stall
       break;
     case FaultKind::TraceSlowDisk:

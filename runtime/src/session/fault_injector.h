@@ -35,8 +35,10 @@ class FaultInjector {
   void finish();
 
   /// Read by the tissue thread's step and the renderer's frame: set, they fail as told once.
-  std::atomic<bool> hang_tissue{false}, fail_tissue{false}, fail_render{false},
-      hang_render{false};
+  std::atomic<bool> hang_tissue{false}, fail_tissue{false}, fail_render{false}, hang_render{false},
+      lose_controller{false};
+  /// The haptic device is the headset's controller, fed by the renderer (set before the run).
+  bool controller_fed = false;
 
  private:
   void settle_last();

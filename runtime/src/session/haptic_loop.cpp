@@ -74,6 +74,8 @@ void HapticLoop::poll_devices(devices::Nanoseconds t) noexcept {
       parts_.haptic->guard().device_disconnected();
       lose_device(t, e.what());
     }
+    // Read under the lock: the supervisor may latch the guard while a slow tick runs.
+    guard_latched_ = parts_.haptic->guard().state() == devices::GuardState::Latched;
   }
   if (parts_.head != nullptr && !head_lost_) {
     try {
@@ -91,7 +93,6 @@ void HapticLoop::poll_devices(devices::Nanoseconds t) noexcept {
   // A lost device keeps its last state: the instrument holds where it was.
   if (!lost_) parts_.frame.to_scene(parts_.haptic->device().state(), scene_state_);
 }
-
 
 void HapticLoop::hand_over(std::uint64_t k) noexcept {
   // A hand-over tick gives its state to the tissue as the next step (and may change the steps'
@@ -125,6 +126,7 @@ void HapticLoop::send(devices::Nanoseconds t) noexcept {
   try {
     const devices::GuardStep g = parts_.haptic->send(command_);
     if (g.latched != devices::Fault::None) ++counters_.guard_latches;
+    publish_output_locked();
   } catch (const devices::DeviceDisconnected& e) {
     lose_device(t, e.what());
   } catch (const devices::TraceError& e) {
@@ -161,6 +163,21 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
     std::fill(command_.begin(), command_.end(), 0.0);
   }
   fade_if_stale(k, use.late);
+  // A device that does not know where it is: its instrument holds its last pose, and a force
+  // computed there would push the hand towards a place it may no longer be.
+  const bool untracked = !lost_ && !parts_.haptic->device().state().tracked;
+  if (untracked) {
+    std::fill(command_.begin(), command_.end(), 0.0);
+    slew_.reset();
+    ++counters_.untracked_ticks;
+    counters_.longest_untracked_ticks =
+        std::max(counters_.longest_untracked_ticks, ++untracked_run_);
+  } else {
+    untracked_run_ = 0;
+  }
+  untracked_for_s_.store(
+      static_cast<double>(untracked_run_) * parts_.sim->haptic_period_ms() * 1e-3,
+      std::memory_order_relaxed);
   // No force the trainee cannot see the cause of: while the headset shows nothing, zero.
   if (parts_.display_live != nullptr) {
     bool held = !parts_.display_live->load(std::memory_order_acquire);
@@ -210,7 +227,7 @@ void HapticLoop::watch_inputs(devices::Nanoseconds t) noexcept {
     silence_run_ = 0;
     silent_for_s_.store(0.0, std::memory_order_relaxed);
   }
-  if (parts_.haptic->guard().state() == devices::GuardState::Latched) ++counters_.guard_latched_ticks;
+  if (guard_latched_) ++counters_.guard_latched_ticks;
 }
 
 void HapticLoop::fade_if_stale(std::uint64_t k, bool late) noexcept {
@@ -238,6 +255,16 @@ void HapticLoop::send_zero_locked(const char* note_text) noexcept {
     // Gone or unrecordable: the guard is latched either way, nothing more can be sent.
     parts_.haptic->guard().device_disconnected();
   }
+  publish_output_locked();
+}
+
+void HapticLoop::publish_output_locked() noexcept {
+  const std::vector<double>& output = parts_.haptic->last_output_N();
+  double largest = 0.0;
+  for (const double f : output)
+    largest = std::max(largest, std::abs(f));
+  first_output_N_.store(output.empty() ? 0.0 : output[0], std::memory_order_relaxed);
+  largest_output_N_.store(largest, std::memory_order_release);
 }
 
 void HapticLoop::stop() noexcept {
@@ -259,6 +286,8 @@ bool HapticLoop::zero_if_stalled(devices::Nanoseconds now, devices::Nanoseconds 
     if (stopped_.load(std::memory_order_acquire) || !device_live_.load(std::memory_order_acquire))
       return false;
     if (!parts_.haptic->device().send_zero_preempting()) return false;
+    first_output_N_.store(0.0, std::memory_order_relaxed);
+    largest_output_N_.store(0.0, std::memory_order_release);
     zeroed_for_stall_.store(true, std::memory_order_release);
     preempted_.store(true, std::memory_order_release);
     return true;

@@ -63,9 +63,7 @@ class LiveTickSteps final : public TickSteps {
     // A fixed rate stays fixed (the controller would also lower a rate given too low).
     return adaptive_ ? controller_.decide(tissue_.median_step_ms()) : n;
   }
-  [[nodiscard]] std::uint64_t backlog() const override {
-    return tissue_.pushed() - tissue_.done();
-  }
+  [[nodiscard]] std::uint64_t backlog() const override { return tissue_.pushed() - tissue_.done(); }
 
  private:
   TissueThread& tissue_;
@@ -83,8 +81,8 @@ struct HapticLoopCounters {
   std::uint64_t dropped_steps = 0;  ///< hand-overs the tissue could not queue (a ring behind)
   bool tissue_failed = false;       ///< a step threw: no new steps, the force is zero
   std::uint64_t malformed_reports = 0;
-  std::uint64_t guard_latches = 0;     ///< steps on which the guard latched
-  std::uint64_t supervisor_zeros = 0;  ///< stalls the supervisor zeroed the output for
+  std::uint64_t guard_latches = 0;       ///< steps on which the guard latched
+  std::uint64_t supervisor_zeros = 0;    ///< stalls the supervisor zeroed the output for
   std::uint64_t display_held_ticks = 0;  ///< ticks held at zero: the headset showed nothing
   std::uint64_t display_stalls = 0;      ///< holds begun because the renderer stopped
   /// Ticks whose step was older than its due step by more than the staleness margin (their
@@ -96,6 +94,10 @@ struct HapticLoopCounters {
   /// it never sent anything), the longest such run, and ticks the force guard was latched.
   std::uint64_t silent_ticks = 0;
   std::uint64_t longest_silence_ticks = 0;
+  /// Ticks on which the haptic device said it was not tracked (its forces held at zero), and
+  /// the longest such run.
+  std::uint64_t untracked_ticks = 0;
+  std::uint64_t longest_untracked_ticks = 0;
   std::uint64_t guard_latched_ticks = 0;
   /// Session time when the haptic device / head tracker was lost (-1: never), and why.
   double haptic_lost_s = -1.0;
@@ -172,6 +174,10 @@ class HapticLoop {
   [[nodiscard]] double silent_for_s() const {
     return silent_for_s_.load(std::memory_order_relaxed);
   }
+  /// How long the haptic device has not been tracked, as of the last tick (0 while it is).
+  [[nodiscard]] double untracked_for_s() const {
+    return untracked_for_s_.load(std::memory_order_relaxed);
+  }
   /// The last tick's command (N, per force component, before the guard).
   [[nodiscard]] const std::vector<double>& command() const { return command_; }
   /// The step the last tick's command came from (null: none yet, a zero command).
@@ -181,6 +187,14 @@ class HapticLoop {
   [[nodiscard]] const HapticLoopCounters& counters() const { return counters_; }
   [[nodiscard]] const StepSchedule& schedule() const { return schedule_; }
   [[nodiscard]] bool device_lost() const { return lost_; }
+  /// What the device was last given (after the guard): its first component and the largest
+  /// magnitude of any. Any thread (the supervisor may send between ticks).
+  [[nodiscard]] double first_output_N() const {
+    return first_output_N_.load(std::memory_order_relaxed);
+  }
+  [[nodiscard]] double largest_output_N() const {
+    return largest_output_N_.load(std::memory_order_acquire);
+  }
   [[nodiscard]] bool stopped() const { return stopped_.load(std::memory_order_acquire); }
 
  private:
@@ -194,6 +208,8 @@ class HapticLoop {
   void send_zero_locked(const char* note_text) noexcept;
   /// The supervisor's zero (guard latched on a missed deadline, then zero); device_mutex_ held.
   bool zero_for_stall_locked() noexcept;
+  /// first_output_N_ / largest_output_N_ from the guarded device's output; device_mutex_ held.
+  void publish_output_locked() noexcept;
 
   /// The stale-step fade on command_ (tick k, `late`: the step used is not the due one).
   void fade_if_stale(std::uint64_t k, bool late) noexcept;
@@ -201,15 +217,17 @@ class HapticLoop {
   HapticLoopParts parts_;
   StepSchedule schedule_;
   CommandSlew slew_;
-  std::uint64_t fresh_k_ = 0;      ///< the last tick that used its due step
-  std::uint64_t last_reports_ = 0;  ///< the device's report count at the last tick
+  std::uint64_t fresh_k_ = 0;               ///< the last tick that used its due step
+  std::uint64_t last_reports_ = 0;          ///< the device's report count at the last tick
   devices::Nanoseconds last_report_t_{-1};  ///< session time a new report was last seen
   std::uint64_t silence_run_ = 0;
   std::atomic<double> silent_for_s_{0.0};
+  std::uint64_t untracked_run_ = 0;
+  std::atomic<double> untracked_for_s_{0.0};
   /// Notes the device's reports and the guard's latch for the tick at session time t.
   void watch_inputs(devices::Nanoseconds t) noexcept;
-  std::uint64_t stale_run_ = 0;    ///< ticks in the current run past the margin
-  double stale_gain_ = 1.0;        ///< 1: fresh; falls to 0 while stale, rises again after
+  std::uint64_t stale_run_ = 0;  ///< ticks in the current run past the margin
+  double stale_gain_ = 1.0;      ///< 1: fresh; falls to 0 while stale, rises again after
   HapticLoopCounters counters_;
   std::vector<double> command_;
   std::vector<double> zeros_;
@@ -217,6 +235,7 @@ class HapticLoop {
   const TickOutput* step_output_ = nullptr;
   bool lost_ = false;
   bool head_lost_ = false;
+  bool guard_latched_ = false;  ///< the guard's state at this tick's poll
   bool display_held_ = false;
   std::atomic<bool> recording_{true};
   std::mutex error_mutex_;
@@ -229,6 +248,7 @@ class HapticLoop {
   /// A zero went past the tick's stuck device I/O: the tick finishes the job when it returns.
   std::atomic<bool> preempted_{false};
   std::atomic<bool> device_live_{true};  ///< lost_, for the supervisor's lock-free path
+  std::atomic<double> first_output_N_{0.0}, largest_output_N_{0.0};
 };
 
 }  // namespace bisturi::runtime

@@ -21,13 +21,8 @@ double ms(Nanoseconds d) {
 
 /// The output's largest channel, and an injected fault's first all-zero tick after it. A lost
 /// device is sent nothing: its output is zero from the tick that found it gone.
-void watch_fault(const HapticLoop& loop, const devices::GuardedHaptic& guarded, Nanoseconds now,
-                 HapticThreadFlags& flags) {
-  double largest = 0.0;
-  if (!loop.device_lost()) {
-    for (const double f : guarded.last_output_N())
-      largest = std::max(largest, std::abs(f));
-  }
+void watch_fault(const HapticLoop& loop, Nanoseconds now, HapticThreadFlags& flags) {
+  const double largest = loop.device_lost() ? 0.0 : loop.largest_output_N();
   flags.output_now_N->store(largest, std::memory_order_relaxed);
   const std::int64_t fault = flags.fault_at_ns->load(std::memory_order_acquire);
   if (fault >= 0 && largest == 0.0 && now.count() >= fault) {
@@ -38,9 +33,8 @@ void watch_fault(const HapticLoop& loop, const devices::GuardedHaptic& guarded, 
 
 }  // namespace
 
-void run_haptic_thread(HapticLoop& loop, const devices::GuardedHaptic& guarded,
-                       devices::Clock& clock, const HapticPacing& pacing, HapticThreadFlags& flags,
-                       SessionReport& report, Nanoseconds& t0) noexcept {
+void run_haptic_thread(HapticLoop& loop, devices::Clock& clock, const HapticPacing& pacing,
+                       HapticThreadFlags& flags, SessionReport& report, Nanoseconds& t0) noexcept {
   if (pacing.realtime_priority) flags.realtime.store(request_realtime_priority(0));
   while (!flags.ready.load())
     std::this_thread::sleep_for(std::chrono::milliseconds(1));
@@ -81,12 +75,11 @@ void run_haptic_thread(HapticLoop& loop, const devices::GuardedHaptic& guarded,
     const double proxy_N = out != nullptr ? glm::length(out->force_N) : 0.0;
     if (k % force_every == 0 && report.force.size() < report.force.capacity()) {
       const std::vector<double>& command = loop.command();
-      const std::vector<double>& output = guarded.last_output_N();
-      report.force.push_back({ms(t) * 1e-3, proxy_N, command.empty() ? 0.0 : command[0],
-                              output.empty() ? 0.0 : output[0]});
+      report.force.push_back(
+          {ms(t) * 1e-3, proxy_N, command.empty() ? 0.0 : command[0], loop.first_output_N()});
     }
     flags.force_now.store(proxy_N, std::memory_order_relaxed);
-    if (flags.output_now_N != nullptr) watch_fault(loop, guarded, clock.now(), flags);
+    if (flags.output_now_N != nullptr) watch_fault(loop, clock.now(), flags);
 
     const Nanoseconds end = clock.now();
     report.tick_ms.record(ms(end - start));
@@ -107,7 +100,7 @@ void run_haptic_thread(HapticLoop& loop, const devices::GuardedHaptic& guarded,
   }
   // Zero first: before the tissue drains and the renderer joins.
   loop.stop();
-  if (flags.output_now_N != nullptr) watch_fault(loop, guarded, clock.now(), flags);
+  if (flags.output_now_N != nullptr) watch_fault(loop, clock.now(), flags);
   flags.stop.store(true);
 }
 

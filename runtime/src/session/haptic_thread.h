@@ -8,7 +8,6 @@
 #include <cstdint>
 
 #include "bisturi/devices/clock.h"
-#include "bisturi/devices/trace/guarded_haptic.h"
 #include "bisturi/runtime/session/session.h"
 #include "haptic_loop.h"
 
@@ -27,13 +26,13 @@ struct HapticPacing {
 
 /// What the haptic thread shares with the session's other threads.
 struct HapticThreadFlags {
-  std::atomic<bool>& stop;          ///< read: end now; set when the thread ends
-  const std::atomic<bool>& ready;   ///< the ticks start once the renderer is up
-  std::atomic<bool>& interrupted;   ///< set when stop_requested ended it
-  std::atomic<bool>& realtime;      ///< set when SCHED_FIFO was granted
+  std::atomic<bool>& stop;         ///< read: end now; set when the thread ends
+  const std::atomic<bool>& ready;  ///< the ticks start once the renderer is up
+  std::atomic<bool>& interrupted;  ///< set when stop_requested ended it
+  std::atomic<bool>& realtime;     ///< set when SCHED_FIFO was granted
   std::atomic<std::uint64_t>& ticks;
   std::atomic<std::uint64_t>& overruns;
-  std::atomic<double>& force_now;   ///< the proxy force now, for the progress line
+  std::atomic<double>& force_now;  ///< the proxy force now, for the progress line
   /// An injected fault's watch: while fault_at_ns >= 0 (clock time of the fault) and
   /// zero_at_ns < 0, the first tick after it whose output is zero on every channel sets
   /// zero_at_ns. output_now_N: the largest force on a channel at the last tick.
@@ -44,8 +43,8 @@ struct HapticThreadFlags {
 
 /// Runs the ticks until the duration, `flags.stop` or stop_requested, then stops the loop (zero
 /// out) and sets flags.stop. `t0` gets the clock time of the session's start. Never throws.
-void run_haptic_thread(HapticLoop& loop, const devices::GuardedHaptic& guarded,
-                       devices::Clock& clock, const HapticPacing& pacing, HapticThreadFlags& flags,
-                       SessionReport& report, devices::Nanoseconds& t0) noexcept;
+void run_haptic_thread(HapticLoop& loop, devices::Clock& clock, const HapticPacing& pacing,
+                       HapticThreadFlags& flags, SessionReport& report,
+                       devices::Nanoseconds& t0) noexcept;
 
 }  // namespace bisturi::runtime

@@ -17,11 +17,11 @@
 #include <nlohmann/json.hpp>
 
 #include "bisturi/devices/trace/trace_format.h"
-#include "bisturi/runtime/session/fault_injection.h"
 #include "bisturi/runtime/render/errors.h"
 #include "bisturi/runtime/render/instrument_mesh.h"
 #include "bisturi/runtime/render/openxr_sink.h"
 #include "bisturi/runtime/render/png_sink.h"
+#include "bisturi/runtime/session/fault_injection.h"
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/sim/units.h"
 
@@ -218,13 +218,13 @@ void report_headset(const render::OpenXrSink& xr, const render::StereoRenderer& 
 /// back onto the controller (each held for two display periods, so that a steady contact hums
 /// without gaps; a zero after a nonzero one stops it).
 void feed_controller(devices::ControllerFeed& feed, const render::HeadsetFrame& frame,
-                     render::OpenXrSink& xr, double& last_amplitude) {
+                     render::OpenXrSink& xr, double& last_amplitude, bool located) {
   const render::ControllerState& cs = frame.controller;
   devices::ControllerSample sample;
   sample.t_ns =
       std::chrono::duration_cast<std::chrono::nanoseconds>(cs.sample_time.time_since_epoch())
           .count();
-  sample.active = cs.active;
+  sample.active = cs.active && located;
   const glm::dvec3 p_m = sim::scene_to_sim(cs.grip_mm);
   sample.position_m = {p_m.x, p_m.y, p_m.z};
   const glm::dquat q = glm::normalize(cs.grip_orientation);
@@ -353,7 +353,8 @@ void run_render_loop(const RenderLoopContext& c) {
   auto next = std::chrono::steady_clock::now();
   auto previous = next;
   bool first = true;
-  double last_amplitude = 0.0;  // the controller's vibration now
+  double last_amplitude = 0.0;                              // the controller's vibration now
+  std::chrono::steady_clock::time_point unlocated_until{};  // an injected tracking loss
   // The first frame waits for the first snapshot (the haptic thread's start).
   while (!stop.load(std::memory_order_relaxed) && !handoff.take())
     std::this_thread::sleep_for(std::chrono::microseconds(200));
@@ -376,7 +377,14 @@ void run_render_loop(const RenderLoopContext& c) {
         break;
       }
       if (!xr_frame.began) continue;
-      if (c.controller != nullptr) feed_controller(*c.controller, xr_frame, *xr, last_amplitude);
+      if (c.controller != nullptr) {
+        if (c.lose_controller != nullptr && c.lose_controller->exchange(false))
+          unlocated_until = std::chrono::steady_clock::now() +
+                            std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                std::chrono::duration<double>(kFaultHangSeconds));
+        feed_controller(*c.controller, xr_frame, *xr, last_amplitude,
+                        std::chrono::steady_clock::now() >= unlocated_until);
+      }
     }
     const auto begin = std::chrono::steady_clock::now();
     handoff.take();

@@ -55,6 +55,9 @@ struct RenderLoopContext {
   std::atomic<bool>* fail_next_frame = nullptr;
   /// Set (an injected render-hang): the next frame stops for kFaultHangSeconds first.
   std::atomic<bool>* hang_next_frame = nullptr;
+  /// Set (an injected controller-tracking-lost): the controller is fed as not located for
+  /// kFaultHangSeconds.
+  std::atomic<bool>* lose_controller = nullptr;
   /// Clock time (the devices' clock) at which the loop last came round: a frame shown, or the
   /// runtime's frame skipped. The haptic loop holds its forces at zero when it is too old.
   std::atomic<std::int64_t>* alive_ns = nullptr;

@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
-#include <cmath>
 #include <chrono>
+#include <cmath>
 #include <exception>
 #include <fstream>
 #include <memory>
@@ -42,9 +42,9 @@
 #include "haptic_loop.h"
 #include "haptic_thread.h"
 #include "lockstep_notes.h"
+#include "rate_calibration.h"
 #include "render_loop.h"
 #include "session_snapshot.h"
-#include "rate_calibration.h"
 #include "step_schedule.h"
 #include "tissue_thread.h"
 
@@ -62,14 +62,12 @@ render::PoseClock::time_point to_pose_clock(Nanoseconds t) {
   return render::PoseClock::time_point(std::chrono::duration_cast<render::PoseClock::duration>(t));
 }
 
-
 std::string read_text(const std::filesystem::path& file) {
   std::ifstream in(file, std::ios::binary);
   std::stringstream s;
   s << in.rdbuf();
   return s.str();
 }
-
 
 /// The session's trace (null when not recording): its header holds the scene's text and the
 /// settings a replay needs.
@@ -117,6 +115,8 @@ void add_loop_counters(const HapticLoop& loop, SessionReport& report) {
   report.haptic_silent_s = static_cast<double>(c.silent_ticks) * period_s;
   report.haptic_longest_silence_s = static_cast<double>(c.longest_silence_ticks) * period_s;
   report.guard_latched_s = static_cast<double>(c.guard_latched_ticks) * period_s;
+  report.haptic_untracked_s = static_cast<double>(c.untracked_ticks) * period_s;
+  report.haptic_longest_untracked_s = static_cast<double>(c.longest_untracked_ticks) * period_s;
   report.haptic_device_lost_s = c.haptic_lost_s;
   report.haptic_device_lost_reason = c.haptic_lost_reason;
   report.head_tracker_lost_s = c.head_lost_s;
@@ -281,6 +281,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   // Injected faults: the tissue thread and the renderer act on theirs (fault_injector.h).
   FaultInjector faults(options.inject, report, clock, session_devices, writer.get(),
                        scene.rates.haptic_hz);
+  faults.controller_fed = controller_feed.opened();
   const auto publish_step = [&](const TickOutput& out, const devices::HapticState& state,
                                 double step_ms) {
     report.step_ms.record(step_ms);
@@ -297,14 +298,14 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                       publish_step);
 
   // ---- Render thread ----
-  std::atomic<bool> display_live{true};  // false while a headset shows nothing: no forces
+  std::atomic<bool> display_live{true};            // false while a headset shows nothing: no forces
   std::atomic<std::int64_t> display_alive_ns{-1};  // when the renderer last came round
   std::thread render_thread([&] {
     try {
       run_render_loop({scene, options, report, initial, handoff, head_handoff, stop, render_ready,
                        frames, event_response, event_times, display_live, writer.get(),
-                       controller_feed.opened() ? &controller_feed : nullptr,
-                       &faults.fail_render, &faults.hang_render, &display_alive_ns});
+                       controller_feed.opened() ? &controller_feed : nullptr, &faults.fail_render,
+                       &faults.hang_render, &faults.lose_controller, &display_alive_ns});
     } catch (const std::exception& e) {
       render_error = e.what();
       render_ready.store(true);
@@ -356,8 +357,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   pacing.stop_requested = options.stop_requested;
   HapticThreadFlags flags{stop, render_ready, interrupted, realtime, ticks, overruns, force_now};
   faults.watch_with(flags);
-  std::thread haptic_thread(
-      [&] { run_haptic_thread(loop, guarded, clock, pacing, flags, report, t0); });
+  std::thread haptic_thread([&] { run_haptic_thread(loop, clock, pacing, flags, report, t0); });
 
   // ---- Supervisor: zero within the watchdog's limit when a tick stalls ----
   const Nanoseconds stall_limit = period + guard_config.deadline_margin;
@@ -372,15 +372,16 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   // ---- The calling thread watches (and makes the injected faults happen) ----
   progress.stage = "run";
   bool warned_silent = false;
+  bool warned_untracked = false;
   auto last_progress = wall_start;
   while (!stop.load()) {
     // With faults to inject the watch is finer: each happens within a few milliseconds of its time.
     std::this_thread::sleep_for(std::chrono::milliseconds(faults.any() ? 2 : 100));
     faults.poll(ticks.load());
-    if (std::chrono::steady_clock::now() - last_progress < std::chrono::milliseconds(100))
-      continue;
+    if (std::chrono::steady_clock::now() - last_progress < std::chrono::milliseconds(100)) continue;
     last_progress = std::chrono::steady_clock::now();
-    if (options.stop_requested != nullptr && options.stop_requested->load()) interrupted.store(true);
+    if (options.stop_requested != nullptr && options.stop_requested->load())
+      interrupted.store(true);
     progress.elapsed_s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
     progress.ticks = ticks.load();
@@ -398,6 +399,16 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                          " s: its forces are zero until it reports again";
     }
     warned_silent = silent_s >= 1.0;
+    const double untracked_s = loop.untracked_for_s();
+    if (untracked_s >= 0.5 && !warned_untracked) {
+      // A controller whose grip the runtime never located (none bound, switched off, out of
+      // view) says so here, not only in the report.
+      progress.warning = "the haptic device '" + choice.haptic->name + "' (" +
+                         glove->driver_name() + ") has not been tracked for " +
+                         std::to_string(static_cast<int>(untracked_s * 1000.0)) +
+                         " ms: its instrument holds still and its forces are zero until it is";
+    }
+    warned_untracked = untracked_s >= 0.5;
     if (options.progress) options.progress(progress);
   }
   haptic_thread.join();

@@ -86,6 +86,9 @@ struct HapticState {
   std::vector<Pose> end_effector_poses;
   std::uint64_t buttons = 0;  // bit i: button i pressed
   std::vector<double> finger_joint_angles_rad;
+  // False while the device does not know where it is (a controller its runtime lost): its poses
+  // are the last known ones, and the session holds its forces at zero.
+  bool tracked = true;
 };
 
 struct TrackerState {

@@ -21,6 +21,7 @@ enum class FaultKind : std::uint8_t {
   TraceDiskFull,  ///< the trace's next write fails as on a full disk: the recording stops
   TraceSlowDisk,  ///< the trace's writes stall for kFaultHangSeconds: the force path must not
   DeviceIoStall,  ///< the haptic device holds off the host's next write for kFaultHangSeconds
+  ControllerTrackingLost,  ///< the headset's controller is not located for kFaultHangSeconds
 };
 
 /// How long a hang or a stall lasts.

@@ -196,6 +196,10 @@ struct SessionReport {
   double haptic_silent_s = 0.0;
   double haptic_longest_silence_s = 0.0;
   double guard_latched_s = 0.0;
+  /// The haptic device not tracked (a controller its runtime lost; its forces are zero then):
+  /// in all, and the longest stretch, in seconds.
+  double haptic_untracked_s = 0.0;
+  double haptic_longest_untracked_s = 0.0;
   /// Session time the haptic device / head tracker was lost (-1: never) and why. A lost haptic
   /// device's force is zero and its instrument holds its pose; a lost tracker's view holds.
   double haptic_device_lost_s = -1.0;
