@@ -429,6 +429,10 @@ void OpenXrSink::end_frame(const HeadsetFrame& frame, bool rendered) {
   impl_->end_frame(frame, rendered);
 }
 void OpenXrSink::consume(const StereoFrame& /*frame*/) {}
+void OpenXrSink::stall_next_image_wait(std::chrono::nanoseconds duration) {
+  impl_->stall_next_image_wait = duration;
+}
+
 bool OpenXrSink::vibrate(float amplitude, double duration_s) {
   return impl_->vibrate(amplitude, duration_s);
 }

@@ -4,6 +4,8 @@
 
 #include "openxr_sink_impl.h"
 
+#include <utility>
+
 namespace bisturi::render {
 
 namespace {
@@ -49,6 +51,10 @@ std::uint32_t OpenXrSink::Impl::acquire_image() {
   acquire.type = XR_TYPE_SWAPCHAIN_IMAGE_ACQUIRE_INFO;
   if (!xr_frame(xrAcquireSwapchainImage(swapchain, &acquire, &index), "xrAcquireSwapchainImage")) {
     return UINT32_MAX;
+  }
+  if (stall_next_image_wait.count() > 0) {
+    // A compositor that holds on to the image: the wait blocks this long.
+    std::this_thread::sleep_for(std::exchange(stall_next_image_wait, std::chrono::nanoseconds(0)));
   }
   XrSwapchainImageWaitInfo wait{};
   wait.type = XR_TYPE_SWAPCHAIN_IMAGE_WAIT_INFO;

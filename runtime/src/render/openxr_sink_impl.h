@@ -73,6 +73,8 @@ struct OpenXrSink::Impl {
   XrSpace view_space = XR_NULL_HANDLE;  ///< the head
   XrReferenceSpaceType space_type = XR_REFERENCE_SPACE_TYPE_LOCAL;
   XrSessionState state = XR_SESSION_STATE_UNKNOWN;
+  /// An injected stall: the next image wait is held this long first (0: none).
+  std::chrono::nanoseconds stall_next_image_wait{0};
   bool running = false;
   bool stopped = false;
   bool lost = false;  ///< the session was lost: waiting for the headset to make a new one

@@ -10,10 +10,11 @@ namespace bisturi::runtime {
 
 namespace {
 
-constexpr std::array<FaultKind, 9> kAll = {
-    FaultKind::TissueHang,    FaultKind::TissueThrow,   FaultKind::RenderThrow,
-    FaultKind::RenderHang,    FaultKind::DeviceUnplug,  FaultKind::DeviceIoStall,
-    FaultKind::TraceDiskFull, FaultKind::TraceSlowDisk, FaultKind::ControllerTrackingLost};
+constexpr std::array<FaultKind, 10> kAll = {
+    FaultKind::TissueHang,           FaultKind::TissueThrow,   FaultKind::RenderThrow,
+    FaultKind::RenderHang,           FaultKind::DeviceUnplug,  FaultKind::DeviceIoStall,
+    FaultKind::TraceDiskFull,        FaultKind::TraceSlowDisk, FaultKind::ControllerTrackingLost,
+    FaultKind::HeadsetSwapchainStall};
 
 }  // namespace
 
@@ -37,6 +38,8 @@ const char* to_string(FaultKind kind) {
       return "device-io-stall";
     case FaultKind::ControllerTrackingLost:
       return "controller-tracking-lost";
+    case FaultKind::HeadsetSwapchainStall:
+      return "headset-swapchain-stall";
   }
   return "?";
 }

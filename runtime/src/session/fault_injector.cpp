@@ -74,6 +74,13 @@ void FaultInjector::inject(const InjectedFault& f, std::uint64_t ticks) {
     case FaultKind::RenderHang:
       hang_render.store(true);
       break;
+    case FaultKind::HeadsetSwapchainStall:
+      if (headset_sink.load()) {
+        stall_swapchain.store(true);
+      } else {
+        o.injected_s = -1.0;  // frames go to files: no swapchain to stall
+      }
+      break;
     case FaultKind::ControllerTrackingLost:
       if (controller_fed) {
         lose_controller.store(true);

@@ -36,7 +36,9 @@ class FaultInjector {
 
   /// Read by the tissue thread's step and the renderer's frame: set, they fail as told once.
   std::atomic<bool> hang_tissue{false}, fail_tissue{false}, fail_render{false}, hang_render{false},
-      lose_controller{false};
+      lose_controller{false}, stall_swapchain{false};
+  /// Set by the renderer once it presents through OpenXR (a swapchain to stall).
+  std::atomic<bool> headset_sink{false};
   /// The haptic device is the headset's controller, fed by the renderer (set before the run).
   bool controller_fed = false;
 

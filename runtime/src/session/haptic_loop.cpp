@@ -279,21 +279,27 @@ bool HapticLoop::zero_if_stalled(devices::Nanoseconds now, devices::Nanoseconds 
   const auto start = tick_start_ns_.load(std::memory_order_acquire);
   if (start < 0 || now.count() - start <= limit.count()) return false;
   if (zeroed_for_stall_.load(std::memory_order_acquire)) return false;
-  std::unique_lock lock(device_mutex_, std::try_to_lock);
-  if (!lock.owns_lock()) {
-    // The tick is stuck inside the device's I/O: the driver's zero goes past it. Where the
-    // transport cannot, the next look tries again (the zero then goes out when the tick lets go).
-    if (stopped_.load(std::memory_order_acquire) || !device_live_.load(std::memory_order_acquire))
-      return false;
-    if (!parts_.haptic->device().send_zero_preempting()) return false;
+  if (stopped_.load(std::memory_order_acquire) || !device_live_.load(std::memory_order_acquire))
+    return false;
+  // The zero that waits for nothing goes first, where the transport has one: past a tick stuck
+  // in the device's write, and ahead of this thread's own write below, which a device that has
+  // stopped taking reports would hold as well.
+  const bool preempted = parts_.haptic->device().send_zero_preempting();
+  if (preempted) {
     first_output_N_.store(0.0, std::memory_order_relaxed);
     largest_output_N_.store(0.0, std::memory_order_release);
+  }
+  std::unique_lock lock(device_mutex_, std::try_to_lock);
+  if (!lock.owns_lock()) {
+    // The tick holds the device. Without a preempting zero the next look tries again (the zero
+    // then goes out when the tick lets go); with one, the tick finishes the job.
+    if (!preempted) return false;
     zeroed_for_stall_.store(true, std::memory_order_release);
     preempted_.store(true, std::memory_order_release);
     return true;
   }
-  if (zeroed_for_stall_.exchange(true, std::memory_order_acq_rel)) return false;
-  return zero_for_stall_locked();
+  if (zeroed_for_stall_.exchange(true, std::memory_order_acq_rel)) return preempted;
+  return zero_for_stall_locked() || preempted;
 }
 
 void HapticLoop::zero_now() noexcept {

@@ -158,10 +158,11 @@ class HapticLoop {
   void stop() noexcept;
   /// The supervisor: when the last tick began more than `limit` before `now` and the output has
   /// not been zeroed for this stall, sends zero through the guard (after a "watchdog_zero" note;
-  /// the guard latches on the overrun itself). When the tick holds the device (stuck inside its
-  /// I/O) it waits for nothing: the driver's zero goes past the stuck write
-  /// (Device::send_zero_preempting), and the tick latches the guard, notes and sends zero once
-  /// the write returns. Returns true when a zero went out. Never throws.
+  /// the guard latches on the overrun itself). It waits for nothing: first the driver's zero goes
+  /// past any write in progress where the transport can (Device::send_zero_preempting); the
+  /// guarded zero follows only when the device lock is free, and when a tick holds it (stuck in
+  /// the device's I/O) that tick latches the guard, notes and sends zero once its write returns.
+  /// Returns true when a zero went out. Never throws.
   bool zero_if_stalled(devices::Nanoseconds now, devices::Nanoseconds limit) noexcept;
   /// The supervisor's zero, unconditionally (the replay, where the trace says it happened).
   void zero_now() noexcept;

@@ -314,6 +314,7 @@ void run_render_loop(const RenderLoopContext& c) {
   if (!xr && !png) report.sink = "none";
   render::FrameSink* sink = xr ? static_cast<render::FrameSink*>(xr.get()) : png_owner.get();
   c.display_live.store(!xr);
+  if (xr && c.headset_sink != nullptr) c.headset_sink->store(true);
   MeasuringSink measuring(sink, report, event_response, event_times);
   renderer.set_sink(&measuring);
 
@@ -377,6 +378,9 @@ void run_render_loop(const RenderLoopContext& c) {
         break;
       }
       if (!xr_frame.began) continue;
+      if (c.stall_swapchain != nullptr && c.stall_swapchain->exchange(false))
+        xr->stall_next_image_wait(std::chrono::duration_cast<std::chrono::nanoseconds>(
+            std::chrono::duration<double>(kFaultHangSeconds)));
       if (c.controller != nullptr) {
         if (c.lose_controller != nullptr && c.lose_controller->exchange(false))
           unlocated_until = std::chrono::steady_clock::now() +

@@ -58,6 +58,10 @@ struct RenderLoopContext {
   /// Set (an injected controller-tracking-lost): the controller is fed as not located for
   /// kFaultHangSeconds.
   std::atomic<bool>* lose_controller = nullptr;
+  /// Set (an injected headset-swapchain-stall): the next swapchain image wait blocks
+  /// kFaultHangSeconds. `headset_sink` is set once frames go to OpenXR.
+  std::atomic<bool>* stall_swapchain = nullptr;
+  std::atomic<bool>* headset_sink = nullptr;
   /// Clock time (the devices' clock) at which the loop last came round: a frame shown, or the
   /// runtime's frame skipped. The haptic loop holds its forces at zero when it is too old.
   std::atomic<std::int64_t>* alive_ns = nullptr;

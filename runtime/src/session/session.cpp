@@ -302,10 +302,26 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   std::atomic<std::int64_t> display_alive_ns{-1};  // when the renderer last came round
   std::thread render_thread([&] {
     try {
-      run_render_loop({scene, options, report, initial, handoff, head_handoff, stop, render_ready,
-                       frames, event_response, event_times, display_live, writer.get(),
-                       controller_feed.opened() ? &controller_feed : nullptr, &faults.fail_render,
-                       &faults.hang_render, &faults.lose_controller, &display_alive_ns});
+      run_render_loop({scene,
+                       options,
+                       report,
+                       initial,
+                       handoff,
+                       head_handoff,
+                       stop,
+                       render_ready,
+                       frames,
+                       event_response,
+                       event_times,
+                       display_live,
+                       writer.get(),
+                       controller_feed.opened() ? &controller_feed : nullptr,
+                       &faults.fail_render,
+                       &faults.hang_render,
+                       &faults.lose_controller,
+                       &faults.stall_swapchain,
+                       &faults.headset_sink,
+                       &display_alive_ns});
     } catch (const std::exception& e) {
       render_error = e.what();
       render_ready.store(true);

@@ -23,6 +23,7 @@
 // its left on their right), and placed so that the operating field's centre (a world point)
 // sits at a point of the reference space (OpenXrSinkOptions::field_*).
 
+#include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -125,6 +126,9 @@ class OpenXrSink : public FrameSink {
   /// shortest the runtime has). False when there is no controller to vibrate (not asked for,
   /// not bound, the session not focused). Throws RenderError on an amplitude outside 0..1.
   bool vibrate(float amplitude, double duration_s);
+  /// Fault injection: the next swapchain image wait blocks for `duration` before the runtime's,
+  /// as a compositor that holds on to its images makes it. The frame thread's.
+  void stall_next_image_wait(std::chrono::nanoseconds duration);
 
   /// Ends the session the way the specification asks (xrRequestExitSession, xrEndSession at
   /// STOPPING, until EXITING), so that its last states are in state_changes(); the destructor

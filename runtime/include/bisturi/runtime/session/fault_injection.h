@@ -22,6 +22,7 @@ enum class FaultKind : std::uint8_t {
   TraceSlowDisk,  ///< the trace's writes stall for kFaultHangSeconds: the force path must not
   DeviceIoStall,  ///< the haptic device holds off the host's next write for kFaultHangSeconds
   ControllerTrackingLost,  ///< the headset's controller is not located for kFaultHangSeconds
+  HeadsetSwapchainStall,   ///< the headset's next swapchain image wait blocks kFaultHangSeconds
 };
 
 /// How long a hang or a stall lasts.
