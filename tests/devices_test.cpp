@@ -87,6 +87,45 @@ TEST(HidDescriptor, ParsesTheRealisticGloveDescriptor) {
   EXPECT_EQ(d.fields[6].usage_of(0), hid::kUsageHapticIntensity);
 }
 
+TEST(HidDescriptor, WhatLinuxReadsIsReadWithAWarning) {
+  // A Feature item before any Report Size: the global state starts at zero, no bits.
+  const auto early = hid::parse_report_descriptor(
+      bd::Bytes{0x95, 0x01, 0xB1, 0x02, 0x75, 0x08, 0x95, 0x01, 0x81, 0x02}, "pen");
+  ASSERT_EQ(early.fields.size(), 1u);
+  EXPECT_EQ(early.fields[0].type, hid::ReportType::Input);
+  ASSERT_FALSE(early.warnings.empty());
+  EXPECT_NE(early.warnings[0].find("byte 2: Feature: before any report size"), std::string::npos)
+      << early.warnings[0];
+  // Collections and no main item (a vendor interface): nothing to read, said so.
+  const auto empty = hid::parse_report_descriptor(
+      bd::Bytes{0x06, 0x00, 0xFF, 0x09, 0x01, 0xA1, 0x01, 0xC0}, "headset vendor interface");
+  EXPECT_TRUE(empty.fields.empty());
+  ASSERT_EQ(empty.warnings.size(), 1u);
+  EXPECT_NE(empty.warnings[0].find("no input, output or feature fields"), std::string::npos);
+  // A 32-bit unsigned range written as Logical Maximum 0xFFFFFFFF.
+  const auto wide_range = hid::parse_report_descriptor(
+      bd::Bytes{0x15, 0x00, 0x27, 0xFF, 0xFF, 0xFF, 0xFF, 0x75, 0x20, 0x95, 0x01, 0x81, 0x02},
+      "digitiser");
+  ASSERT_EQ(wide_range.fields.size(), 1u);
+  EXPECT_EQ(wide_range.fields[0].logical_max, INT32_MAX);
+  ASSERT_EQ(wide_range.warnings.size(), 1u);
+  EXPECT_NE(wide_range.warnings[0].find("logical maximum 4294967295"), std::string::npos);
+  // A usage range of 5000 (Linux takes up to 12288 usages per item).
+  const auto keys = hid::parse_report_descriptor(
+      bd::Bytes{0x05, 0x07, 0x19, 0x01, 0x2A, 0x88, 0x13, 0x75, 0x08, 0x95, 0x01, 0x81, 0x00},
+      "keyboard");
+  ASSERT_EQ(keys.fields.size(), 1u);
+  EXPECT_EQ(keys.fields[0].usages.size(), 5000u);
+  // Delimiters: alternative usage sets, of which the first is read.
+  const auto alternatives = hid::parse_report_descriptor(
+      bd::Bytes{0x05, 0x01, 0xA9, 0x01, 0x09, 0x30, 0xA9, 0x00, 0xA9, 0x01,
+                0x09, 0x31, 0xA9, 0x00, 0x75, 0x08, 0x95, 0x01, 0x81, 0x02},
+      "alternatives");
+  ASSERT_EQ(alternatives.fields.size(), 1u);
+  ASSERT_EQ(alternatives.fields[0].usages.size(), 1u);
+  EXPECT_EQ(alternatives.fields[0].usages[0], 0x00010030u);
+}
+
 TEST(HidDescriptor, MalformedDescriptorsGiveProtocolErrors) {
   struct Case {
     bd::Bytes bytes;
@@ -100,11 +139,15 @@ TEST(HidDescriptor, MalformedDescriptorsGiveProtocolErrors) {
       {{0xB4}, 0, "pop without push"},
       {{0x85, 0x00}, 0, "report id 0"},
       {{0x15, 0x0A, 0x25, 0x05, 0x75, 0x08, 0x95, 0x01, 0x81, 0x02}, 8, "below minimum"},
-      {{0x81, 0x02}, 0, "before a report size"},
       {{0x0C}, 0, "reserved item type"},
       {{0x75, 0x08, 0x95, 0x01, 0x81, 0x02, 0x85, 0x01}, 6, "after items"},
       {{0x19, 0x01, 0x75, 0x08, 0x95, 0x01, 0x81, 0x00}, 6, "without maximum"},
-      {{}, 0, "no input"},
+      // Where Linux's parser stops too (hid-core.c): delimiters nested or unbalanced, a Push
+      // stack deeper than its four.
+      {{0xA9, 0x01, 0xA9, 0x01}, 2, "inside an open delimiter"},
+      {{0xA9, 0x00}, 0, "was not open"},
+      {{0xA9, 0x01}, 2, "still open"},
+      {{0xA4, 0xA4, 0xA4, 0xA4, 0xA4}, 4, "deeper than 4"},
   };
   for (const auto& c : cases) {
     try {
@@ -662,8 +705,8 @@ TEST(Device, TheHidGloveAndTheArmZeroPastAStuckWrite) {
   bd::VirtualClock clock;
   bd::SimulatedGlove glove(bd::DeviceScript{}, "GLOVE-1", 1000.0);
   bd::SimulatedArm arm(bd::DeviceScript{}, "ARM-1", 1000.0);
-  for (bd::SimulatedDevice* twin : {static_cast<bd::SimulatedDevice*>(&glove),
-                                    static_cast<bd::SimulatedDevice*>(&arm)}) {
+  for (bd::SimulatedDevice* twin :
+       {static_cast<bd::SimulatedDevice*>(&glove), static_cast<bd::SimulatedDevice*>(&arm)}) {
     auto pair = bd::make_virtual_pair(twin->descriptor());
     twin->attach(std::move(pair.device));
     std::unique_ptr<bd::Device> device = bd::builtin_registry().open(std::move(pair.host), clock);

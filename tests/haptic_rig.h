@@ -61,7 +61,8 @@ name = "arm"
 driver = "vendor-arm"
 role = "haptic"
 max_force_N = 2.0
-device_to_scene_rotation_deg = )" + rotation + R"(
+device_to_scene_rotation_deg = )" +
+                         rotation + R"(
 
 [[devices]]
 name = "head"
@@ -146,7 +147,7 @@ struct Rig {
     parts.clock = &clock;
     parts.head = devices::as_tracker(head_device.get());
     parts.display_live = &display_live;
-    parts.display_alive_ns = &display_alive_ns;
+    parts.display_deadline_ns = &display_deadline_ns;
     parts.step_twins = [this](Nanoseconds t) {
       if (twins_running) twins_running(true);
       if (!arm_muted) arm_twin->step(t);
@@ -185,7 +186,7 @@ struct Rig {
   std::unique_ptr<HapticLoop> loop;
   bool arm_muted = false;  ///< the arm's twin sends nothing
   std::atomic<bool> display_live{true};
-  std::atomic<std::int64_t> display_alive_ns{-1};  ///< the renderer's; -1: not watched
+  std::atomic<std::int64_t> display_deadline_ns{-1};  ///< the renderer's; -1: not watched
   /// Called with true before the twins step inside a tick and false after (a test that looks at
   /// the tick alone sets it: the twins stand in for the hardware).
   std::function<void(bool)> twins_running;
@@ -200,9 +201,12 @@ inline Procedure pressing_arm(const DeviceFrame& frame) {
     // the frame's own force rotation (the same R^T).
     return frame.force_to_device(scene_mm);
   };
-  p.glove.motion.push_back({Nanoseconds{0}, at_mm(device_point(kOrganTop_mm + glm::dvec3(0, 0, 12))), {}});
-  p.glove.motion.push_back({milliseconds(300), at_mm(device_point(kOrganTop_mm + glm::dvec3(0, 0, 4))), {}});
-  p.glove.motion.push_back({milliseconds(700), at_mm(device_point(kOrganTop_mm - glm::dvec3(0, 0, 5))), {}});
+  p.glove.motion.push_back(
+      {Nanoseconds{0}, at_mm(device_point(kOrganTop_mm + glm::dvec3(0, 0, 12))), {}});
+  p.glove.motion.push_back(
+      {milliseconds(300), at_mm(device_point(kOrganTop_mm + glm::dvec3(0, 0, 4))), {}});
+  p.glove.motion.push_back(
+      {milliseconds(700), at_mm(device_point(kOrganTop_mm - glm::dvec3(0, 0, 5))), {}});
   p.head.motion.push_back({Nanoseconds{0}, devices::Pose{}, {}});
   return p;
 }

@@ -12,9 +12,9 @@
 #include <unistd.h>
 
 #include <atomic>
-#include <filesystem>
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <memory>
 #include <thread>
 #include <vector>
@@ -23,19 +23,19 @@
 #include "bisturi/devices/registry.h"
 #include "bisturi/devices/simulated.h"
 #include "bisturi/devices/trace/guarded_haptic.h"
+#include "bisturi/devices/virtual_transport.h"
 #include "bisturi/runtime/session/device_frame.h"
 #include "bisturi/runtime/session/procedure.h"
 #include "bisturi/runtime/session/scene_builder.h"
 #include "bisturi/runtime/session/scene_description.h"
-#include "bisturi/devices/virtual_transport.h"
 #include "bisturi/runtime/session/session.h"
 #include "bisturi/runtime/session/session_sim.h"
 #include "bisturi/sim/units.h"
+#include "haptic_rig.h"
 #include "session/hand_model.h"
 #include "session/haptic_loop.h"
 #include "session/step_schedule.h"
 #include "session/tissue_thread.h"
-#include "haptic_rig.h"
 
 namespace bisturi::runtime {
 namespace {
@@ -88,8 +88,8 @@ TEST(HapticLoop, EachGloveFingerFeelsItsOwnContact) {
   devices::HapticState state;
   state.finger_joint_angles_rad.assign(15, 0.0);
   const double half_turn = glm::radians(110.0) / 2.0;
-  const glm::dvec3 finger_from_tip_mm = 9.0 * glm::dvec3(std::cos(glm::radians(20.0)), 0.0,
-                                                         -std::sin(glm::radians(20.0)));
+  const glm::dvec3 finger_from_tip_mm =
+      9.0 * glm::dvec3(std::cos(glm::radians(20.0)), 0.0, -std::sin(glm::radians(20.0)));
   const glm::dvec3 start_mm = kOrganTop_mm - finger_from_tip_mm + glm::dvec3(0.0, 0.0, 0.5);
   double first_touch_mm = -1.0;
   double previous_N = 0.0;
@@ -158,9 +158,9 @@ TEST(HapticLoop, AFrozenPictureStopsTheForces) {
   Rig rig(scene, pressing_arm(DeviceFrame{}));
   rig.run_to(milliseconds(1000));
   ASSERT_GT(glm::length(rig.applied()), 0.01);
-  // The renderer comes round for the last time; the forces go on for the display timeout
-  // (200 ms) and stop after it.
-  rig.display_alive_ns.store(rig.clock.now().count());
+  // The renderer comes round for the last time, due again within 200 ms; the forces go on
+  // until then and stop after it.
+  rig.display_deadline_ns.store((rig.clock.now() + milliseconds(200)).count());
   rig.run_to(milliseconds(1190));
   EXPECT_GT(glm::length(rig.applied()), 0.01) << "held before the timeout";
   rig.run_to(milliseconds(1202));
@@ -171,7 +171,7 @@ TEST(HapticLoop, AFrozenPictureStopsTheForces) {
   EXPECT_GE(rig.loop->counters().display_held_ticks, 290u);
   // It comes round again: the forces come back (ramped, not at once).
   for (int i = 0; i < 500; ++i) {
-    rig.display_alive_ns.store(rig.clock.now().count());
+    rig.display_deadline_ns.store((rig.clock.now() + milliseconds(200)).count());
     rig.clock.advance(milliseconds(1));
     (void)rig.loop->tick(rig.clock.now());
   }
@@ -187,8 +187,8 @@ TEST(HapticLoop, ATickStuckInTheDevicesWriteIsZeroedPastIt) {
   const auto wall0 = std::chrono::steady_clock::now();
   const Nanoseconds virtual0 = rig.clock.now();
   const auto now = [&] {
-    return virtual0 + std::chrono::duration_cast<Nanoseconds>(std::chrono::steady_clock::now() -
-                                                              wall0);
+    return virtual0 +
+           std::chrono::duration_cast<Nanoseconds>(std::chrono::steady_clock::now() - wall0);
   };
   std::atomic<bool> run{true};
   std::thread supervisor([&] {
@@ -238,8 +238,8 @@ TEST(HapticLoop, ARealStallIsZeroedByTheSupervisorThread) {
   const auto wall0 = std::chrono::steady_clock::now();
   const Nanoseconds virtual0 = rig.clock.now();
   const auto now = [&] {
-    return virtual0 + std::chrono::duration_cast<Nanoseconds>(std::chrono::steady_clock::now() -
-                                                              wall0);
+    return virtual0 +
+           std::chrono::duration_cast<Nanoseconds>(std::chrono::steady_clock::now() - wall0);
   };
   std::atomic<bool> run{true};
   std::thread supervisor([&] {

@@ -50,7 +50,7 @@ case "$fault" in
     zero_within ;;
   render-hang)
     # A frozen picture: the forces stop once the renderer has not come round for the report's
-    # display timeout (200 ms), and the session goes on when it does.
+    # display timeout (1 s with frames going to files), and the session goes on when it does.
     [ "$ending" = completed ] || fail "ending $ending, want completed"
     [ "$(value display_stalls)" -ge 1 ] || fail "the report counts no display stall"
     [ "$zero" != null ] || fail "the force never reached zero"

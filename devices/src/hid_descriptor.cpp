@@ -13,8 +13,10 @@ constexpr std::uint32_t kMaxReportBits = 8 * 4096;
 constexpr std::uint32_t kMaxFieldBits = 32;
 constexpr std::size_t kMaxFields = 4096;
 constexpr std::size_t kMaxCollections = 1024;
-constexpr std::size_t kMaxUsages = 4096;
-constexpr std::size_t kMaxStackDepth = 16;
+// Linux's limits (include/linux/hid.h): HID_MAX_USAGES usages per main item, and a Push stack
+// of HID_GLOBAL_STACK_SIZE.
+constexpr std::size_t kMaxUsages = 12288;
+constexpr std::size_t kMaxStackDepth = 4;
 constexpr std::size_t kMaxReports = 256 * 3;
 
 struct Globals {
@@ -39,6 +41,10 @@ struct Locals {
   bool have_min = false, have_max = false;
   std::uint32_t usage_min = 0, usage_max = 0;
   bool min_extended = false, max_extended = false;
+  // Delimiters: alternative usage sets; as Linux does, only the first set is read.
+  int delimiter_depth = 0;
+  int delimiter_branch = 0;
+  [[nodiscard]] bool alternative() const { return delimiter_branch > 1; }
 };
 
 std::int32_t sign_extend(std::uint32_t value, std::uint8_t size) {
@@ -148,7 +154,11 @@ class Parser {
     item_offset_ = bytes_.size();
     item_name_ = "end of descriptor";
     if (!open_.empty()) fail(std::to_string(open_.size()) + " collection(s) not closed");
-    if (out_.fields.empty()) fail("no input, output or feature items");
+    if (l_.delimiter_depth != 0) fail("a delimiter still open");
+    // Linux takes a descriptor that describes no report (a vendor interface, a collection kept
+    // for a later firmware): there is simply nothing to read or write.
+    if (out_.fields.empty() && out_.wide_fields.empty())
+      warn("no input, output or feature fields: the device describes no report to read or write");
     return std::move(out_);
   }
 
@@ -217,7 +227,8 @@ class Parser {
         g_.report_count = data;
         break;
       case 10:
-        if (stack_.size() >= kMaxStackDepth) fail("push: global stack deeper than 16");
+        if (stack_.size() >= kMaxStackDepth)
+          fail("push: global stack deeper than 4 (Linux's limit)");
         stack_.push_back(g_);
         break;
       case 11:
@@ -233,15 +244,18 @@ class Parser {
   void local_item(std::uint8_t tag, std::uint32_t data, std::uint8_t size) {
     switch (tag) {
       case 0:
+        if (l_.alternative()) break;
         if (l_.usages.size() >= kMaxUsages) fail("too many usages");
         l_.usages.push_back(extend_usage(data, size));
         break;
       case 1:
+        if (l_.alternative()) break;
         l_.have_min = true;
         l_.usage_min = data;
         l_.min_extended = size == 4;
         break;
       case 2:
+        if (l_.alternative()) break;
         l_.have_max = true;
         l_.usage_max = data;
         l_.max_extended = size == 4;
@@ -253,7 +267,15 @@ class Parser {
       case 8:
       case 9:  // designators, strings: not used
         break;
-      case 10:  // delimiter: alternative usages; the first set is kept
+      case 10:  // delimiter: alternative usage sets; the first is kept
+        if (data != 0) {
+          if (l_.delimiter_depth != 0) fail("a delimiter opened inside an open delimiter");
+          ++l_.delimiter_depth;
+          ++l_.delimiter_branch;
+        } else {
+          if (l_.delimiter_depth < 1) fail("a delimiter closed that was not open");
+          --l_.delimiter_depth;
+        }
         break;
       default:
         fail("reserved local item tag " + std::to_string(tag));
@@ -299,7 +321,11 @@ class Parser {
   }
 
   void add_field(ReportType type, std::uint32_t flags) {
-    if (!g_.report_size_set) fail(std::string(to_string(type)) + " item before a report size");
+    if (!g_.report_size_set) {
+      // The global state starts at zero: Linux reads such an item as zero-size fields.
+      warn("before any report size: its fields take no bits");
+      g_.report_size_set = true;
+    }
     const std::uint64_t bits = std::uint64_t{g_.report_size} * g_.report_count;
     ReportInfo* report = nullptr;
     for (auto& info : out_.reports) {
@@ -345,17 +371,23 @@ class Parser {
       fail("logical maximum " + std::to_string(logical_max) + " below minimum " +
            std::to_string(g_.logical_min));
     }
-    if (logical_max > INT32_MAX) fail("logical maximum above 2^31-1");
-    field.logical_max = static_cast<std::int32_t>(logical_max);
+    if (logical_max > INT32_MAX) {
+      // An unsigned 32-bit range (0..0xFFFFFFFF), which Linux takes: values read up to 2^31-1.
+      warn("logical maximum " + std::to_string(logical_max) +
+           " above 2^31-1: read as 2^31-1, larger values saturate");
+    }
+    field.logical_max = static_cast<std::int32_t>(std::min<std::int64_t>(logical_max, INT32_MAX));
     const std::int64_t physical_max =
         interpret_max(g_.physical_min, g_.physical_max_raw, g_.physical_max_size);
     if (!g_.physical_set || (g_.physical_min == 0 && physical_max == 0)) {
       field.physical_min = field.logical_min;
       field.physical_max = field.logical_max;
     } else {
-      if (physical_max > INT32_MAX) fail("physical maximum above 2^31-1");
+      if (physical_max > INT32_MAX)
+        warn("physical maximum " + std::to_string(physical_max) + " above 2^31-1: read as 2^31-1");
       field.physical_min = g_.physical_min;
-      field.physical_max = static_cast<std::int32_t>(physical_max);
+      field.physical_max =
+          static_cast<std::int32_t>(std::min<std::int64_t>(physical_max, INT32_MAX));
     }
     field.unit = Unit{g_.unit, g_.unit_exponent};
     field.collection = open_.empty() ? -1 : open_.back();

@@ -1,8 +1,8 @@
 // `bisturi trace forces`: what a recorded session's force commands did to the hand, channel by
 // channel: the largest force, how often it sat at the limit, the largest change from one tick to
 // the next against the device's rate limit, and how much it chattered. Fault zeros (a
-// "haptic_stop" or "watchdog_zero" note before the command) may drop at once and are counted
-// apart.
+// "haptic_stop", "watchdog_zero" or "display_hold" note before the command: the session ending,
+// a stalled tick, a picture the trainee no longer sees) may drop at once and are counted apart.
 #include <algorithm>
 #include <cmath>
 #include <deque>
@@ -158,7 +158,8 @@ int run_trace_forces(const TraceOptions& options) {
       if (r->device >= decoded.size()) continue;
       if (r->type == devices::TraceRecordType::kNote) {
         const std::string text(r->payload.begin(), r->payload.end());
-        if (text == "haptic_stop" || text == "watchdog_zero") zero_pending[r->device] = true;
+        if (text == "haptic_stop" || text == "watchdog_zero" || text == "display_hold")
+          zero_pending[r->device] = true;
         continue;
       }
       if (r->type != devices::TraceRecordType::kForceCommand) continue;
@@ -198,9 +199,8 @@ int run_trace_forces(const TraceOptions& options) {
                 << "), fault zeros " << d["fault_zeros"] << "\n";
       for (const json& c : d["channels"]) {
         std::cout << "  " << c["channel"].get<std::string>() << ": max " << c["max_N"]
-                  << " N, impulse " << c["impulse_N_s"]
-                  << " N (limit " << c["limit_N"] << ", " << c["at_limit"]
-                  << " at it); largest step " << c["largest_step_N"] << " N at "
+                  << " N, impulse " << c["impulse_N_s"] << " N (limit " << c["limit_N"] << ", "
+                  << c["at_limit"] << " at it); largest step " << c["largest_step_N"] << " N at "
                   << c["largest_step_time_s"] << " s (rate allows " << c["allowed_step_N"] << ", "
                   << c["steps_above_rate"] << " above); " << c["reversals"]
                   << " reversals, chatter rms " << c["chatter_rms_N"] << " N\n";

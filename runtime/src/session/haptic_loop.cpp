@@ -181,9 +181,9 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
   // No force the trainee cannot see the cause of: while the headset shows nothing, zero.
   if (parts_.display_live != nullptr) {
     bool held = !parts_.display_live->load(std::memory_order_acquire);
-    if (parts_.display_alive_ns != nullptr) {
-      const std::int64_t alive = parts_.display_alive_ns->load(std::memory_order_acquire);
-      if (alive >= 0 && parts_.clock->now().count() - alive > parts_.display_timeout.count()) {
+    if (parts_.display_deadline_ns != nullptr) {
+      const std::int64_t deadline = parts_.display_deadline_ns->load(std::memory_order_acquire);
+      if (deadline >= 0 && parts_.clock->now().count() > deadline) {
         held = true;
         if (!display_held_) ++counters_.display_stalls;
       }

@@ -131,11 +131,10 @@ struct HapticLoopParts {
   /// send zero then, and each change is noted ("display_hold", "display_live") for the replay.
   /// Null: always shown (files, the replay, which follows the notes: hold_display).
   const std::atomic<bool>* display_live = nullptr;
-  /// Live: the clock time the renderer last came round (RenderLoopContext::alive_ns). Older than
-  /// display_timeout, the trainee sees a frozen picture: the ticks send zero as while the
-  /// headset shows nothing (the same notes). Null: not watched.
-  const std::atomic<std::int64_t>* display_alive_ns = nullptr;
-  devices::Nanoseconds display_timeout{std::chrono::milliseconds(200)};
+  /// Live: the clock time by which the renderer must come round again (RenderLoopContext::
+  /// display_deadline_ns; -1: not yet). Past it the trainee sees a frozen picture: the ticks
+  /// send zero as while the headset shows nothing (the same notes). Null: not watched.
+  const std::atomic<std::int64_t>* display_deadline_ns = nullptr;
   /// Ticks a tick may go on using an older step than the due one before its force fades to zero
   /// (over kStaleFadeTicks): a hung tissue thread never leaves a spring to a frozen surface.
   std::uint32_t stale_margin_ticks = 4;

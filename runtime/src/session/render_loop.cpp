@@ -359,8 +359,14 @@ void run_render_loop(const RenderLoopContext& c) {
   // The first frame waits for the first snapshot (the haptic thread's start).
   while (!stop.load(std::memory_order_relaxed) && !handoff.take())
     std::this_thread::sleep_for(std::chrono::microseconds(200));
+  const std::chrono::nanoseconds display_timeout =
+      xr ? std::chrono::nanoseconds(kHeadsetDisplayTimeout) : kFileDisplayTimeout;
+  report.headset.display_timeout_ms =
+      std::chrono::duration<double, std::milli>(display_timeout).count();
   const auto came_round = [&] {
-    if (c.alive_ns != nullptr) c.alive_ns->store(clock.now().count(), std::memory_order_release);
+    if (c.display_deadline_ns != nullptr)
+      c.display_deadline_ns->store((clock.now() + display_timeout).count(),
+                                   std::memory_order_release);
   };
   while (!stop.load(std::memory_order_relaxed)) {
     came_round();

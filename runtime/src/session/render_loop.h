@@ -62,10 +62,17 @@ struct RenderLoopContext {
   /// kFaultHangSeconds. `headset_sink` is set once frames go to OpenXR.
   std::atomic<bool>* stall_swapchain = nullptr;
   std::atomic<bool>* headset_sink = nullptr;
-  /// Clock time (the devices' clock) at which the loop last came round: a frame shown, or the
-  /// runtime's frame skipped. The haptic loop holds its forces at zero when it is too old.
-  std::atomic<std::int64_t>* alive_ns = nullptr;
+  /// Clock time (the devices' clock) by which the loop must come round again: each time round it
+  /// moves on by the display timeout (kHeadsetDisplayTimeout on a headset, kFileDisplayTimeout
+  /// when frames go to files). The haptic loop holds its forces at zero once it has passed.
+  std::atomic<std::int64_t>* display_deadline_ns = nullptr;
 };
+
+/// A headset's picture frozen this long stops the forces (18 frames at 90 Hz).
+constexpr std::chrono::milliseconds kHeadsetDisplayTimeout{200};
+/// Frames that go to files: no one watches them live, only a renderer stuck for good counts
+/// (a CPU renderer on a loaded machine takes up to 150 ms for a frame).
+constexpr std::chrono::milliseconds kFileDisplayTimeout{1000};
 
 /// Runs until `stop`. Throws render::RenderError (no Vulkan device) and what the sinks throw.
 void run_render_loop(const RenderLoopContext& context);

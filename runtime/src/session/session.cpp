@@ -298,8 +298,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                       publish_step);
 
   // ---- Render thread ----
-  std::atomic<bool> display_live{true};            // false while a headset shows nothing: no forces
-  std::atomic<std::int64_t> display_alive_ns{-1};  // when the renderer last came round
+  std::atomic<bool> display_live{true};  // false while a headset shows nothing: no forces
+  std::atomic<std::int64_t> display_deadline_ns{-1};  // when the renderer must come round by
   std::thread render_thread([&] {
     try {
       run_render_loop({scene,
@@ -321,7 +321,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                        &faults.lose_controller,
                        &faults.stall_swapchain,
                        &faults.headset_sink,
-                       &display_alive_ns});
+                       &display_deadline_ns});
     } catch (const std::exception& e) {
       render_error = e.what();
       render_ready.store(true);
@@ -352,8 +352,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   parts.head = head;
   parts.step_twins = [&](Nanoseconds t) { session_devices.step_twins(t); };
   parts.display_live = &display_live;
-  parts.display_alive_ns = &display_alive_ns;
-  report.headset.display_timeout_ms = ms(parts.display_timeout);
+  parts.display_deadline_ns = &display_deadline_ns;
   parts.head_state = [&](const devices::TrackerState& hs) {
     // The head pose straight to the renderer (motion-to-photon starts at its sample).
     render::HeadPose& hp = head_handoff.back();
