@@ -13,12 +13,14 @@ case "$mode" in
     # Works with nothing connected (these machines have no USB): an empty list, exit 0.
     out=$("$bisturi" device list --json) || fail "device list exited $?"
     echo "$out" | grep -q '"devices": \[' || { echo "$out"; fail "no devices array"; }
-    echo "$out" | grep -q '"name": "sample-pinch"' || fail "the registered drivers are not listed"
+    echo "$out" | grep -q '"name": "hid-glove"' || fail "the registered drivers are not listed"
+    # The template driver is not a product's: it stays out of the built-in registry.
+    echo "$out" | grep -q '"name": "sample-pinch"' && fail "the template driver is registered"
     # Each driver with its ids, twin and channel roles: what an integrator needs to pick one.
     echo "$out" | tr -d ' \n' | grep -q '"name":"vendor-arm","summary":"[^"]*","twin":true,"usb_ids":\["0x1209:0xB157"\]' ||
       fail "vendor-arm is listed without its ids or its twin"
-    echo "$out" | tr -d ' \n' | grep -q '"channels":\["finger0","finger1"\],"class":"haptic-glove","name":"sample-pinch"' ||
-      fail "sample-pinch is listed without its channel roles"
+    echo "$out" | tr -d ' \n' | grep -q '"channels":\["finger0"\],"class":"haptic-glove","name":"openxr-controller"' ||
+      fail "openxr-controller is listed without its channel roles"
     "$bisturi" device list > /dev/null || fail "device list (text) exited $?"
     echo "list: ok"
     ;;

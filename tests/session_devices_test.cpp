@@ -8,6 +8,7 @@
 
 #include "bisturi/devices/controller/openxr_controller.h"
 #include "bisturi/devices/registry.h"
+#include "bisturi/devices/sample/sample_pinch.h"
 #include "bisturi/devices/simulated.h"
 #include "bisturi/devices/transport.h"
 #include "bisturi/runtime/session/session_devices.h"
@@ -159,9 +160,10 @@ role = "head-tracker"
   d.close();
 }
 
-/// The template driver in devices/sample/ plugs in through its registry entry alone: a scene that
-/// names it with simulated = true opens its registered twin through its driver, with the channel
-/// layout the driver registered; for hardware it is looked for with libusb, its registered bus.
+/// The template driver in devices/sample/ plugs in through its registry entry alone (added here:
+/// it is a template, not in the built-in registry): a scene that names it with simulated = true
+/// opens its registered twin through its driver, with the channel layout the driver registered;
+/// for hardware it is looked for with libusb, its registered bus.
 TEST(SessionDevices, TheSampleDriverOpensFromASceneThroughItsRegistryEntry) {
   const SceneDescription scene = parse_scene(R"(
 [[devices]]
@@ -182,7 +184,8 @@ role = "head-tracker"
   procedure.glove.motion.push_back(closed);
   procedure.head.motion.push_back({devices::Nanoseconds{0}, devices::Pose{}, {}});
   devices::VirtualClock clock(devices::Nanoseconds{0});
-  const devices::Registry registry = devices::builtin_registry();
+  devices::Registry registry = devices::builtin_registry();
+  registry.add(devices::sample_pinch_driver_info());
   SessionDevices d(scene, procedure, registry, clock, nullptr);
   EXPECT_EQ(d.haptic().driver_name(), "sample-pinch");
   EXPECT_EQ(d.haptic().descriptor().serial, "PINCH-7");  // the scene's serial reaches the twin

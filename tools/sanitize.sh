@@ -1,10 +1,11 @@
 #!/bin/sh
 # Builds the tests with sanitizers in their own build folders and runs them:
 #   tools/sanitize.sh tsan [-j N]   ThreadSanitizer: the threaded pieces (the triple buffer, the
-#                                   tissue thread, the step team, the fibers, the haptic loop)
+#                                   tissue thread, the step team, the fibers, the haptic loop),
+#                                   then two live sessions with faults injected (TSAN_LIVE=0: not)
 #   tools/sanitize.sh asan [-j N]   AddressSanitizer + UndefinedBehaviorSanitizer: the unit tests
 #   tools/sanitize.sh all  [-j N]   both
-# Folders: build-tsan/, build-asan/ (next to build/). Only the test targets are built. Override the
+# Folders: build-tsan/, build-asan/ (next to build/). Only the targets run are built. Override the
 # lists with TSAN_TESTS / ASAN_TESTS (space-separated target names). Any report fails the run
 # (halt_on_error): the exit status is non-zero when a build, a test or a sanitizer fails.
 set -eu
@@ -69,12 +70,37 @@ run_suite() {  # folder, list of target[:filter]
   return $failed
 }
 
+run_live() {  # folder: live default sessions with the threads' faults injected
+  folder="$1"
+  echo "sanitize: building bisturi in $folder (-j$jobs)"
+  cmake --build "$here/$folder" -j"$jobs" --target bisturi || return 1
+  failed=0
+  # The supervisor's zero past a stuck device write, a hung frame and a hung tissue step, a
+  # stalled trace disk: every thread of a session and each path between them.
+  for faults in "--inject device-io-stall@0.8 --inject tissue-hang@1.2" \
+                "--inject render-hang@0.8 --inject trace-slow-disk@1.0"; do
+    name=$(echo "$faults" | tr -cs 'a-z0-9' '_')
+    echo "sanitize: $folder: bisturi run $faults"
+    # shellcheck disable=SC2086
+    if ! "$here/$folder/bin/bisturi" run --duration 3 --eye-width 64 --eye-height 64 --no-openxr \
+         --out "$here/$folder/live$name" --record "$here/$folder/live$name.btrace" $faults \
+         > "$here/$folder/live$name.log" 2>&1 ||
+       grep -q "ThreadSanitizer" "$here/$folder/live$name.log"; then
+      failed=1
+      echo "sanitize: FAILED: bisturi run $faults (log: $folder/live$name.log)"
+      tail -40 "$here/$folder/live$name.log"
+    fi
+  done
+  return $failed
+}
+
 status=0
 if [ "$mode" = tsan ] || [ "$mode" = all ]; then
   configure build-tsan "-fsanitize=thread -g"
   export TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 ${TSAN_OPTIONS:-}"
   # shellcheck disable=SC2086
   run_suite build-tsan ${TSAN_TESTS:-$tsan_default} || status=1
+  [ "${TSAN_LIVE:-1}" = 0 ] || run_live build-tsan || status=1
 fi
 if [ "$mode" = asan ] || [ "$mode" = all ]; then
   configure build-asan "-fsanitize=address,undefined -fno-sanitize-recover=undefined -g"

@@ -4,7 +4,6 @@
 
 #include "bisturi/devices/controller/openxr_controller.h"
 #include "bisturi/devices/hid_drivers.h"
-#include "bisturi/devices/sample/sample_pinch.h"
 #include "bisturi/devices/vendor_arm.h"
 
 namespace bisturi::devices {
@@ -97,7 +96,6 @@ void register_builtin_drivers(Registry& registry) {
   registry.add(vendor_arm_driver_info());
   registry.add(hid_glove_driver_info());
   registry.add(hid_tracker_driver_info());
-  registry.add(sample_pinch_driver_info());
   registry.add(openxr_controller_driver_info());
 }
 

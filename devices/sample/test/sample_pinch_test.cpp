@@ -15,6 +15,13 @@ using namespace std::chrono_literals;
 
 namespace {
 
+// The built-in drivers and this one, as an integrator's program registers its own driver.
+bd::Registry registry_with_the_sample() {
+  bd::Registry registry = bd::builtin_registry();
+  registry.add(bd::sample_pinch_driver_info());
+  return registry;
+}
+
 bd::DeviceScript pinch_closing() {
   bd::DeviceScript script;
   bd::MotionKey open_hand, closed;
@@ -33,7 +40,7 @@ TEST(SamplePinch, RunsOnItsTwinThroughTheRegistryAndTheGuard) {
   auto pair = bd::make_virtual_pair(twin.descriptor());
   twin.attach(std::move(pair.device));
   bd::VirtualClock clock;
-  const bd::Registry registry = bd::builtin_registry();
+  const bd::Registry registry = registry_with_the_sample();
   auto device = registry.open(std::move(pair.host), clock);  // by its USB id
   ASSERT_EQ(device->driver_name(), bd::kSamplePinchDriver);
   auto* pinch = bd::as_haptic(device.get());
@@ -104,7 +111,7 @@ TEST(SamplePinch, MalformedPacketsNameTheirByteAndKeepTheState) {
 }
 
 TEST(SamplePinch, TheRegisteredTwinIsWhatASimulatedSceneDeviceOpens) {
-  const bd::Registry registry = bd::builtin_registry();
+  const bd::Registry registry = registry_with_the_sample();
   const bd::DriverInfo* info = registry.find_by_name(bd::kSamplePinchDriver);
   ASSERT_NE(info, nullptr);
   EXPECT_EQ(info->bus, bd::TransportKind::Usb);
