@@ -16,6 +16,7 @@
 #include <cmath>
 #include <filesystem>
 #include <memory>
+#include <stdexcept>
 #include <thread>
 #include <vector>
 
@@ -34,6 +35,7 @@
 #include "haptic_rig.h"
 #include "session/hand_model.h"
 #include "session/haptic_loop.h"
+#include "session/owned_thread.h"
 #include "session/step_schedule.h"
 #include "session/tissue_thread.h"
 
@@ -417,3 +419,39 @@ TEST(Session, AFailedTraceWriteStopsTheRecordingNotTheSession) {
 
 }  // namespace
 }  // namespace bisturi::runtime
+
+namespace {
+
+// A thread that runs until told to stop, owned by a scope an exception leaves.
+void own_a_thread_then_throw(std::atomic<bool>& stop, std::atomic<bool>& stopped_by_owner,
+                             std::atomic<bool>& body_returned) {
+  const bisturi::runtime::OwnedThread thread(
+      [&] {
+        while (!stop.load())
+          std::this_thread::sleep_for(std::chrono::microseconds(100));
+        body_returned.store(true);
+      },
+      [&] {
+        stopped_by_owner.store(true);
+        stop.store(true);
+      });
+  throw std::runtime_error("the watching loop failed");
+}
+
+}  // namespace
+
+TEST(OwnedThread, AnExceptionStopsAndJoinsTheThreadInsteadOfTerminating) {
+  // What run_session's threads get: an exception between a thread's start and its join runs the
+  // thread's stop action (for the haptic thread: zero out) and joins, then propagates.
+  std::atomic<bool> stop{false}, stopped_by_owner{false}, body_returned{false};
+  EXPECT_THROW(own_a_thread_then_throw(stop, stopped_by_owner, body_returned), std::runtime_error);
+  EXPECT_TRUE(stopped_by_owner.load());
+  EXPECT_TRUE(body_returned.load());
+  // Joined the ordinary way, the stop action is not run.
+  std::atomic<bool> ran{false};
+  {
+    bisturi::runtime::OwnedThread thread([] {}, [&] { ran.store(true); });
+    thread.join();
+  }
+  EXPECT_FALSE(ran.load());
+}

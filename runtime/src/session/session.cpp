@@ -42,6 +42,7 @@
 #include "haptic_loop.h"
 #include "haptic_thread.h"
 #include "lockstep_notes.h"
+#include "owned_thread.h"
 #include "rate_calibration.h"
 #include "render_loop.h"
 #include "session_snapshot.h"
@@ -300,38 +301,40 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   // ---- Render thread ----
   std::atomic<bool> display_live{true};  // false while a headset shows nothing: no forces
   std::atomic<std::int64_t> display_deadline_ns{-1};  // when the renderer must come round by
-  std::thread render_thread([&] {
-    try {
-      run_render_loop({scene,
-                       options,
-                       report,
-                       initial,
-                       handoff,
-                       head_handoff,
-                       stop,
-                       render_ready,
-                       frames,
-                       event_response,
-                       event_times,
-                       display_live,
-                       writer.get(),
-                       controller_feed.opened() ? &controller_feed : nullptr,
-                       &faults.fail_render,
-                       &faults.hang_render,
-                       &faults.lose_controller,
-                       &faults.stall_swapchain,
-                       &faults.headset_sink,
-                       &display_deadline_ns});
-    } catch (const std::exception& e) {
-      render_error = e.what();
-      render_ready.store(true);
-      stop.store(true);
-    } catch (...) {
-      render_error = "unknown error";
-      render_ready.store(true);
-      stop.store(true);
-    }
-  });
+  OwnedThread render_thread(
+      [&] {
+        try {
+          run_render_loop({scene,
+                           options,
+                           report,
+                           initial,
+                           handoff,
+                           head_handoff,
+                           stop,
+                           render_ready,
+                           frames,
+                           event_response,
+                           event_times,
+                           display_live,
+                           writer.get(),
+                           controller_feed.opened() ? &controller_feed : nullptr,
+                           &faults.fail_render,
+                           &faults.hang_render,
+                           &faults.lose_controller,
+                           &faults.stall_swapchain,
+                           &faults.headset_sink,
+                           &display_deadline_ns});
+        } catch (const std::exception& e) {
+          render_error = e.what();
+          render_ready.store(true);
+          stop.store(true);
+        } catch (...) {
+          render_error = "unknown error";
+          render_ready.store(true);
+          stop.store(true);
+        }
+      },
+      [&] { stop.store(true); });
 
   // ---- Haptic thread: paces the ticks of the one haptic loop (haptic_loop.h) ----
   const Nanoseconds period{static_cast<std::int64_t>(std::llround(1e9 / scene.rates.haptic_hz))};
@@ -372,17 +375,24 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   pacing.stop_requested = options.stop_requested;
   HapticThreadFlags flags{stop, render_ready, interrupted, realtime, ticks, overruns, force_now};
   faults.watch_with(flags);
-  std::thread haptic_thread([&] { run_haptic_thread(loop, clock, pacing, flags, report, t0); });
+  // Unwinding, the haptic thread is told to stop and the output goes to zero first.
+  OwnedThread haptic_thread([&] { run_haptic_thread(loop, clock, pacing, flags, report, t0); },
+                            [&] {
+                              stop.store(true);
+                              loop.stop();
+                            });
 
   // ---- Supervisor: zero within the watchdog's limit when a tick stalls ----
   const Nanoseconds stall_limit = period + guard_config.deadline_margin;
   std::atomic<bool> supervising{true};
-  std::thread supervisor([&] {
-    while (supervising.load(std::memory_order_relaxed)) {
-      std::this_thread::sleep_for(std::chrono::microseconds(250));
-      if (loop.zero_if_stalled(clock.now(), stall_limit)) faults.zero_went_out(clock.now());
-    }
-  });
+  OwnedThread supervisor(
+      [&] {
+        while (supervising.load(std::memory_order_relaxed)) {
+          std::this_thread::sleep_for(std::chrono::microseconds(250));
+          if (loop.zero_if_stalled(clock.now(), stall_limit)) faults.zero_went_out(clock.now());
+        }
+      },
+      [&] { supervising.store(false); });
 
   // ---- The calling thread watches (and makes the injected faults happen) ----
   progress.stage = "run";
