@@ -3,8 +3,11 @@
 // Size 0, fields wider than 32 bits) parse with a warning; none of them is taken for a glove.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <iterator>
+#include <sstream>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -98,4 +101,64 @@ TEST(HidDescriptorFiles, ATruncatedShippingDescriptorNamesTheByteAndTheItem) {
     EXPECT_EQ(e.offset(), 18u);
     EXPECT_NE(std::string(e.what()).find("Logical Maximum"), std::string::npos) << e.what();
   }
+}
+
+namespace {
+
+struct CorpusEntry {
+  std::string name;
+  std::vector<std::uint8_t> bytes;
+  std::vector<std::pair<std::string, std::uint32_t>> bits;  // "input 1" -> bits with the id byte
+};
+
+std::vector<CorpusEntry> load_corpus(const std::string& file) {
+  std::ifstream in(std::string(BISTURI_HID_DATA) + "/" + file);
+  EXPECT_TRUE(in) << file;
+  std::vector<CorpusEntry> out;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("name: ", 0) == 0) {
+      out.push_back({line.substr(6), {}, {}});
+    } else if (line.rfind("rdesc: ", 0) == 0 && !out.empty()) {
+      std::istringstream hex(line.substr(7));
+      unsigned byte = 0;
+      while (hex >> std::hex >> byte)
+        out.back().bytes.push_back(static_cast<std::uint8_t>(byte));
+    } else if (line.rfind("bits: ", 0) == 0 && !out.empty()) {
+      std::istringstream list(line.substr(6));
+      std::string type, id_bits;
+      unsigned id = 0, bits = 0;
+      char comma = 0;
+      while (list >> type >> id >> bits) {
+        out.back().bits.emplace_back(type + " " + std::to_string(id), bits);
+        list >> comma;
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(HidDescriptorFiles, ShippingMultitouchDescriptorsMatchAnIndependentParser) {
+  // 82 descriptors dumped from shipping touch screens and touchpads (hid-tools' test data), with
+  // the report sizes hid-tools' own parser computes: every report the same size here, and no
+  // report here that it does not have.
+  const std::vector<CorpusEntry> corpus = load_corpus("hid_tools_multitouch.txt");
+  ASSERT_EQ(corpus.size(), 82u);
+  std::size_t reports = 0;
+  for (const CorpusEntry& e : corpus) {
+    const hid::ReportDescriptor d = hid::parse_report_descriptor(e.bytes, e.name);
+    std::vector<std::pair<std::string, std::uint32_t>> ours;
+    for (const hid::ReportInfo& r : d.reports) {
+      const std::string type = r.type == kIn ? "input" : r.type == kOut ? "output" : "feature";
+      ours.emplace_back(type + " " + std::to_string(r.id), r.bits + (r.with_id ? 8u : 0u));
+    }
+    std::sort(ours.begin(), ours.end());
+    std::vector<std::pair<std::string, std::uint32_t>> theirs = e.bits;
+    std::sort(theirs.begin(), theirs.end());
+    EXPECT_EQ(ours, theirs) << e.name;
+    reports += ours.size();
+  }
+  RecordProperty("reports", static_cast<int>(reports));
 }
