@@ -354,12 +354,14 @@ int run_run(const RunOptions& options) {
         {"slewed_ticks", r.slewed_ticks},
         {"events", r.events.size()}}},
       {"ending", r.ending},
+      {"warnings", r.warnings},
       {"error", r.error.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.error)},
       {"inputs",
        {{"haptic_silent_s", r.haptic_silent_s},
         {"haptic_longest_silence_s", r.haptic_longest_silence_s},
         {"guard_latched_s", r.guard_latched_s},
         {"haptic_untracked_s", r.haptic_untracked_s},
+        {"instrument_outside_scene_s", r.instrument_outside_scene_s},
         {"haptic_longest_untracked_s", r.haptic_longest_untracked_s}}},
       {"faults",
        {{"haptic_device_lost_s", r.haptic_device_lost_s < 0
@@ -406,6 +408,8 @@ int run_run(const RunOptions& options) {
       std::cout << "  the haptic device sent nothing for " << r.haptic_silent_s
                 << " s in all (longest " << r.haptic_longest_silence_s
                 << " s); its forces were zero meanwhile\n";
+    for (const std::string& w : r.warnings)
+      std::cout << "  warning: " << w << "\n";
     if (r.haptic_untracked_s > 0.0)
       std::cout << "  the haptic device was not tracked for " << r.haptic_untracked_s
                 << " s in all (longest " << r.haptic_longest_untracked_s

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <exception>
 
+#include <glm/vector_relational.hpp>
+
 #include "lockstep_notes.h"
 
 namespace bisturi::runtime {
@@ -145,6 +147,12 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
   if (stopped_.load(std::memory_order_acquire)) return TickStatus::Stopped;
   poll_devices(t);
   watch_inputs(t);
+  if (parts_.scene_box_min_m.x <= parts_.scene_box_max_m.x) {
+    const glm::dvec3 tip = SessionSim::tip_of(scene_state_);
+    if (glm::any(glm::lessThan(tip, parts_.scene_box_min_m)) ||
+        glm::any(glm::greaterThan(tip, parts_.scene_box_max_m)))
+      ++counters_.outside_scene_ticks;
+  }
 
   // Every tick sends the command of the step due (or, when that step is late, the newest one,
   // noted in the trace for the replay).

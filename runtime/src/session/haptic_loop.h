@@ -98,6 +98,8 @@ struct HapticLoopCounters {
   /// the longest such run.
   std::uint64_t untracked_ticks = 0;
   std::uint64_t longest_untracked_ticks = 0;
+  /// Ticks with the instrument's tip outside HapticLoopParts' scene box.
+  std::uint64_t outside_scene_ticks = 0;
   std::uint64_t guard_latched_ticks = 0;
   /// Session time when the haptic device / head tracker was lost (-1: never), and why.
   double haptic_lost_s = -1.0;
@@ -135,6 +137,10 @@ struct HapticLoopParts {
   /// display_deadline_ns; -1: not yet). Past it the trainee sees a frozen picture: the ticks
   /// send zero as while the headset shows nothing (the same notes). Null: not watched.
   const std::atomic<std::int64_t>* display_deadline_ns = nullptr;
+  /// The box the instrument's tip is expected in (sim metres: the solids' box, widened); ticks
+  /// with the tip outside it are counted (a device placed or turned away from the organs).
+  /// Empty (min > max): not watched.
+  glm::dvec3 scene_box_min_m{1.0}, scene_box_max_m{-1.0};
   /// Ticks a tick may go on using an older step than the due one before its force fades to zero
   /// (over kStaleFadeTicks): a hung tissue thread never leaves a spring to a frozen surface.
   std::uint32_t stale_margin_ticks = 4;

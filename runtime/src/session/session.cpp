@@ -7,8 +7,10 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <exception>
 #include <fstream>
+#include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
@@ -118,6 +120,7 @@ void add_loop_counters(const HapticLoop& loop, SessionReport& report) {
   report.guard_latched_s = static_cast<double>(c.guard_latched_ticks) * period_s;
   report.haptic_untracked_s = static_cast<double>(c.untracked_ticks) * period_s;
   report.haptic_longest_untracked_s = static_cast<double>(c.longest_untracked_ticks) * period_s;
+  report.instrument_outside_scene_s = static_cast<double>(c.outside_scene_ticks) * period_s;
   report.haptic_device_lost_s = c.haptic_lost_s;
   report.haptic_device_lost_reason = c.haptic_lost_reason;
   report.head_tracker_lost_s = c.head_lost_s;
@@ -157,6 +160,34 @@ std::uint32_t auto_tissue_threads(std::size_t simulated_vertices, unsigned cores
   return std::clamp<std::uint32_t>(
       static_cast<std::uint32_t>(std::min<std::size_t>(by_size, free_cores + 1)), 1, kMostThreads);
 }
+
+namespace {
+
+void warn_what_was_ignored(SessionReport& report, const std::string& device) {
+  const double ran_s = static_cast<double>(report.ticks) / report.haptic_hz;
+  const bool touched = std::any_of(report.events.begin(), report.events.end(), [](const auto& e) {
+    return e.event.kind == SessionEventKind::Contact;
+  });
+  const auto seconds_text = [](double s) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.1f s", s);
+    return std::string(text);
+  };
+  if (!touched && ran_s >= 1.0) {
+    report.warnings.push_back("the instrument of '" + device + "' touched nothing in " +
+                              seconds_text(ran_s) +
+                              ": is the device where the scene expects it "
+                              "(device_to_scene_rotation_deg, device_to_scene_translation_mm)?");
+  }
+  if (report.instrument_outside_scene_s >= 0.5) {
+    report.warnings.push_back("the instrument of '" + device + "' was away from the solids for " +
+                              seconds_text(report.instrument_outside_scene_s) + " of " +
+                              seconds_text(ran_s) +
+                              " (outside their box widened by half its size)");
+  }
+}
+
+}  // namespace
 
 SessionReport run_session(const SceneDescription& scene, const SessionOptions& options) {
   devices::Clock& clock = options.clock != nullptr ? *options.clock : devices::steady_clock();
@@ -356,6 +387,21 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   parts.step_twins = [&](Nanoseconds t) { session_devices.step_twins(t); };
   parts.display_live = &display_live;
   parts.display_deadline_ns = &display_deadline_ns;
+  // The solids' box at the start, widened by half its size on every side: the instrument comes
+  // from outside, but not from across the room.
+  {
+    glm::dvec3 lo(std::numeric_limits<double>::max()), hi(std::numeric_limits<double>::lowest());
+    for (const SolidState& solid : initial.solids) {
+      for (const glm::dvec3& p_mm : solid.positions_mm) {
+        lo = glm::min(lo, sim::scene_to_sim(p_mm));
+        hi = glm::max(hi, sim::scene_to_sim(p_mm));
+      }
+    }
+    if (lo.x <= hi.x) {
+      parts.scene_box_min_m = lo - 0.5 * (hi - lo);
+      parts.scene_box_max_m = hi + 0.5 * (hi - lo);
+    }
+  }
   parts.head_state = [&](const devices::TrackerState& hs) {
     // The head pose straight to the renderer (motion-to-photon starts at its sample).
     render::HeadPose& hp = head_handoff.back();
@@ -470,6 +516,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     if (i < event_response.size()) e.response_ms = event_response[i];
     report.events.push_back(std::move(e));
   }
+  warn_what_was_ignored(report, choice.haptic->name);
   // Every ending writes the closing note and closes the devices and the trace; a failure there
   // is reported, not thrown, so the report is written either way.
   try {

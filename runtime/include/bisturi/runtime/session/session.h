@@ -200,6 +200,12 @@ struct SessionReport {
   /// in all, and the longest stretch, in seconds.
   double haptic_untracked_s = 0.0;
   double haptic_longest_untracked_s = 0.0;
+  /// How long the instrument's tip was away from the solids (outside their box widened by half
+  /// its size on every side), in seconds.
+  double instrument_outside_scene_s = 0.0;
+  /// What the session ignored that the user should know (an instrument that touched nothing,
+  /// that spent the session away from the organs): also printed at the end.
+  std::vector<std::string> warnings;
   /// Session time the haptic device / head tracker was lost (-1: never) and why. A lost haptic
   /// device's force is zero and its instrument holds its pose; a lost tracker's view holds.
   double haptic_device_lost_s = -1.0;
