@@ -19,6 +19,8 @@ case "$mode" in
     # Each driver with its ids, twin and channel roles: what an integrator needs to pick one.
     echo "$out" | tr -d ' \n' | grep -q '"name":"vendor-arm","summary":"[^"]*","twin":true,"usb_ids":\["0x1209:0xB157"\]' ||
       fail "vendor-arm is listed without its ids or its twin"
+    echo "$out" | tr -d ' \n' | grep -q '"buttons":\["grasp","cut"\],"channels":\["vector"\]' ||
+      fail "vendor-arm is listed without its button roles"
     echo "$out" | tr -d ' \n' | grep -q '"channels":\["finger0"\],"class":"haptic-glove","name":"openxr-controller"' ||
       fail "openxr-controller is listed without its channel roles"
     "$bisturi" device list > /dev/null || fail "device list (text) exited $?"

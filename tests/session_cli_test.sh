@@ -105,7 +105,9 @@ TOML
     echo "sigterm: ok"
     ;;
   arm)
-    # The vendor arm (one 3-axis force channel) turned in the scene: recorded and replayed exactly.
+    # The vendor arm (one 3-axis force channel) turned in the scene: its grip button grasps and
+    # its second button cuts (the driver's button roles, which the scripted procedure presses),
+    # recorded and replayed exactly.
     rm -rf "$work/arm"
     sed -e 's/driver = "hid-glove"/driver = "vendor-arm"\ndevice_to_scene_rotation_deg = [90.0, 0.0, 30.0]/' \
       "$4" > "$work/arm.toml"
@@ -113,6 +115,8 @@ TOML
       --out "$work/arm" --record "$work/arm.btrace" > "$work/arm.txt" 2>&1 ||
       { cat "$work/arm.txt"; fail "bisturi run exited with $?"; }
     grep -q 'vendor-arm' "$work/arm/report.json" || fail "the arm was not used"
+    grep -q '"kind": "grasp"' "$work/arm/report.json" || fail "the arm's grip grasped nothing"
+    grep -q '"kind": "cut-start"' "$work/arm/report.json" || fail "the arm's second button cut nothing"
     out=$("$bisturi" replay "$work/arm.btrace" --json) || { echo "$out"; fail "replay exited $?"; }
     echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "the arm's trace did not replay"; }
     echo "arm: ok"

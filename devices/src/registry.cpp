@@ -20,6 +20,29 @@ const char* to_string(ChannelUse use) {
   return "unknown";
 }
 
+const char* to_string(ButtonUse use) {
+  switch (use) {
+    case ButtonUse::None:
+      return "none";
+    case ButtonUse::Cut:
+      return "cut";
+    case ButtonUse::Grasp:
+      return "grasp";
+  }
+  return "unknown";
+}
+
+std::vector<ButtonUse> ChannelLayout::button_uses(const Capabilities& capabilities) const {
+  std::vector<ButtonUse> out(capabilities.buttons, ButtonUse::None);
+  if (buttons.empty()) {
+    if (!out.empty()) out[0] = ButtonUse::Cut;
+    return out;
+  }
+  for (std::size_t i = 0; i < out.size() && i < buttons.size(); ++i)
+    out[i] = buttons[i];
+  return out;
+}
+
 std::vector<ChannelRole> ChannelLayout::roles(const Capabilities& capabilities) const {
   std::vector<ChannelRole> out;
   std::uint8_t next_finger = 0;

@@ -204,6 +204,8 @@ DriverInfo vendor_arm_driver_info() {
     return std::make_unique<SimulatedArm>(script, serial.empty() ? "ARM-0001" : serial, haptic_hz);
   };
   info.layout.channels = {ChannelRole{ChannelUse::Vector, 0}};  // the end effector's force
+  // The handle's grip closes the grasper; its second button is the scalpel's.
+  info.layout.buttons = {ButtonUse::Grasp, ButtonUse::Cut};
   return info;
 }
 

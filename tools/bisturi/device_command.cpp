@@ -96,7 +96,8 @@ void add_device_command(CLI::App& app, DeviceOptions& options, int (*&run)(const
 namespace {
 
 /// A driver as `device list` shows it: what it opens, where, the USB ids it claims, whether it
-/// has a twin (scenes can simulate it), and the roles of its force channels (empty: by shape).
+/// has a twin (scenes can simulate it), the roles of its force channels (empty: by shape) and
+/// what its buttons do, by bit (by default button 0 cuts).
 nlohmann::json driver_json(const devices::DriverInfo& d) {
   nlohmann::json ids = nlohmann::json::array();
   for (const devices::UsbId& id : d.usb_ids)
@@ -107,8 +108,16 @@ nlohmann::json driver_json(const devices::DriverInfo& d) {
     if (r.use == devices::ChannelUse::Finger) role += " " + std::to_string(r.finger);
     channels.push_back(role);
   }
+  nlohmann::json buttons = nlohmann::json::array();
+  if (d.device_class != devices::DeviceClass::HeadTracker) {
+    for (const devices::ButtonUse use :
+         d.layout.buttons.empty() ? std::vector<devices::ButtonUse>{devices::ButtonUse::Cut}
+                                  : d.layout.buttons)
+      buttons.push_back(devices::to_string(use));
+  }
   return {{"name", d.name},
           {"bus", devices::to_string(d.bus)},
+          {"buttons", buttons},
           {"class", devices::to_string(d.device_class)},
           {"summary", d.summary},
           {"usb_ids", ids},
@@ -182,6 +191,9 @@ int run_device_list(const DeviceOptions& options) {
       std::cout << "by their shape (3 axes a vector, 1 a finger)";
     for (std::size_t i = 0; i < j["channels"].size(); ++i)
       std::cout << (i > 0 ? ", " : "") << j["channels"][i].get<std::string>();
+    for (std::size_t i = 0; i < j["buttons"].size(); ++i)
+      std::cout << (i == 0 ? "; buttons: " : ", ") << i << " "
+                << j["buttons"][i].get<std::string>();
     std::cout << "\n";
   }
   return 0;

@@ -61,7 +61,8 @@ ProcedureDescription targets_from_bounds(const Box& first, const Box& second) {
 }  // namespace
 
 Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid>& solids,
-                         devices::Nanoseconds duration, std::size_t glove_joints) {
+                         devices::Nanoseconds duration, std::size_t glove_joints,
+                         const std::vector<devices::ButtonUse>& buttons) {
   if (script != "default")
     throw SceneFileError("device script '" + script + "': the only script is \"default\"");
   if (solids.empty()) throw SceneFileError("the scripted procedure needs at least one solid");
@@ -108,7 +109,20 @@ Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid
   key(0.78, cut_a - d.cut_depth_mm * cn, open, true);  // blade in
   key(0.90, cut_b - d.cut_depth_mm * cn, open, true);  // sweep
   key(0.96, cut_b + 20.0 * cn, open, true);
-  p.glove.presses = {{at(0.785), 0, true}, {at(0.905), 0, false}};
+  const auto button_for = [&](devices::ButtonUse use, int fallback) {
+    const auto it = std::find(buttons.begin(), buttons.end(), use);
+    return it != buttons.end() ? static_cast<int>(it - buttons.begin()) : fallback;
+  };
+  const int cut_button = button_for(devices::ButtonUse::Cut, buttons.empty() ? 0 : -1);
+  const int grasp_button = button_for(devices::ButtonUse::Grasp, -1);
+  if (grasp_button >= 0) {  // held while the hand is closed
+    p.glove.presses.push_back({at(0.46), static_cast<std::uint32_t>(grasp_button), true});
+    p.glove.presses.push_back({at(0.63), static_cast<std::uint32_t>(grasp_button), false});
+  }
+  if (cut_button >= 0) {
+    p.glove.presses.push_back({at(0.785), static_cast<std::uint32_t>(cut_button), true});
+    p.glove.presses.push_back({at(0.905), static_cast<std::uint32_t>(cut_button), false});
+  }
   p.phases = {{"approach", at(0.0), at(0.12)},
               {"palpate", at(0.12), at(0.26)},
               {"grasp", at(0.36), at(0.63)},

@@ -249,13 +249,16 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   report.max_tissue_ticks_per_step = first_ticks_per_step;
   const auto duration =
       Nanoseconds{static_cast<std::int64_t>(std::llround(report.duration_s * 1e9))};
-  Procedure procedure =
-      make_procedure(choice.haptic->simulated ? choice.haptic->script : std::string("default"),
-                     solids, duration, devices::SimulatedGlove::kJoints);
+  const devices::Registry registry = devices::builtin_registry();
+  // The script presses the buttons the driver says cut and grasp.
+  const devices::DriverInfo* haptic_driver = registry.find_by_name(choice.haptic->driver);
+  Procedure procedure = make_procedure(
+      choice.haptic->simulated ? choice.haptic->script : std::string("default"), solids, duration,
+      devices::SimulatedGlove::kJoints,
+      haptic_driver != nullptr ? haptic_driver->layout.buttons : std::vector<devices::ButtonUse>{});
   // The procedure is written in scene coordinates; the twin moves as the device would where the
   // scene puts it (the session brings its poses back through device_to_scene).
   procedure.glove = device_frame_of(*choice.haptic).script_to_device(std::move(procedure.glove));
-  const devices::Registry registry = devices::builtin_registry();
 
   std::unique_ptr<devices::TraceWriter> writer =
       open_session_trace(scene, options, clock, lag, first_ticks_per_step, report.tissue_threads);
@@ -286,6 +289,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   sim_options.device_frame = device_frame_of(*choice.haptic);
   sim_options.device_spec = glove->capabilities().spec;
   sim_options.channel_roles = session_devices.haptic_channels();
+  sim_options.button_uses = session_devices.haptic_buttons();
   SessionSim sim(scene, std::move(solids), glove->capabilities().force_channels, sim_options);
   devices::ForceGuard guard(sim.guard_channels(), guard_config);
   devices::GuardedHaptic guarded(*glove, guard, clock, writer.get(), glove_index);

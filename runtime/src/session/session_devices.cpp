@@ -135,9 +135,8 @@ SessionDevices::SessionDevices(const SceneDescription& scene, const Procedure& p
       in_process_(std::move(in_process)) {
   const std::string where = scene.file.empty() ? scene.name + " scene" : scene.file.string();
   try {
-    haptic_device_ =
-        open_one(*choice_.haptic, procedure.glove, registry, clock, writer, &haptic_index_,
-                 &haptic_write_bounded_);
+    haptic_device_ = open_one(*choice_.haptic, procedure.glove, registry, clock, writer,
+                              &haptic_index_, &haptic_write_bounded_);
     head_device_ =
         open_one(*choice_.head, procedure.head, registry, clock, writer, nullptr, nullptr);
   } catch (const SceneFileError& e) {
@@ -153,21 +152,19 @@ SessionDevices::SessionDevices(const SceneDescription& scene, const Procedure& p
   if (head_ == nullptr)
     throw SceneFileError(describe(*choice_.head) + ": its driver '" + head_device_->driver_name() +
                          "' is not a head tracker");
-  haptic_roles_ =
-      registry.find_by_name(haptic_->driver_name()) != nullptr
-          ? registry.find_by_name(haptic_->driver_name())->layout.roles(haptic_->capabilities())
-          : devices::ChannelLayout{}.roles(haptic_->capabilities());
+  const devices::DriverInfo* driver = registry.find_by_name(haptic_->driver_name());
+  const devices::ChannelLayout layout =
+      driver != nullptr ? driver->layout : devices::ChannelLayout{};
+  haptic_roles_ = layout.roles(haptic_->capabilities());
+  haptic_buttons_ = layout.button_uses(haptic_->capabilities());
 }
 
 SessionDevices::~SessionDevices() = default;
 
-std::unique_ptr<devices::Device> SessionDevices::open_one(const DeviceDescription& d,
-                                                          const devices::DeviceScript& script,
-                                                          const devices::Registry& registry,
-                                                          devices::Clock& clock,
-                                                          devices::TraceWriter* writer,
-                                                          std::uint16_t* trace_index,
-                                                          bool* write_bounded) {
+std::unique_ptr<devices::Device> SessionDevices::open_one(
+    const DeviceDescription& d, const devices::DeviceScript& script,
+    const devices::Registry& registry, devices::Clock& clock, devices::TraceWriter* writer,
+    std::uint16_t* trace_index, bool* write_bounded) {
   const devices::DriverInfo* driver = driver_for(d, registry);
   std::unique_ptr<devices::Transport> transport;
   if (d.simulated) {

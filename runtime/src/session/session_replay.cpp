@@ -10,16 +10,16 @@
 #include <nlohmann/json.hpp>
 
 #include "bisturi/devices/clock.h"
+#include "bisturi/devices/force_guard.h"
 #include "bisturi/devices/registry.h"
+#include "bisturi/devices/trace/guarded_haptic.h"
 #include "bisturi/devices/trace/recording_transport.h"
 #include "bisturi/devices/trace/replay_transport.h"
 #include "bisturi/devices/trace/trace_reader.h"
-#include "bisturi/runtime/session/scene_builder.h"
-#include "bisturi/runtime/session/session_sim.h"
-#include "bisturi/devices/force_guard.h"
-#include "bisturi/devices/trace/guarded_haptic.h"
 #include "bisturi/runtime/session/device_frame.h"
+#include "bisturi/runtime/session/scene_builder.h"
 #include "bisturi/runtime/session/session_devices.h"
+#include "bisturi/runtime/session/session_sim.h"
 #include "haptic_loop.h"
 #include "lockstep_notes.h"
 #include "step_schedule.h"
@@ -159,8 +159,10 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
     sim_options.tissue_threads = tissue_threads;
     sim_options.device_frame = device_frame_of(*choice.haptic);
     sim_options.device_spec = glove->capabilities().spec;
-    if (const devices::DriverInfo* driver = registry.find_by_name(glove->driver_name()))
+    if (const devices::DriverInfo* driver = registry.find_by_name(glove->driver_name())) {
       sim_options.channel_roles = driver->layout.roles(glove->capabilities());
+      sim_options.button_uses = driver->layout.button_uses(glove->capabilities());
+    }
     sim = std::make_unique<SessionSim>(scene, std::move(solids),
                                        glove->capabilities().force_channels, sim_options);
     guard = std::make_unique<devices::ForceGuard>(sim->guard_channels(), guard_config);

@@ -10,10 +10,10 @@
 #include <glm/geometric.hpp>
 #include <glm/gtc/quaternion.hpp>
 
-#include "hand_model.h"
 #include "bisturi/sim/collision.h"
 #include "bisturi/sim/errors.h"
 #include "bisturi/sim/units.h"
+#include "hand_model.h"
 
 namespace bisturi::runtime {
 
@@ -82,9 +82,8 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   }
   coupling_N_per_m_ = world_.options().haptic.coupling_N_per_m;
   probe_radius_m_ = world_.options().haptic.probe_radius_m;
-  finger_stiffness_N_per_m_ = device_k > 0.0
-                                  ? std::min(options_.finger_stiffness_N_per_m, device_k)
-                                  : options_.finger_stiffness_N_per_m;
+  finger_stiffness_N_per_m_ = device_k > 0.0 ? std::min(options_.finger_stiffness_N_per_m, device_k)
+                                             : options_.finger_stiffness_N_per_m;
   haptic_hz_ = scene.rates.haptic_hz;
   world_.options().integrator.dt_s = 1.0 / haptic_hz_;
   world_.options().integrator.far_field_interval = scene.simulation.far_field_interval;
@@ -137,6 +136,13 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   }
   out_.command_N.assign(command_size_, 0.0);
   out_.finger_contact_N.assign(fingers_, 0.0);
+  if (!options_.button_uses.empty()) {
+    cut_buttons_ = 0;
+    for (std::size_t i = 0; i < options_.button_uses.size() && i < 64; ++i) {
+      if (options_.button_uses[i] == devices::ButtonUse::Cut) cut_buttons_ |= 1ull << i;
+      if (options_.button_uses[i] == devices::ButtonUse::Grasp) grasp_buttons_ |= 1ull << i;
+    }
+  }
   finger_touch_.assign(fingers_, FingerTouch{});
 }
 
@@ -194,13 +200,14 @@ const TickOutput& SessionSim::tick(const devices::HapticState& state, std::uint3
   tip_mm_ = sim::sim_to_scene(tip_m);
   blade_to_mm_ = tip_mm_ + q * glm::dvec3(0.0, 0.0, options_.blade_length_mm);
 
-  // Grasper: the hand closes and opens it (with hysteresis).
+  // Grasper: the hand closes and opens it (with hysteresis), or a grasp button held.
   double grip = 0.0;
   for (double a : state.finger_joint_angles_rad)
     grip += a;
   if (!state.finger_joint_angles_rad.empty())
     grip /= static_cast<double>(state.finger_joint_angles_rad.size());
-  if (!hand_closed_ && grip > options_.grasp_close_rad) {
+  const bool grip_button = (state.buttons & grasp_buttons_) != 0;
+  if (!hand_closed_ && (grip > options_.grasp_close_rad || grip_button)) {
     hand_closed_ = true;
     const std::int32_t b = nearest_body(tip_m);
     if (b >= 0) {
@@ -216,7 +223,7 @@ const TickOutput& SessionSim::tick(const devices::HapticState& state, std::uint3
       add_event(SessionEventKind::GraspClosed, held > 0 ? b : -1,
                 std::to_string(held) + " vertices held");
     }
-  } else if (hand_closed_ && grip < options_.grasp_open_rad) {
+  } else if (hand_closed_ && grip < options_.grasp_open_rad && !grip_button) {
     hand_closed_ = false;
     if (grasp_body_ >= 0) {
       grasp_.release(world_.body(static_cast<std::uint32_t>(grasp_body_)));
@@ -245,8 +252,8 @@ const TickOutput& SessionSim::tick(const devices::HapticState& state, std::uint3
   }
   finger_contacts(tip_m, q, state.finger_joint_angles_rad);
 
-  // Scalpel: button 0 held sweeps the blade, its release cuts.
-  const bool button = (state.buttons & 1u) != 0;
+  // Scalpel: a cut button held sweeps the blade, its release cuts.
+  const bool button = (state.buttons & cut_buttons_) != 0;
   if (button && !button_) {
     cut_body_ = nearest_body(tip_m);
     cut_points_m_.clear();

@@ -44,6 +44,14 @@ enum class ChannelUse : std::uint8_t {
 };
 const char* to_string(ChannelUse use);
 
+// What pressing a button does to the session's instrument.
+enum class ButtonUse : std::uint8_t {
+  None,
+  Cut,    // held: the scalpel's blade sweeps; released: the incision is made
+  Grasp,  // held: the grasper's jaws close on the tissue (a glove closes them with its fingers)
+};
+const char* to_string(ButtonUse use);
+
 struct ChannelRole {
   ChannelUse use = ChannelUse::Unused;
   std::uint8_t finger = 0;  // Finger: 0 thumb, 1 index, 2 middle, 3 ring, 4 little
@@ -59,6 +67,11 @@ struct ChannelLayout {
   // One role per channel of an opened device. A listed role that does not fit the channel (a
   // Vector on a 1-component channel) becomes Unused: the session sends that channel zero.
   std::vector<ChannelRole> roles(const Capabilities& capabilities) const;
+  // By button bit, what the button does (ButtonUse). Empty: button 0 cuts (a glove's or a
+  // controller's trigger) and a grasp comes from the fingers closing.
+  std::vector<ButtonUse> buttons;
+  // One use per button of an opened device (the defaults above, None past the list).
+  std::vector<ButtonUse> button_uses(const Capabilities& capabilities) const;
 };
 
 struct DriverInfo {

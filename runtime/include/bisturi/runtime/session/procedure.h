@@ -7,13 +7,14 @@
 // normals the instrument comes in along); a scene without one gets the top of the first solid,
 // the anterior (-y) wall of the second and a 24 mm cut across the first's top, from the built
 // solids' bounds. During the cut the glove's pose turns so that the scalpel's blade (the pose's
-// +z) points out along the cut's normal. The head looks at the solids from in front and above. Device poses are SI
-// metres in the scene's world frame.
+// +z) points out along the cut's normal. The head looks at the solids from in front and above.
+// Device poses are SI metres in the scene's world frame.
 
 #include <chrono>
 #include <string>
 #include <vector>
 
+#include "bisturi/devices/registry.h"
 #include "bisturi/devices/simulated.h"
 #include "bisturi/runtime/session/scene_builder.h"
 
@@ -31,9 +32,12 @@ struct Procedure {
   std::vector<ProcedurePhase> phases;
 };
 
-/// The default procedure over `duration` for `solids` (at least one). Throws SceneFileError for
-/// a script name other than "default".
+/// The default procedure over `duration` for `solids` (at least one). `buttons`: what the
+/// device's buttons do (its driver's ChannelLayout::buttons; empty: button 0 cuts): the script
+/// presses the cut button for the incision and holds a grasp button, where there is one, while
+/// the hand closes. Throws SceneFileError for a script name other than "default".
 Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid>& solids,
-                         devices::Nanoseconds duration, std::size_t glove_joints);
+                         devices::Nanoseconds duration, std::size_t glove_joints,
+                         const std::vector<devices::ButtonUse>& buttons = {});
 
 }  // namespace bisturi::runtime

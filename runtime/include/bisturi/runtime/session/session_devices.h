@@ -71,6 +71,10 @@ class SessionDevices {
   [[nodiscard]] const std::vector<devices::ChannelRole>& haptic_channels() const {
     return haptic_roles_;
   }
+  /// What each of the haptic device's buttons does (its driver's layout).
+  [[nodiscard]] const std::vector<devices::ButtonUse>& haptic_buttons() const {
+    return haptic_buttons_;
+  }
   /// The haptic device's index in the trace (0 when not recording).
   [[nodiscard]] std::uint16_t haptic_trace_index() const { return haptic_index_; }
   /// "glove: hid-glove (simulated)", "head: hid-tracker (GloveCo Tracker (1234:5678, ...))".
@@ -103,6 +107,7 @@ class SessionDevices {
   bool haptic_write_bounded_ = true;
   std::uint16_t haptic_index_ = 0;
   std::vector<devices::ChannelRole> haptic_roles_;
+  std::vector<devices::ButtonUse> haptic_buttons_;
   std::vector<std::string> summary_;
 };
 

@@ -89,6 +89,9 @@ struct SessionSimOptions {
   /// What each force channel gets (the driver's ChannelLayout, devices/registry.h); empty: by
   /// the channel's shape (3 components a vector, 1 with a force unit the next finger).
   std::vector<devices::ChannelRole> channel_roles;
+  /// What each button does (the driver's ChannelLayout::buttons, by bit); empty: button 0 cuts.
+  /// A Grasp button closes the grasper as a glove's closing fingers do.
+  std::vector<devices::ButtonUse> button_uses;
 };
 
 class SessionSim {
@@ -173,8 +176,8 @@ class SessionSim {
     bool touching = false;
     glm::dvec3 plane_point_m{0.0};
     glm::dvec3 plane_normal{0.0};
-    double depth_m = 0.0;         ///< at the last step the closest point was straight ahead
-    double entry_depth_m = 0.0;   ///< where the touch began: the force grows from there
+    double depth_m = 0.0;          ///< at the last step the closest point was straight ahead
+    double entry_depth_m = 0.0;    ///< where the touch began: the force grows from there
     std::uint32_t held_steps = 0;  ///< steps since then
   };
   /// Steps a touching finger keeps its last plane while the closest point lies sideways.
@@ -188,6 +191,8 @@ class SessionSim {
   std::vector<glm::dvec3> cut_points_m_;
   std::int32_t cut_body_ = -1;
   bool button_ = false;
+  std::uint64_t cut_buttons_ = 1;    ///< the bits of the buttons that cut
+  std::uint64_t grasp_buttons_ = 0;  ///< the bits of the buttons that grasp
   bool contact_ = false;
   std::uint64_t last_contact_tick_ = 0;
   std::uint64_t ticks_ = 0;
