@@ -18,6 +18,7 @@
 #include <memory>
 #include <stdexcept>
 #include <thread>
+#include <utility>
 #include <vector>
 
 #include "bisturi/devices/force_guard.h"
@@ -33,6 +34,7 @@
 #include "bisturi/runtime/session/session_sim.h"
 #include "bisturi/sim/units.h"
 #include "haptic_rig.h"
+#include "session/clutch.h"
 #include "session/hand_model.h"
 #include "session/haptic_loop.h"
 #include "session/owned_thread.h"
@@ -454,4 +456,34 @@ TEST(OwnedThread, AnExceptionStopsAndJoinsTheThreadInsteadOfTerminating) {
     thread.join();
   }
   EXPECT_FALSE(ran.load());
+}
+
+TEST(Clutch, TheInstrumentStaysWhileTheHandleMovesAndFollowsFromThereAfter) {
+  bisturi::runtime::Clutch clutch(0b100);  // button 2 is the clutch
+  bisturi::devices::HapticState s;
+  s.end_effector_poses.resize(1);
+  const auto at = [&](double x_m, std::uint64_t buttons) {
+    s.end_effector_poses[0].position_m = {x_m, 0.02, 0.0};
+    s.buttons = buttons;
+    const bool held = clutch.apply(s);
+    EXPECT_EQ(s.buttons & 0b100u, 0u) << "the clutch button is not the instrument's";
+    return std::pair{held, s.end_effector_poses[0].position_m.x};
+  };
+  EXPECT_EQ(at(0.00, 0b001), (std::pair{false, 0.00}));  // follows the handle
+  EXPECT_EQ(s.buttons, 0b001u) << "other buttons pass";
+  EXPECT_EQ(at(0.01, 0b000), (std::pair{false, 0.01}));
+  EXPECT_EQ(at(0.01, 0b100), (std::pair{true, 0.01}));  // clutched: stays
+  EXPECT_EQ(at(0.06, 0b100), (std::pair{true, 0.01}));
+  const auto released = at(0.06, 0b000);  // released where it stayed
+  EXPECT_FALSE(released.first);
+  EXPECT_NEAR(released.second, 0.01, 1e-12);
+  const auto [held, x] = at(0.07, 0b000);  // then follows by the handle's motion
+  EXPECT_FALSE(held);
+  EXPECT_NEAR(x, 0.02, 1e-12);
+  EXPECT_EQ(s.end_effector_poses[0].position_m.y, 0.02) << "only the clutched motion is taken out";
+  // No clutch buttons: a pass-through.
+  bisturi::runtime::Clutch none;
+  s.buttons = 0b111;
+  EXPECT_FALSE(none.apply(s));
+  EXPECT_EQ(s.buttons, 0b111u);
 }

@@ -28,8 +28,17 @@ const char* to_string(ButtonUse use) {
       return "cut";
     case ButtonUse::Grasp:
       return "grasp";
+    case ButtonUse::Clutch:
+      return "clutch";
   }
   return "unknown";
+}
+
+std::uint64_t buttons_with(const std::vector<ButtonUse>& uses, ButtonUse use) {
+  std::uint64_t bits = 0;
+  for (std::size_t i = 0; i < uses.size() && i < 64; ++i)
+    if (uses[i] == use) bits |= std::uint64_t{1} << i;
+  return bits;
 }
 
 std::vector<ButtonUse> ChannelLayout::button_uses(const Capabilities& capabilities) const {

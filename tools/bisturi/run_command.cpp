@@ -362,6 +362,7 @@ int run_run(const RunOptions& options) {
         {"guard_latched_s", r.guard_latched_s},
         {"haptic_untracked_s", r.haptic_untracked_s},
         {"instrument_outside_scene_s", r.instrument_outside_scene_s},
+        {"haptic_clutched_s", r.haptic_clutched_s},
         {"haptic_longest_untracked_s", r.haptic_longest_untracked_s}}},
       {"faults",
        {{"haptic_device_lost_s", r.haptic_device_lost_s < 0

@@ -23,6 +23,7 @@ HapticLoop::HapticLoop(HapticLoopParts parts, std::uint32_t lag, std::uint32_t t
     : parts_(std::move(parts)),
       schedule_(lag, ticks_per_step),
       slew_(parts_.haptic->guard().channels(), parts_.sim->haptic_period_ms() * 1e-3),
+      clutch_(parts_.clutch_buttons),
       command_(parts_.sim->command_size(), 0.0),
       zeros_(parts_.sim->command_size(), 0.0) {
   counters_.max_ticks_per_step = ticks_per_step;
@@ -93,7 +94,10 @@ void HapticLoop::poll_devices(devices::Nanoseconds t) noexcept {
     if (!head_lost_ && parts_.head_state) parts_.head_state(parts_.head->state());
   }
   // A lost device keeps its last state: the instrument holds where it was.
-  if (!lost_) parts_.frame.to_scene(parts_.haptic->device().state(), scene_state_);
+  if (!lost_) {
+    parts_.frame.to_scene(parts_.haptic->device().state(), scene_state_);
+    (void)clutch_.apply(scene_state_);
+  }
 }
 
 void HapticLoop::hand_over(std::uint64_t k) noexcept {
@@ -173,7 +177,13 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
   fade_if_stale(k, use.late);
   // A device that does not know where it is: its instrument holds its last pose, and a force
   // computed there would push the hand towards a place it may no longer be.
+  // The same while the clutch is held: the hand moves the handle, not the instrument.
   const bool untracked = !lost_ && !parts_.haptic->device().state().tracked;
+  if (clutch_.held()) {
+    std::fill(command_.begin(), command_.end(), 0.0);
+    slew_.reset();
+    ++counters_.clutched_ticks;
+  }
   if (untracked) {
     std::fill(command_.begin(), command_.end(), 0.0);
     slew_.reset();

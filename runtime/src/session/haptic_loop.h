@@ -26,6 +26,7 @@
 #include "bisturi/devices/trace/trace_writer.h"
 #include "bisturi/runtime/session/device_frame.h"
 #include "bisturi/runtime/session/session_sim.h"
+#include "clutch.h"
 #include "command_slew.h"
 #include "step_schedule.h"
 #include "tissue_thread.h"
@@ -100,6 +101,7 @@ struct HapticLoopCounters {
   std::uint64_t longest_untracked_ticks = 0;
   /// Ticks with the instrument's tip outside HapticLoopParts' scene box.
   std::uint64_t outside_scene_ticks = 0;
+  std::uint64_t clutched_ticks = 0;  ///< ticks with the clutch held (forces zero)
   std::uint64_t guard_latched_ticks = 0;
   /// Session time when the haptic device / head tracker was lost (-1: never), and why.
   double haptic_lost_s = -1.0;
@@ -141,6 +143,8 @@ struct HapticLoopParts {
   /// with the tip outside it are counted (a device placed or turned away from the organs).
   /// Empty (min > max): not watched.
   glm::dvec3 scene_box_min_m{1.0}, scene_box_max_m{-1.0};
+  /// The bits of the haptic device's clutch buttons (its driver's ButtonUse::Clutch; 0: none).
+  std::uint64_t clutch_buttons = 0;
   /// Ticks a tick may go on using an older step than the due one before its force fades to zero
   /// (over kStaleFadeTicks): a hung tissue thread never leaves a spring to a frozen surface.
   std::uint32_t stale_margin_ticks = 4;
@@ -229,6 +233,7 @@ class HapticLoop {
   std::uint64_t silence_run_ = 0;
   std::atomic<double> silent_for_s_{0.0};
   std::uint64_t untracked_run_ = 0;
+  Clutch clutch_;
   std::atomic<double> untracked_for_s_{0.0};
   /// Notes the device's reports and the guard's latch for the tick at session time t.
   void watch_inputs(devices::Nanoseconds t) noexcept;

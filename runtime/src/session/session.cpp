@@ -121,6 +121,7 @@ void add_loop_counters(const HapticLoop& loop, SessionReport& report) {
   report.haptic_untracked_s = static_cast<double>(c.untracked_ticks) * period_s;
   report.haptic_longest_untracked_s = static_cast<double>(c.longest_untracked_ticks) * period_s;
   report.instrument_outside_scene_s = static_cast<double>(c.outside_scene_ticks) * period_s;
+  report.haptic_clutched_s = static_cast<double>(c.clutched_ticks) * period_s;
   report.haptic_device_lost_s = c.haptic_lost_s;
   report.haptic_device_lost_reason = c.haptic_lost_reason;
   report.head_tracker_lost_s = c.head_lost_s;
@@ -391,6 +392,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   parts.step_twins = [&](Nanoseconds t) { session_devices.step_twins(t); };
   parts.display_live = &display_live;
   parts.display_deadline_ns = &display_deadline_ns;
+  parts.clutch_buttons =
+      devices::buttons_with(session_devices.haptic_buttons(), devices::ButtonUse::Clutch);
   // The solids' box at the start, widened by half its size on every side: the instrument comes
   // from outside, but not from across the room.
   {

@@ -175,6 +175,8 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
     parts.sim = sim.get();
     parts.frame = sim_options.device_frame;
     parts.clock = &clock;
+    parts.clutch_buttons =
+        devices::buttons_with(sim_options.button_uses, devices::ButtonUse::Clutch);
     loop = std::make_unique<HapticLoop>(std::move(parts), lag, ticks_per_step);
     zeros.assign(sim->command_size(), 0.0);
     return true;

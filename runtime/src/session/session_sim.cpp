@@ -127,7 +127,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   world_.prepare();
   devices::Capabilities shape;
   shape.force_channels = channels_;
-  const devices::ChannelLayout layout{options_.channel_roles};
+  const devices::ChannelLayout layout{options_.channel_roles, {}};
   roles_ = layout.roles(shape);
   for (std::size_t i = 0; i < channels_.size(); ++i) {
     command_size_ += channels_[i].components;
@@ -137,11 +137,8 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   out_.command_N.assign(command_size_, 0.0);
   out_.finger_contact_N.assign(fingers_, 0.0);
   if (!options_.button_uses.empty()) {
-    cut_buttons_ = 0;
-    for (std::size_t i = 0; i < options_.button_uses.size() && i < 64; ++i) {
-      if (options_.button_uses[i] == devices::ButtonUse::Cut) cut_buttons_ |= 1ull << i;
-      if (options_.button_uses[i] == devices::ButtonUse::Grasp) grasp_buttons_ |= 1ull << i;
-    }
+    cut_buttons_ = devices::buttons_with(options_.button_uses, devices::ButtonUse::Cut);
+    grasp_buttons_ = devices::buttons_with(options_.button_uses, devices::ButtonUse::Grasp);
   }
   finger_touch_.assign(fingers_, FingerTouch{});
 }

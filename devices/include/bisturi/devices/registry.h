@@ -47,10 +47,13 @@ const char* to_string(ChannelUse use);
 // What pressing a button does to the session's instrument.
 enum class ButtonUse : std::uint8_t {
   None,
-  Cut,    // held: the scalpel's blade sweeps; released: the incision is made
-  Grasp,  // held: the grasper's jaws close on the tissue (a glove closes them with its fingers)
+  Cut,     // held: the scalpel's blade sweeps; released: the incision is made
+  Grasp,   // held: the grasper's jaws close on the tissue (a glove closes them with its fingers)
+  Clutch,  // held: the instrument stays while the handle moves (re-centring a grounded arm)
 };
 const char* to_string(ButtonUse use);
+// The bits of the buttons (by index in `uses`, up to 64) that have `use`.
+std::uint64_t buttons_with(const std::vector<ButtonUse>& uses, ButtonUse use);
 
 struct ChannelRole {
   ChannelUse use = ChannelUse::Unused;

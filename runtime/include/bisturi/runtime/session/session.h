@@ -203,6 +203,8 @@ struct SessionReport {
   /// How long the instrument's tip was away from the solids (outside their box widened by half
   /// its size on every side), in seconds.
   double instrument_outside_scene_s = 0.0;
+  /// How long the haptic device's clutch was held (its instrument still, its forces zero).
+  double haptic_clutched_s = 0.0;
   /// What the session ignored that the user should know (an instrument that touched nothing,
   /// that spent the session away from the organs): also printed at the end.
   std::vector<std::string> warnings;
