@@ -115,9 +115,8 @@ class Registry {
   std::vector<DriverInfo> drivers_;
 };
 
-// Adds the drivers built into this library: "hid-glove" (generic HID glove), "hid-tracker"
-// (generic HID head tracker), "vendor-arm" (the libusb haptic arm) and "sample-pinch" (the
-// template in devices/sample/).
+// Adds the drivers built into this library (`bisturi device list` lists them, with their ids,
+// twins, channels and buttons). The template in devices/sample/ is not among them.
 void register_builtin_drivers(Registry& registry);
 
 // A registry holding the built-in drivers.
