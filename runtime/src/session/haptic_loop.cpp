@@ -131,7 +131,10 @@ void HapticLoop::send(devices::Nanoseconds t) noexcept {
   if (stopped_.load(std::memory_order_acquire)) return;
   try {
     const devices::GuardStep g = parts_.haptic->send(command_);
-    if (g.latched != devices::Fault::None) ++counters_.guard_latches;
+    if (g.latched != devices::Fault::None) {
+      ++counters_.guard_latches;
+      guard_latches_now_.fetch_add(1, std::memory_order_relaxed);
+    }
     publish_output_locked();
   } catch (const devices::DeviceDisconnected& e) {
     lose_device(t, e.what());

@@ -184,6 +184,11 @@ class HapticLoop {
   [[nodiscard]] double silent_for_s() const {
     return silent_for_s_.load(std::memory_order_relaxed);
   }
+  /// Latches of the force guard so far (each zeros the output): any thread, for the watching
+  /// thread, which says so when they keep coming.
+  [[nodiscard]] std::uint64_t guard_latches_now() const {
+    return guard_latches_now_.load(std::memory_order_relaxed);
+  }
   /// How long the haptic device has not been tracked, as of the last tick (0 while it is).
   [[nodiscard]] double untracked_for_s() const {
     return untracked_for_s_.load(std::memory_order_relaxed);
@@ -235,6 +240,7 @@ class HapticLoop {
   std::uint64_t untracked_run_ = 0;
   Clutch clutch_;
   std::atomic<double> untracked_for_s_{0.0};
+  std::atomic<std::uint64_t> guard_latches_now_{0};
   /// Notes the device's reports and the guard's latch for the tick at session time t.
   void watch_inputs(devices::Nanoseconds t) noexcept;
   std::uint64_t stale_run_ = 0;  ///< ticks in the current run past the margin

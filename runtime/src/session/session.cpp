@@ -451,6 +451,10 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   progress.stage = "run";
   bool warned_silent = false;
   bool warned_untracked = false;
+  bool warned_latching = false;
+  constexpr std::uint64_t kLatchesToWarn = 3;
+  std::uint64_t latches_at_window = 0;
+  auto latch_window_start = std::chrono::steady_clock::now();
   auto last_progress = wall_start;
   while (!stop.load()) {
     // With faults to inject the watch is finer: each happens within a few milliseconds of its time.
@@ -487,6 +491,23 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                          " ms: its instrument holds still and its forces are zero until it is";
     }
     warned_untracked = untracked_s >= 0.5;
+    // A guard that keeps latching zeros the force again and again: the device's reports come
+    // late or irregularly (a controller at a slow display rate, a loaded bus). Said once.
+    if (std::chrono::steady_clock::now() - latch_window_start >= std::chrono::seconds(1)) {
+      const std::uint64_t latches = loop.guard_latches_now();
+      if (latches - latches_at_window >= kLatchesToWarn && !warned_latching &&
+          progress.warning.empty()) {
+        progress.warning =
+            "the force guard of '" + choice.haptic->name + "' latched " +
+            std::to_string(latches - latches_at_window) +
+            " times in the last second, zeroing its forces each time: its "
+            "reports come late or irregularly, or the ticks ran late (its silence limit is " +
+            std::to_string(static_cast<int>(ms(guard_config.device_silence_timeout))) + " ms)";
+        warned_latching = true;
+      }
+      latches_at_window = latches;
+      latch_window_start = std::chrono::steady_clock::now();
+    }
     if (options.progress) options.progress(progress);
   }
   haptic_thread.join();
