@@ -77,7 +77,7 @@ run_live() {  # folder: live default sessions with the threads' faults injected
   failed=0
   # The supervisor's zero past a stuck device write, a hung frame and a hung tissue step, a
   # stalled trace disk: every thread of a session and each path between them.
-  for faults in "--inject device-io-stall@0.8 --inject tissue-hang@1.2" \
+  for faults in "--inject tissue-hang@0.5 --inject device-io-stall@0.9" \
                 "--inject render-hang@0.8 --inject trace-slow-disk@1.0"; do
     name=$(echo "$faults" | tr -cs 'a-z0-9' '_')
     echo "sanitize: $folder: bisturi run $faults"
