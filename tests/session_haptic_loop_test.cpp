@@ -157,6 +157,37 @@ TEST(HapticLoop, TheSupervisorZeroesAStalledTickWithinTheWatchdogLimit) {
   EXPECT_EQ(rig.loop->counters().supervisor_zeros, 1u);
 }
 
+/// From its start the rig's virtual clock is read as following the wall clock, and a thread looks
+/// for stalls every 0.25 ms (limit 3 ms), as run_session's supervisor does.
+class WallSupervisor {
+ public:
+  explicit WallSupervisor(Rig& rig)
+      : rig_(rig), wall0_(std::chrono::steady_clock::now()), virtual0_(rig.clock.now()) {
+    thread_ = std::thread([this] {
+      while (run_.load()) {
+        std::this_thread::sleep_for(std::chrono::microseconds(250));
+        (void)rig_.loop->zero_if_stalled(now(), milliseconds(3));
+      }
+    });
+  }
+  ~WallSupervisor() { stop(); }
+  [[nodiscard]] Nanoseconds now() const {
+    return virtual0_ +
+           std::chrono::duration_cast<Nanoseconds>(std::chrono::steady_clock::now() - wall0_);
+  }
+  void stop() {
+    run_.store(false);
+    if (thread_.joinable()) thread_.join();
+  }
+
+ private:
+  Rig& rig_;
+  std::chrono::steady_clock::time_point wall0_;
+  Nanoseconds virtual0_;
+  std::atomic<bool> run_{true};
+  std::thread thread_;
+};
+
 TEST(HapticLoop, AFrozenPictureStopsTheForces) {
   const SceneDescription scene = arm_scene("[0.0, 0.0, 0.0]");
   Rig rig(scene, pressing_arm(DeviceFrame{}));
@@ -188,19 +219,8 @@ TEST(HapticLoop, ATickStuckInTheDevicesWriteIsZeroedPastIt) {
   Rig rig(scene, pressing_arm(DeviceFrame{}));
   rig.run_to(milliseconds(1000));
   ASSERT_GT(glm::length(rig.applied()), 0.01);
-  const auto wall0 = std::chrono::steady_clock::now();
-  const Nanoseconds virtual0 = rig.clock.now();
-  const auto now = [&] {
-    return virtual0 +
-           std::chrono::duration_cast<Nanoseconds>(std::chrono::steady_clock::now() - wall0);
-  };
-  std::atomic<bool> run{true};
-  std::thread supervisor([&] {
-    while (run.load()) {
-      std::this_thread::sleep_for(std::chrono::microseconds(250));
-      (void)rig.loop->zero_if_stalled(now(), milliseconds(3));
-    }
-  });
+  WallSupervisor supervisor(rig);
+  const auto now = [&] { return supervisor.now(); };
   // The arm holds off the host's next write for 2 s: the tick that sends it is stuck inside the
   // driver with the device in hand. The zero must not wait for it.
   rig.arm_twin->stall_host_writes(seconds(2));
@@ -220,8 +240,7 @@ TEST(HapticLoop, ATickStuckInTheDevicesWriteIsZeroedPastIt) {
     std::this_thread::sleep_for(std::chrono::microseconds(100));
   }
   ticking.join();
-  run.store(false);
-  supervisor.join();
+  supervisor.stop();
   ASSERT_GE(zero_after_ms, 0.0) << "the arm saw zero only after the stuck write returned";
   std::printf("stuck write to zero output: %.2f ms (the write stays stuck for 2000 ms)\n",
               zero_after_ms);
@@ -239,19 +258,8 @@ TEST(HapticLoop, ARealStallIsZeroedByTheSupervisorThread) {
   rig.run_to(milliseconds(1000));
   ASSERT_GT(glm::length(rig.applied()), 0.01);
   // From here the virtual clock follows the wall clock, so the supervisor thread sees the stall.
-  const auto wall0 = std::chrono::steady_clock::now();
-  const Nanoseconds virtual0 = rig.clock.now();
-  const auto now = [&] {
-    return virtual0 +
-           std::chrono::duration_cast<Nanoseconds>(std::chrono::steady_clock::now() - wall0);
-  };
-  std::atomic<bool> run{true};
-  std::thread supervisor([&] {
-    while (run.load()) {
-      std::this_thread::sleep_for(std::chrono::microseconds(250));
-      (void)rig.loop->zero_if_stalled(now(), milliseconds(3));
-    }
-  });
+  WallSupervisor supervisor(rig);
+  const auto now = [&] { return supervisor.now(); };
   // The last tick before the stall; then the haptic thread stops ticking until the arm sees
   // zero. How soon is a figure (printed), not a pass condition: on a loaded machine the
   // supervisor thread may wake late. What must hold: the zero comes, and never before the limit.
@@ -265,8 +273,7 @@ TEST(HapticLoop, ARealStallIsZeroedByTheSupervisorThread) {
       zero_after_ms = std::chrono::duration<double, std::milli>(now() - last_tick).count();
     std::this_thread::sleep_for(std::chrono::microseconds(100));
   }
-  run.store(false);
-  supervisor.join();
+  supervisor.stop();
   ASSERT_GE(zero_after_ms, 0.0) << "the arm never saw zero during a 20 s stall";
   RecordProperty("stall_to_zero_ms", std::to_string(zero_after_ms));
   std::printf("stall to zero output: %.2f ms (limit 3 ms + the supervisor's 0.25 ms)\n",

@@ -73,7 +73,8 @@ class PreemptingSlots {
       if (best == kSlots || order_[i] < order_[best]) best = i;
     }
     if (best == kSlots) return false;
-    out.assign(bytes_[best].begin(), bytes_[best].begin() + static_cast<std::ptrdiff_t>(size_[best]));
+    out.assign(bytes_[best].begin(),
+               bytes_[best].begin() + static_cast<std::ptrdiff_t>(size_[best]));
     state_[best].store(kFree, std::memory_order_release);
     return true;
   }
@@ -122,23 +123,8 @@ const DeviceDescriptor& VirtualTransport::descriptor() const {
 }
 
 std::optional<Bytes> VirtualTransport::read(std::chrono::microseconds timeout) {
-  auto& link = *link_;
-  std::unique_lock lock(link.mutex);
-  auto& queue = link.queue[inbox(side_)];
-  const bool device_side = side_ == Side::Device;
-  auto ready = [&] {
-    return !link.connected || !queue.empty() || (device_side && link.preempting.any());
-  };
-  if (!ready()) {
-    if (timeout.count() <= 0) return std::nullopt;
-    if (!link.changed.wait_for(lock, timeout, ready)) return std::nullopt;
-  }
-  if (!link.connected) {
-    throw DeviceDisconnected(describe(link.descriptor) + ": disconnected");
-  }
-  if (Bytes first; device_side && link.preempting.take(first)) return first;
-  Bytes report = std::move(queue.front());
-  queue.pop_front();
+  Bytes report;
+  if (!read_into(report, timeout)) return std::nullopt;
   return report;
 }
 

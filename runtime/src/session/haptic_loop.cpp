@@ -178,44 +178,13 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
     std::fill(command_.begin(), command_.end(), 0.0);
   }
   fade_if_stale(k, use.late);
-  // A device that does not know where it is: its instrument holds its last pose, and a force
-  // computed there would push the hand towards a place it may no longer be.
-  // The same while the clutch is held: the hand moves the handle, not the instrument.
-  const bool untracked = !lost_ && !parts_.haptic->device().state().tracked;
-  if (clutch_.held()) {
+  const bool instrument_held = watch_instrument();
+  watch_display();
+  // Held at zero, the slew starts again from zero (forces come back as a ramp).
+  if (instrument_held || display_held_) {
     std::fill(command_.begin(), command_.end(), 0.0);
     slew_.reset();
-    ++counters_.clutched_ticks;
-  }
-  if (untracked) {
-    std::fill(command_.begin(), command_.end(), 0.0);
-    slew_.reset();
-    ++counters_.untracked_ticks;
-    counters_.longest_untracked_ticks =
-        std::max(counters_.longest_untracked_ticks, ++untracked_run_);
-  } else {
-    untracked_run_ = 0;
-  }
-  untracked_for_s_.store(
-      static_cast<double>(untracked_run_) * parts_.sim->haptic_period_ms() * 1e-3,
-      std::memory_order_relaxed);
-  // No force the trainee cannot see the cause of: while the headset shows nothing, zero.
-  if (parts_.display_live != nullptr) {
-    bool held = !parts_.display_live->load(std::memory_order_acquire);
-    if (parts_.display_deadline_ns != nullptr) {
-      const std::int64_t deadline = parts_.display_deadline_ns->load(std::memory_order_acquire);
-      if (deadline >= 0 && parts_.clock->now().count() > deadline) {
-        held = true;
-        if (!display_held_) ++counters_.display_stalls;
-      }
-    }
-    if (held != display_held_) note(held ? "display_hold" : "display_live");
-    display_held_ = held;
-  }
-  if (display_held_) {
-    std::fill(command_.begin(), command_.end(), 0.0);
-    slew_.reset();
-    ++counters_.display_held_ticks;
+    if (display_held_) ++counters_.display_held_ticks;
   } else if (slew_.apply(command_)) {
     ++counters_.slewed_ticks;
   }
@@ -249,6 +218,41 @@ void HapticLoop::watch_inputs(devices::Nanoseconds t) noexcept {
     silent_for_s_.store(0.0, std::memory_order_relaxed);
   }
   if (guard_latched_) ++counters_.guard_latched_ticks;
+}
+
+bool HapticLoop::watch_instrument() noexcept {
+  // A device that does not know where it is: its instrument holds its last pose, and a force
+  // computed there would push the hand towards a place it may no longer be. The same while the
+  // clutch is held: the hand moves the handle, not the instrument.
+  if (clutch_.held()) ++counters_.clutched_ticks;
+  const bool untracked = !lost_ && !parts_.haptic->device().state().tracked;
+  if (untracked) {
+    ++counters_.untracked_ticks;
+    counters_.longest_untracked_ticks =
+        std::max(counters_.longest_untracked_ticks, ++untracked_run_);
+  } else {
+    untracked_run_ = 0;
+  }
+  untracked_for_s_.store(
+      static_cast<double>(untracked_run_) * parts_.sim->haptic_period_ms() * 1e-3,
+      std::memory_order_relaxed);
+  return clutch_.held() || untracked;
+}
+
+void HapticLoop::watch_display() noexcept {
+  // No force the trainee cannot see the cause of: while the headset shows nothing, or the
+  // renderer is past its deadline (a frozen picture), zero; each change is noted for the replay.
+  if (parts_.display_live == nullptr) return;
+  bool held = !parts_.display_live->load(std::memory_order_acquire);
+  if (parts_.display_deadline_ns != nullptr) {
+    const std::int64_t deadline = parts_.display_deadline_ns->load(std::memory_order_acquire);
+    if (deadline >= 0 && parts_.clock->now().count() > deadline) {
+      held = true;
+      if (!display_held_) ++counters_.display_stalls;
+    }
+  }
+  if (held != display_held_) note(held ? "display_hold" : "display_live");
+  display_held_ = held;
 }
 
 void HapticLoop::fade_if_stale(std::uint64_t k, bool late) noexcept {

@@ -226,6 +226,11 @@ class HapticLoop {
   /// first_output_N_ / largest_output_N_ from the guarded device's output; device_mutex_ held.
   void publish_output_locked() noexcept;
 
+  /// Counts the ticks of an untracked device or a held clutch; true when either holds the
+  /// instrument (its force then zero).
+  bool watch_instrument() noexcept;
+  /// Whether the trainee sees the scene (display_held_), noting each change for the replay.
+  void watch_display() noexcept;
   /// The stale-step fade on command_ (tick k, `late`: the step used is not the due one).
   void fade_if_stale(std::uint64_t k, bool late) noexcept;
 
