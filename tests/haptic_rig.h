@@ -136,7 +136,7 @@ struct Rig {
     shape.finger_joint_angles_rad.resize(arm->capabilities().finger_joints.size());
     tissue = std::make_unique<TissueThread>(
         *sim, shape, threaded, false,
-        [](const TickOutput&, const devices::HapticState&, double) {});
+        [](const TickOutput&, std::span<const devices::HapticState>, double) {});
     steps = std::make_unique<LiveTickSteps>(*tissue, false, TissueRateController(1, 1, 1.0));
     hangable = std::make_unique<HangableSteps>(*steps);
     HapticLoopParts parts;

@@ -87,7 +87,7 @@ StepRun run_steps(const std::vector<devices::HapticState>& states, bool threaded
   SessionSim sim(scene, build_solids(scene), glove_channels());
   StepRun run;
   TissueThread tissue(sim, states.front(), threaded, false,
-                      [&](const TickOutput& out, const devices::HapticState&, double) {
+                      [&](const TickOutput& out, std::span<const devices::HapticState>, double) {
                         run.commands.push_back(out.command_N);
                       });
   for (const devices::HapticState& s : states)
@@ -131,7 +131,7 @@ TEST(TissueThread, MultiRateStepsEqualInlineStepsAndUseTheirLength) {
     SessionSim sim(scene, build_solids(scene), glove_channels());
     StepRun r;
     TissueThread tissue(sim, states.front(), threaded, false,
-                        [&](const TickOutput& out, const devices::HapticState&, double) {
+                        [&](const TickOutput& out, std::span<const devices::HapticState>, double) {
                           r.commands.push_back(out.command_N);
                         });
     StepSchedule schedule(3, 1);
@@ -164,7 +164,7 @@ TEST(TissueThread, ALateTickUsesTheNewestFinishedStep) {
   SessionSim sim(scene, build_solids(scene), glove_channels());
   std::atomic<bool> release{false};
   TissueThread tissue(sim, states.front(), true, false,
-                      [&](const TickOutput&, const devices::HapticState&, double) {
+                      [&](const TickOutput&, std::span<const devices::HapticState>, double) {
                         // Step 3 hangs until the test lets it go: ticks after it are late.
                         if (sim.ticks() == 3)
                           while (!release.load())

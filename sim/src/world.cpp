@@ -9,9 +9,19 @@
 namespace bisturi::sim {
 
 SimWorld::SimWorld(const WorldOptions& options)
-    : options_(options),
-      device_(std::make_unique<CollisionDevice>(options.embree_threads)),
-      proxy_(options.haptic) {}
+    : options_(options), device_(std::make_unique<CollisionDevice>(options.embree_threads)) {}
+
+void SimWorld::ensure_probes(std::size_t count) {
+  while (proxies_.size() < count)
+    proxies_.emplace_back(options_.haptic);
+  if (probe_states_.size() < count) probe_states_.resize(count);
+  if (targets_.size() < count) targets_.resize(count);
+}
+
+void SimWorld::set_probe(std::size_t probe, ProbeState state) {
+  ensure_probes(probe + 1);
+  probe_states_[probe] = state;
+}
 
 std::uint32_t SimWorld::add_body(SoftBody body) {
   bodies_.push_back(std::move(body));
@@ -48,25 +58,37 @@ void SimWorld::prepare_body(std::uint32_t i) {
 }
 
 HapticOutput SimWorld::step(const glm::dvec3& device_m) {
-  std::vector<TouchTarget> targets;
-  targets.reserve(bodies_.size());
-  for (std::size_t i = 0; i < bodies_.size(); ++i)
-    targets.push_back({&bodies_[i], &bvhs_[i], static_cast<std::int32_t>(i) != held_body_});
-  proxy_.set_options(options_.haptic);
-  HapticOutput out = proxy_.update(device_m, targets, options_.integrator.dt_s);
+  HapticOutput out;
+  step(std::span<const glm::dvec3>(&device_m, 1), std::span<HapticOutput>(&out, 1));
+  return out;
+}
+
+void SimWorld::step(std::span<const glm::dvec3> devices_m, std::span<HapticOutput> out) {
+  ensure_probes(devices_m.size());
+  for (std::size_t p = 0; p < devices_m.size(); ++p) {
+    std::vector<TouchTarget>& targets = targets_[p];
+    targets.clear();
+    for (std::size_t i = 0; i < bodies_.size(); ++i) {
+      targets.push_back(
+          {&bodies_[i], &bvhs_[i], static_cast<std::int32_t>(i) != probe_states_[p].held_body});
+    }
+    HapticOptions haptic = options_.haptic;
+    haptic.apply_reaction = haptic.apply_reaction && probe_states_[p].pushes;
+    proxies_[p].set_options(haptic);
+    out[p] = proxies_[p].update(devices_m[p], targets, options_.integrator.dt_s);
+  }
   if (options_.contact.enabled && bodies_.size() > 1) tissue_contacts();
   for (std::uint32_t i = 0; i < bodies_.size(); ++i) {
-    stats_[i] = volumes_[i]
-                    ? volumes_[i]->step(bodies_[i], options_.integrator, events_, i, steps_)
-                    : integrator_.step(bodies_[i], options_.integrator, events_, i, steps_);
+    stats_[i] = volumes_[i] ? volumes_[i]->step(bodies_[i], options_.integrator, events_, i, steps_)
+                            : integrator_.step(bodies_[i], options_.integrator, events_, i, steps_);
     // A body asleep entirely did not move: its BVH still fits.
     const StepStats& s = stats_[i];
     bvhs_[i].set_refit_tolerance(options_.bvh_refit_tolerance_m);
     if (!(s.free_vertices > 0 && s.awake_vertices == 0)) bvhs_[i].update(bodies_[i]);
   }
-  out = proxy_.settle(targets, out, options_.integrator.dt_s);
+  for (std::size_t p = 0; p < devices_m.size(); ++p)
+    out[p] = proxies_[p].settle(targets_[p], out[p], options_.integrator.dt_s);
   ++steps_;
-  return out;
 }
 
 namespace {

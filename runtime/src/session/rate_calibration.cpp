@@ -21,7 +21,7 @@ RateCalibration calibrate_tissue_rate(const SceneDescription& scene,
   for (const BuiltSolid& s : solids)
     copies.push_back(
         {s.description, build_oriented_manifold(export_polygons(s.mesh).polygons), 0.0});
-  SessionSim sim(scene, std::move(copies), {}, sim_options);
+  SessionSim sim(scene, std::move(copies), std::vector<devices::ForceChannel>{}, sim_options);
   // No end effector: the probe sits at the origin, away from the scene's solids (or touching
   // one, which costs what contact costs). The first steps settle under gravity: every vertex
   // is awake, as under the probe.

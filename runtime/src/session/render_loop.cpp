@@ -339,13 +339,17 @@ void run_render_loop(const RenderLoopContext& c) {
   render::Material steel;
   steel.colour = {0.75f, 0.78f, 0.82f};
   steel.specular = 0.8f;
-  const render::SolidId probe_id = renderer.add_instrument(
-      render::capsule_solid(probe_radius, probe_length), steel, glm::dmat4(1.0));
   render::Material blade_material = steel;
   blade_material.colour = {0.95f, 0.95f, 1.0f};
-  const render::SolidId blade_id =
-      renderer.add_instrument(render::capsule_solid(0.4, 1.0), blade_material, glm::dmat4(1.0));
-  renderer.set_visible(blade_id, false);
+  // Each hand's probe and blade (the blade shows while it cuts).
+  std::vector<render::SolidId> probe_ids, blade_ids;
+  for (std::size_t h = 0; h < initial.instruments.size(); ++h) {
+    probe_ids.push_back(renderer.add_instrument(render::capsule_solid(probe_radius, probe_length),
+                                                steel, glm::dmat4(1.0)));
+    blade_ids.push_back(
+        renderer.add_instrument(render::capsule_solid(0.4, 1.0), blade_material, glm::dmat4(1.0)));
+    renderer.set_visible(blade_ids.back(), false);
+  }
   render_ready.store(true);
   const render::PoseClock::time_point origin = render::PoseClock::now();  // ~ the haptic start
 
@@ -405,17 +409,20 @@ void run_render_loop(const RenderLoopContext& c) {
       meshes[b].set_positions(st.positions_mm);
       renderer.update_solid(ids[b], meshes[b].mesh);
     }
-    // The probe's shaft rises from the tip along the hand; the blade shows while it cuts.
-    const glm::dvec3 along = s.blade_to_mm - s.tip_mm;
-    const double along_len = glm::length(along);
-    const glm::dvec3 dir = along_len > 1e-9 ? along / along_len : glm::dvec3(0, 0, 1);
-    renderer.set_pose(probe_id, instrument_pose(s.tip_mm, s.tip_mm + dir * probe_length));
-    renderer.set_visible(blade_id, s.cutting);
-    if (s.cutting) {
-      glm::dmat4 m = instrument_pose(s.tip_mm, s.blade_to_mm);
-      m = m *
-          glm::scale(glm::dmat4(1.0), glm::dvec3(1.0, 1.0, glm::length(s.blade_to_mm - s.tip_mm)));
-      renderer.set_pose(blade_id, m);
+    // Each probe's shaft rises from its tip along the hand; a blade shows while it cuts.
+    for (std::size_t h = 0; h < std::min(s.instruments.size(), probe_ids.size()); ++h) {
+      const InstrumentState& in = s.instruments[h];
+      const glm::dvec3 along = in.blade_to_mm - in.tip_mm;
+      const double along_len = glm::length(along);
+      const glm::dvec3 dir = along_len > 1e-9 ? along / along_len : glm::dvec3(0, 0, 1);
+      renderer.set_pose(probe_ids[h], instrument_pose(in.tip_mm, in.tip_mm + dir * probe_length));
+      renderer.set_visible(blade_ids[h], in.cutting);
+      if (in.cutting) {
+        glm::dmat4 m = instrument_pose(in.tip_mm, in.blade_to_mm);
+        m = m * glm::scale(glm::dmat4(1.0),
+                           glm::dvec3(1.0, 1.0, glm::length(in.blade_to_mm - in.tip_mm)));
+        renderer.set_pose(blade_ids[h], m);
+      }
     }
     render::FrameStats stats;
     if (xr) {

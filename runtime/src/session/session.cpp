@@ -319,10 +319,10 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   FaultInjector faults(options.inject, report, clock, session_devices, writer.get(),
                        scene.rates.haptic_hz);
   faults.controller_fed = controller_feed.opened();
-  const auto publish_step = [&](const TickOutput& out, const devices::HapticState& state,
+  const auto publish_step = [&](const TickOutput& out, std::span<const devices::HapticState> states,
                                 double step_ms) {
     report.step_ms.record(step_ms);
-    publisher.publish(out, state);
+    publisher.publish(out, states);
     if (faults.fail_tissue.exchange(false))
       throw std::runtime_error("injected fault: tissue-throw");
     if (faults.hang_tissue.exchange(false))

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 #include <utility>
 
 #include <glm/geometric.hpp>
@@ -52,16 +53,33 @@ glm::dvec3 to_glm(const devices::Vec3& v) {
 
 }  // namespace
 
+namespace {
+
+double first_haptic_limit_N(const SceneDescription& scene) {
+  for (const DeviceDescription& d : scene.devices) {
+    if (d.role == DeviceDescription::Role::Haptic) return d.max_force_N;
+  }
+  return 3.0;
+}
+
+HandSetup hand_of(const SceneDescription& scene, std::vector<devices::ForceChannel> channels,
+                  const SessionSimOptions& options) {
+  return {std::move(channels),   options.device_frame, options.device_spec,
+          options.channel_roles, options.button_uses,  first_haptic_limit_N(scene)};
+}
+
+}  // namespace
+
 SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> solids,
                        std::vector<devices::ForceChannel> glove_channels,
                        const SessionSimOptions& options)
-    : options_(options), channels_(std::move(glove_channels)) {
-  for (const DeviceDescription& d : scene.devices) {
-    if (d.role == DeviceDescription::Role::Haptic) {
-      max_force_N_ = d.max_force_N;
-      break;
-    }
-  }
+    : SessionSim(scene, std::move(solids), {hand_of(scene, std::move(glove_channels), options)},
+                 options) {}
+
+SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> solids,
+                       std::vector<HandSetup> hands, const SessionSimOptions& options)
+    : options_(options) {
+  if (hands.empty()) throw SceneFileError(scene.name + ": a session needs at least one hand");
   for (const InstrumentDescription& in : scene.instruments) {
     if (in.kind == InstrumentDescription::Kind::Probe) {
       world_.options().haptic.probe_radius_m = in.radius_mm * sim::kMetresPerMillimetre;
@@ -72,18 +90,23 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
       options_.blade_length_mm = in.length_mm;
     }
   }
-  world_.options().haptic.max_force_N = max_force_N_;
+  // The proxies clamp at the strongest hand's limit; each hand's command at its own.
+  double max_force_N = 0.0;
+  for (const HandSetup& h : hands)
+    max_force_N = std::max(max_force_N, h.max_force_N);
+  world_.options().haptic.max_force_N = max_force_N;
   world_.options().haptic.continuous = scene.simulation.continuous_collision;
-  // The coupling spring is what the hand feels in contact: never stiffer than the device renders.
-  const double device_k = options_.device_spec.max_stiffness_N_per_m;
-  if (device_k > 0.0) {
-    world_.options().haptic.coupling_N_per_m =
-        std::min(world_.options().haptic.coupling_N_per_m, device_k);
+  // The coupling spring is what the hand feels in contact: never stiffer than a device renders
+  // (one spring for every hand, the softest device's).
+  for (const HandSetup& h : hands) {
+    const double device_k = h.device_spec.max_stiffness_N_per_m;
+    if (device_k > 0.0) {
+      world_.options().haptic.coupling_N_per_m =
+          std::min(world_.options().haptic.coupling_N_per_m, device_k);
+    }
   }
   coupling_N_per_m_ = world_.options().haptic.coupling_N_per_m;
   probe_radius_m_ = world_.options().haptic.probe_radius_m;
-  finger_stiffness_N_per_m_ = device_k > 0.0 ? std::min(options_.finger_stiffness_N_per_m, device_k)
-                                             : options_.finger_stiffness_N_per_m;
   haptic_hz_ = scene.rates.haptic_hz;
   world_.options().integrator.dt_s = 1.0 / haptic_hz_;
   world_.options().integrator.far_field_interval = scene.simulation.far_field_interval;
@@ -125,28 +148,42 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   // Everything the first step would build lazily (solver structure, BVHs, scratch) is built now,
   // before the haptic clock starts: tick 1 costs what tick 2 costs.
   world_.prepare();
-  devices::Capabilities shape;
-  shape.force_channels = channels_;
-  const devices::ChannelLayout layout{options_.channel_roles, {}};
-  roles_ = layout.roles(shape);
-  for (std::size_t i = 0; i < channels_.size(); ++i) {
-    command_size_ += channels_[i].components;
-    if (roles_[i].use == devices::ChannelUse::Finger)
-      fingers_ = std::max<std::size_t>(fingers_, roles_[i].finger + 1u);
+  out_.other_hands.resize(hands.size() - 1);
+  for (std::size_t i = 0; i < hands.size(); ++i) {
+    Hand h;
+    h.setup = std::move(hands[i]);
+    devices::Capabilities shape;
+    shape.force_channels = h.setup.channels;
+    const devices::ChannelLayout layout{h.setup.channel_roles, {}};
+    h.roles = layout.roles(shape);
+    for (std::size_t c = 0; c < h.setup.channels.size(); ++c) {
+      h.command_size += h.setup.channels[c].components;
+      if (h.roles[c].use == devices::ChannelUse::Finger)
+        h.fingers = std::max<std::size_t>(h.fingers, h.roles[c].finger + 1u);
+    }
+    const double device_k = h.setup.device_spec.max_stiffness_N_per_m;
+    h.finger_stiffness_N_per_m = device_k > 0.0
+                                     ? std::min(options_.finger_stiffness_N_per_m, device_k)
+                                     : options_.finger_stiffness_N_per_m;
+    if (!h.setup.button_uses.empty()) {
+      h.cut_buttons = devices::buttons_with(h.setup.button_uses, devices::ButtonUse::Cut);
+      h.grasp_buttons = devices::buttons_with(h.setup.button_uses, devices::ButtonUse::Grasp);
+    }
+    h.finger_touch.assign(h.fingers, FingerTouch{});
+    HandOutput& out = out_.hand(i);
+    out.command_N.assign(h.command_size, 0.0);
+    out.finger_contact_N.assign(h.fingers, 0.0);
+    hands_.push_back(std::move(h));
   }
-  out_.command_N.assign(command_size_, 0.0);
-  out_.finger_contact_N.assign(fingers_, 0.0);
-  if (!options_.button_uses.empty()) {
-    cut_buttons_ = devices::buttons_with(options_.button_uses, devices::ButtonUse::Cut);
-    grasp_buttons_ = devices::buttons_with(options_.button_uses, devices::ButtonUse::Grasp);
-  }
-  finger_touch_.assign(fingers_, FingerTouch{});
+  tips_m_.resize(hands_.size());
+  haptic_out_.resize(hands_.size());
 }
 
-std::vector<devices::ForceChannel> SessionSim::guard_channels() const {
-  std::vector<devices::ForceChannel> channels = channels_;
+std::vector<devices::ForceChannel> SessionSim::guard_channels(std::size_t hand) const {
+  const Hand& h = hands_[hand];
+  std::vector<devices::ForceChannel> channels = h.setup.channels;
   for (devices::ForceChannel& c : channels) {
-    if (!c.unitless) c.max_force_N = std::min(c.max_force_N, max_force_N_);
+    if (!c.unitless) c.max_force_N = std::min(c.max_force_N, h.setup.max_force_N);
   }
   return channels;
 }
@@ -156,8 +193,10 @@ glm::dvec3 SessionSim::tip_of(const devices::HapticState& state) {
                                           : to_glm(state.end_effector_poses.front().position_m);
 }
 
-void SessionSim::add_event(SessionEventKind kind, std::int32_t body, std::string detail) {
-  events_.push_back(SessionEvent{kind, ticks_, body, std::move(detail)});
+void SessionSim::add_event(SessionEventKind kind, std::size_t hand, std::int32_t body,
+                           std::string detail) {
+  events_.push_back(
+      SessionEvent{kind, ticks_, body, static_cast<std::uint32_t>(hand), std::move(detail)});
   ++out_.events;
 }
 
@@ -181,6 +220,14 @@ std::int32_t SessionSim::nearest_body(const glm::dvec3& p_m) {
 }
 
 const TickOutput& SessionSim::tick(const devices::HapticState& state, std::uint32_t ticks) {
+  return tick(std::span<const devices::HapticState>(&state, 1), ticks);
+}
+
+const TickOutput& SessionSim::tick(std::span<const devices::HapticState> states,
+                                   std::uint32_t ticks) {
+  if (states.size() != hands_.size())
+    throw std::invalid_argument("SessionSim::tick: " + std::to_string(states.size()) +
+                                " device states for " + std::to_string(hands_.size()) + " hands");
   ticks = std::max(1u, ticks);
   if (ticks != step_ticks_) {
     step_ticks_ = ticks;
@@ -188,115 +235,158 @@ const TickOutput& SessionSim::tick(const devices::HapticState& state, std::uint3
   }
   out_.events = 0;
   out_.topology_changed = false;
-  const devices::Pose pose =
-      state.end_effector_poses.empty() ? devices::Pose{} : state.end_effector_poses.front();
-  const glm::dvec3 tip_m = to_glm(pose.position_m);
-  out_.tip_m = tip_m;
-  const glm::dquat q(pose.orientation.w, pose.orientation.x, pose.orientation.y,
-                     pose.orientation.z);
-  tip_mm_ = sim::sim_to_scene(tip_m);
-  blade_to_mm_ = tip_mm_ + q * glm::dvec3(0.0, 0.0, options_.blade_length_mm);
+  for (std::size_t i = 0; i < hands_.size(); ++i) {
+    Hand& hand = hands_[i];
+    const devices::Pose pose = states[i].end_effector_poses.empty()
+                                   ? devices::Pose{}
+                                   : states[i].end_effector_poses.front();
+    tips_m_[i] = to_glm(pose.position_m);
+    out_.hand(i).tip_m = tips_m_[i];
+    hand.orientation =
+        glm::dquat(pose.orientation.w, pose.orientation.x, pose.orientation.y, pose.orientation.z);
+    hand.tip_mm = sim::sim_to_scene(tips_m_[i]);
+    hand.blade_to_mm =
+        hand.tip_mm + hand.orientation * glm::dvec3(0.0, 0.0, options_.blade_length_mm);
+    update_grasp(i, states[i], tips_m_[i]);
+    // While the scalpel cuts, the blade parts the tissue instead of pushing it (no reaction on
+    // the surface; the hand still feels it).
+    world_.set_probe(i, {hand.grasp_body, hand.cut_body < 0});
+  }
 
+  // The probes, tissue contact and the soft-tissue step, every hand's in one step.
+  world_.step(tips_m_, haptic_out_);
+  for (std::size_t i = 0; i < hands_.size(); ++i) {
+    Hand& hand = hands_[i];
+    const sim::HapticOutput& h = haptic_out_[i];
+    HandOutput& out = out_.hand(i);
+    out.force_N = h.force_N;
+    out.contact = h.contact;
+    out.contact_stiffness_N_per_m = contact_stiffness(h);
+    // A new touch (not a flicker at the edge of one: 100 ticks without contact before it).
+    if (h.contact && !hand.contact && ticks_ >= hand.last_contact_tick + 100)
+      add_event(SessionEventKind::Contact, i, h.body, "");
+    if (h.contact) hand.last_contact_tick = ticks_;
+    hand.contact = h.contact;
+  }
+  for (const sim::SimEvent& e : world_.take_events()) {
+    (void)e;
+    ++divergence_events_;
+  }
+  for (std::size_t i = 0; i < hands_.size(); ++i) {
+    finger_contacts(hands_[i], out_.hand(i), tips_m_[i], states[i].finger_joint_angles_rad);
+    update_scalpel(i, states[i], tips_m_[i]);
+  }
+  for (std::size_t i = 0; i < hands_.size(); ++i) {
+    HandOutput& out = out_.hand(i);
+    out.grasping = hands_[i].grasp_body >= 0;
+    out.cutting = hands_[i].cut_body >= 0;
+    command_for(out_, i, tips_m_[i], out.command_N);
+  }
+  ticks_ += ticks;
+  return out_;
+}
+
+std::size_t SessionSim::close_jaws(Hand& hand, const glm::dvec3& tip_m) {
+  const std::int32_t b = nearest_body(tip_m);
+  if (b < 0) return 0;
+  const glm::dquat& q = hand.orientation;
+  const glm::dvec3 half = q * glm::dvec3(options_.jaw_length_mm * 0.5, 0.0, 0.0);
+  const glm::dvec3 gap = q * glm::dvec3(0.0, 0.0, jaw_radius_mm_);
+  const double r = jaw_radius_mm_ * sim::kMetresPerMillimetre;
+  sim::Grasper g{
+      {sim::scene_to_sim(hand.tip_mm - half + gap), sim::scene_to_sim(hand.tip_mm + half + gap), r},
+      {sim::scene_to_sim(hand.tip_mm - half - gap), sim::scene_to_sim(hand.tip_mm + half - gap),
+       r}};
+  const std::size_t held = hand.grasp.close(world_.body(static_cast<std::uint32_t>(b)), g,
+                                            options_.grasp_capture_mm * sim::kMetresPerMillimetre);
+  hand.grasp_body = held > 0 ? b : -1;
+  return held;
+}
+
+void SessionSim::update_grasp(std::size_t i, const devices::HapticState& state,
+                              const glm::dvec3& tip_m) {
   // Grasper: the hand closes and opens it (with hysteresis), or a grasp button held.
+  Hand& hand = hands_[i];
   double grip = 0.0;
   for (double a : state.finger_joint_angles_rad)
     grip += a;
   if (!state.finger_joint_angles_rad.empty())
     grip /= static_cast<double>(state.finger_joint_angles_rad.size());
-  const bool grip_button = (state.buttons & grasp_buttons_) != 0;
-  if (!hand_closed_ && (grip > options_.grasp_close_rad || grip_button)) {
-    hand_closed_ = true;
-    const std::int32_t b = nearest_body(tip_m);
-    if (b >= 0) {
-      const glm::dvec3 half = q * glm::dvec3(options_.jaw_length_mm * 0.5, 0.0, 0.0);
-      const glm::dvec3 gap = q * glm::dvec3(0.0, 0.0, jaw_radius_mm_);
-      const double r = jaw_radius_mm_ * sim::kMetresPerMillimetre;
-      sim::Grasper g{
-          {sim::scene_to_sim(tip_mm_ - half + gap), sim::scene_to_sim(tip_mm_ + half + gap), r},
-          {sim::scene_to_sim(tip_mm_ - half - gap), sim::scene_to_sim(tip_mm_ + half - gap), r}};
-      const std::size_t held = grasp_.close(world_.body(static_cast<std::uint32_t>(b)), g,
-                                            options_.grasp_capture_mm * sim::kMetresPerMillimetre);
-      if (held > 0) grasp_body_ = b;
-      add_event(SessionEventKind::GraspClosed, held > 0 ? b : -1,
+  const bool grip_button = (state.buttons & hand.grasp_buttons) != 0;
+  if (!hand.hand_closed && (grip > options_.grasp_close_rad || grip_button)) {
+    hand.hand_closed = true;
+    if (nearest_body(tip_m) >= 0) {
+      const std::size_t held = close_jaws(hand, tip_m);
+      add_event(SessionEventKind::GraspClosed, i, hand.grasp_body,
                 std::to_string(held) + " vertices held");
     }
-  } else if (hand_closed_ && grip < options_.grasp_open_rad && !grip_button) {
-    hand_closed_ = false;
-    if (grasp_body_ >= 0) {
-      grasp_.release(world_.body(static_cast<std::uint32_t>(grasp_body_)));
-      add_event(SessionEventKind::GraspReleased, grasp_body_, "");
-      grasp_body_ = -1;
+  } else if (hand.hand_closed && grip < options_.grasp_open_rad && !grip_button) {
+    hand.hand_closed = false;
+    if (hand.grasp_body >= 0) {
+      hand.grasp.release(world_.body(static_cast<std::uint32_t>(hand.grasp_body)));
+      add_event(SessionEventKind::GraspReleased, i, hand.grasp_body, "");
+      hand.grasp_body = -1;
     }
   }
-  if (grasp_body_ >= 0) grasp_.drag(world_.body(static_cast<std::uint32_t>(grasp_body_)), tip_m);
-  world_.set_held_body(grasp_body_);
+  if (hand.grasp_body >= 0)
+    hand.grasp.drag(world_.body(static_cast<std::uint32_t>(hand.grasp_body)), tip_m);
+}
 
-  // Probe, tissue contact and the soft-tissue step. While the scalpel cuts, the blade parts the
-  // tissue instead of pushing it (no reaction on the surface; the hand still feels it).
-  world_.options().haptic.apply_reaction = cut_body_ < 0;
-  const sim::HapticOutput h = world_.step(tip_m);
-  out_.force_N = h.force_N;
-  out_.contact = h.contact;
-  out_.contact_stiffness_N_per_m = contact_stiffness(h);
-  // A new touch (not a flicker at the edge of one: 100 ticks without contact before it).
-  if (h.contact && !contact_ && ticks_ >= last_contact_tick_ + 100)
-    add_event(SessionEventKind::Contact, h.body, "");
-  if (h.contact) last_contact_tick_ = ticks_;
-  contact_ = h.contact;
-  for (const sim::SimEvent& e : world_.take_events()) {
-    (void)e;
-    ++divergence_events_;
+void SessionSim::update_scalpel(std::size_t i, const devices::HapticState& state,
+                                const glm::dvec3& tip_m) {
+  Hand& hand = hands_[i];
+  const bool button = (state.buttons & hand.cut_buttons) != 0;
+  if (button && !hand.button) {
+    hand.cut_body = nearest_body(tip_m);
+    hand.cut_points_m.clear();
+    add_event(SessionEventKind::CutStarted, i, hand.cut_body, "");
   }
-  finger_contacts(tip_m, q, state.finger_joint_angles_rad);
-
-  // Scalpel: a cut button held sweeps the blade, its release cuts.
-  const bool button = (state.buttons & cut_buttons_) != 0;
-  if (button && !button_) {
-    cut_body_ = nearest_body(tip_m);
-    cut_points_m_.clear();
-    add_event(SessionEventKind::CutStarted, cut_body_, "");
-  }
-  if (button && cut_body_ >= 0) {
-    const auto b = static_cast<std::uint32_t>(cut_body_);
+  if (button && hand.cut_body >= 0) {
+    const auto b = static_cast<std::uint32_t>(hand.cut_body);
     sim::ScalpelSweep sweep;
-    if (sweep.sample(world_.body(b), world_.bvh(b), tip_m, sim::scene_to_sim(blade_to_mm_)))
-      cut_points_m_.push_back(sweep.points().back());
+    if (sweep.sample(world_.body(b), world_.bvh(b), tip_m, sim::scene_to_sim(hand.blade_to_mm)))
+      hand.cut_points_m.push_back(sweep.points().back());
   }
-  if (!button && button_ && cut_body_ >= 0) {
-    const auto b = static_cast<std::uint32_t>(cut_body_);
+  if (!button && hand.button && hand.cut_body >= 0) {
+    const auto b = static_cast<std::uint32_t>(hand.cut_body);
     std::string detail;
     try {
-      if (grasp_body_ == cut_body_) {  // the held vertices may be renumbered by the cut
-        grasp_.release(world_.body(b));
-        grasp_body_ = -1;
+      // The held vertices may be renumbered by the cut: a hand holding the body lets go and,
+      // when it is another hand, takes hold again where its jaws are once the cut is made (the
+      // tissue stays under its tension).
+      std::vector<std::size_t> regrasp;
+      for (std::size_t o = 0; o < hands_.size(); ++o) {
+        if (hands_[o].grasp_body != hand.cut_body) continue;
+        hands_[o].grasp.release(world_.body(b));
+        hands_[o].grasp_body = -1;
+        if (o != i) regrasp.push_back(o);
       }
-      const sim::CutResult cut = world_.cut(b, cut_points_m_);
+      const sim::CutResult cut = world_.cut(b, hand.cut_points_m);
       detail = "incision through " + std::to_string(cut.path.size()) + " vertices";
       out_.topology_changed = true;
+      for (const std::size_t o : regrasp) {
+        (void)close_jaws(hands_[o], tips_m_[o]);
+        world_.set_probe(o, {hands_[o].grasp_body, hands_[o].cut_body < 0});
+      }
     } catch (const sim::CutError& e) {
       detail = std::string("no cut: ") + e.what();
     }
-    add_event(SessionEventKind::Cut, cut_body_, std::move(detail));
-    cut_body_ = -1;
+    add_event(SessionEventKind::Cut, i, hand.cut_body, std::move(detail));
+    hand.cut_body = -1;
   }
-  button_ = button;
-
-  out_.grasping = grasp_body_ >= 0;
-  out_.cutting = cut_body_ >= 0;
-  command_for(out_, tip_m, out_.command_N);
-  ticks_ += ticks;
-  return out_;
+  hand.button = button;
 }
 
-void SessionSim::finger_contacts(const glm::dvec3& tip_m, const glm::dquat& hand,
+void SessionSim::finger_contacts(Hand& hand, HandOutput& out, const glm::dvec3& tip_m,
                                  const std::vector<double>& joints_rad) {
-  std::fill(out_.finger_contact_N.begin(), out_.finger_contact_N.end(), 0.0);
-  if (fingers_ == 0) return;
-  const auto tips = fingertips_mm(sim::sim_to_scene(tip_m), hand, probe_length_mm_, joints_rad);
+  std::fill(out.finger_contact_N.begin(), out.finger_contact_N.end(), 0.0);
+  if (hand.fingers == 0) return;
+  const auto tips =
+      fingertips_mm(sim::sim_to_scene(tip_m), hand.orientation, probe_length_mm_, joints_rad);
   constexpr double kReach_m = 0.02;  // deeper than any finger presses
-  for (std::size_t f = 0; f < std::min(fingers_, tips.size()); ++f) {
+  for (std::size_t f = 0; f < std::min(hand.fingers, tips.size()); ++f) {
     const glm::dvec3 p = sim::scene_to_sim(tips[f]);
-    FingerTouch& touch = finger_touch_[f];
+    FingerTouch& touch = hand.finger_touch[f];
     double depth = 0.0;
     sim::SurfacePoint deepest;
     for (std::size_t b = 0; b < world_.body_count(); ++b) {
@@ -328,8 +418,8 @@ void SessionSim::finger_contacts(const glm::dvec3& tip_m, const glm::dquat& hand
     // from zero rather than jumping in with whatever depth the step's timing gave.
     if (depth > 0.0 && !touch.touching) touch.entry_depth_m = depth;
     touch.touching = depth > 0.0;
-    out_.finger_contact_N[f] =
-        finger_stiffness_N_per_m_ * std::max(0.0, depth - touch.entry_depth_m);
+    out.finger_contact_N[f] =
+        hand.finger_stiffness_N_per_m * std::max(0.0, depth - touch.entry_depth_m);
   }
 }
 
@@ -357,23 +447,25 @@ double SessionSim::contact_stiffness(const sim::HapticOutput& h) const {
   return tissue * coupling_N_per_m_ / (tissue + coupling_N_per_m_);
 }
 
-void SessionSim::command_for(const TickOutput& step, const glm::dvec3& tip_now_m,
-                             std::vector<double>& command_N) const {
+void SessionSim::command_for(const TickOutput& tick_output, std::size_t hand,
+                             const glm::dvec3& tip_now_m, std::vector<double>& command_N) const {
+  const Hand& h = hands_[hand];
+  const HandOutput& step = tick_output.hand(hand);
   // In contact the proxy stays where the step put it while the tip moves on: the contact's
   // stiffness times the tip's motion is added (the coupling spring alone against a membrane,
   // in series with the tissue's own against a volume). Outside contact there is no force.
   glm::dvec3 force = step.force_N;
   if (step.contact) force += step.contact_stiffness_N_per_m * (step.tip_m - tip_now_m);
-  const double contact_N = std::min(glm::length(force), max_force_N_);
-  command_N.resize(command_size_);
+  const double contact_N = std::min(glm::length(force), h.setup.max_force_N);
+  command_N.resize(h.command_size);
   std::size_t k = 0;
-  for (std::size_t i = 0; i < channels_.size(); ++i) {
-    const devices::ForceChannel& c = channels_[i];
-    const devices::ChannelRole& role = roles_[i];
-    const double limit_N = std::min(max_force_N_, c.max_force_N);
+  for (std::size_t i = 0; i < h.setup.channels.size(); ++i) {
+    const devices::ForceChannel& c = h.setup.channels[i];
+    const devices::ChannelRole& role = h.roles[i];
+    const double limit_N = std::min(h.setup.max_force_N, c.max_force_N);
     if (role.use == devices::ChannelUse::Vector) {
       // The force itself, in the device's frame: scaled down as a whole, never turned.
-      glm::dvec3 f = options_.device_frame.force_to_device(force);
+      glm::dvec3 f = h.setup.device_frame.force_to_device(force);
       const double along[3] = {f.x, f.y, f.z};
       const double magnitude = devices::force_extent(c, along);  // per axis when rated so
       if (magnitude > limit_N) f *= limit_N / magnitude;

@@ -23,6 +23,7 @@ std::shared_ptr<const Topology> make_topology(const Dlfl& mesh) {
 Snapshot initial_snapshot(SessionSim& sim) {
   Snapshot initial;
   initial.solids.resize(sim.body_count());
+  initial.instruments.resize(sim.hand_count());
   for (std::size_t b = 0; b < sim.body_count(); ++b) {
     const sim::SoftBody& body = sim.world().body(static_cast<std::uint32_t>(b));
     initial.solids[b].positions_mm.resize(body.positions().size());
@@ -41,7 +42,9 @@ SnapshotPublisher::SnapshotPublisher(SessionSim& sim, const Snapshot& initial,
     topology_.push_back(st.topology);
 }
 
-void SnapshotPublisher::publish(const TickOutput& out, const devices::HapticState& state) {
+void SnapshotPublisher::publish(const TickOutput& out,
+                                std::span<const devices::HapticState> states) {
+  const devices::HapticState& state = states.front();
   Snapshot& s = snapshots_.back();
   s.tick = sim_.ticks();
   for (std::size_t b = 0; b < sim_.body_count(); ++b) {
@@ -55,10 +58,9 @@ void SnapshotPublisher::publish(const TickOutput& out, const devices::HapticStat
     for (std::size_t i = 0; i < x.size(); ++i)
       st.positions_mm[i] = sim::sim_to_scene(x[i]);
   }
-  s.tip_mm = sim_.tip_mm();
-  s.blade_to_mm = sim_.blade_to_mm();
-  s.grasping = sim_.grasping();
-  s.cutting = sim_.cutting();
+  s.instruments.resize(sim_.hand_count());
+  for (std::size_t h = 0; h < sim_.hand_count(); ++h)
+    s.instruments[h] = {sim_.tip_mm(h), sim_.blade_to_mm(h), sim_.grasping(h), sim_.cutting(h)};
   for (; published_events_ < sim_.events().size(); ++published_events_) {
     if (event_times_.size() < event_times_.capacity()) event_times_.push_back(state.sample_time);
     recent_[published_events_ % recent_.size()] = {published_events_, state.sample_time};

@@ -6,6 +6,7 @@
 #include <atomic>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -44,13 +45,18 @@ struct SolidState {
 
 /// What the tissue thread hands the render thread after each step (the head pose comes straight
 /// from the haptic thread, see HeadPose below).
-struct Snapshot {
-  std::uint64_t tick = 0;
-  std::vector<SolidState> solids;
+/// One hand's instrument as drawn: its tip, where its blade reaches, what it does.
+struct InstrumentState {
   glm::dvec3 tip_mm{0.0};
   glm::dvec3 blade_to_mm{0.0};
   bool grasping = false;
   bool cutting = false;
+};
+
+struct Snapshot {
+  std::uint64_t tick = 0;
+  std::vector<SolidState> solids;
+  std::vector<InstrumentState> instruments;  ///< one per hand
   std::uint64_t event_count = 0;
   std::array<EventStamp, 16> recent{};  ///< the last events, by index % size
 };
@@ -67,7 +73,8 @@ class SnapshotPublisher {
   SnapshotPublisher(SessionSim& sim, const Snapshot& initial, TripleBuffer<Snapshot>& snapshots,
                     std::vector<devices::Nanoseconds>& event_times);
   /// After a step: `out` its output, `state` the glove state it ran on.
-  void publish(const TickOutput& out, const devices::HapticState& state);
+  /// `states`: the hands' device states the step ran on (the first's sample time stamps events).
+  void publish(const TickOutput& out, std::span<const devices::HapticState> states);
   /// Events the simulation has made so far (any thread).
   [[nodiscard]] std::size_t events() const { return event_count_.load(std::memory_order_relaxed); }
 

@@ -13,16 +13,20 @@
 
 namespace bisturi::runtime {
 
-TissueThread::TissueThread(SessionSim& sim, const devices::HapticState& shape, bool threaded,
+TissueThread::TissueThread(SessionSim& sim, std::vector<devices::HapticState> shapes, bool threaded,
                            bool realtime_priority, AfterStep after_step, std::size_t capacity)
     : sim_(sim),
       after_step_(std::move(after_step)),
       capacity_(capacity),
-      states_(capacity, shape),
+      states_(capacity, shapes),
       ticks_(capacity, 1),
       outputs_(capacity) {
-  for (TickOutput& o : outputs_)
-    o.command_N.reserve(sim.command_size());  // no allocation when a step's output is copied
+  // No allocation when a step's output is copied.
+  for (TickOutput& o : outputs_) {
+    o.other_hands.resize(sim.hand_count() - 1);
+    for (std::size_t h = 0; h < sim.hand_count(); ++h)
+      o.hand(h).command_N.reserve(sim.command_size(h));
+  }
   if (!threaded) return;
   thread_ = std::thread([this, realtime_priority] {
     if (realtime_priority) (void)request_realtime_priority(1);  // under haptics, over render
@@ -48,11 +52,14 @@ bool request_realtime_priority(int below) {
   return pthread_setschedparam(pthread_self(), SCHED_FIFO, &p) == 0;
 }
 
-TissueThread::Push TissueThread::push(const devices::HapticState& state, std::uint32_t ticks) {
+TissueThread::Push TissueThread::push(std::span<const devices::HapticState> states,
+                                      std::uint32_t ticks) {
   if (failed_.load(std::memory_order_acquire)) return Push::Failed;
   const std::uint64_t k = pushed_.load(std::memory_order_relaxed) + 1;
   if (k - done_.load(std::memory_order_acquire) >= capacity_) return Push::Behind;
-  states_[k % capacity_] = state;
+  std::vector<devices::HapticState>& slot = states_[k % capacity_];
+  for (std::size_t h = 0; h < std::min(slot.size(), states.size()); ++h)
+    slot[h] = states[h];
   ticks_[k % capacity_] = ticks;
   pushed_.store(k, std::memory_order_release);
   if (!thread_.joinable()) {
@@ -88,14 +95,14 @@ TissueThread::TickStep TissueThread::step_for(std::uint64_t due) const {
 }
 
 void TissueThread::step(std::uint64_t j) {
-  const devices::HapticState& state = states_[j % capacity_];
+  const std::vector<devices::HapticState>& states = states_[j % capacity_];
   const std::uint32_t ticks = ticks_[j % capacity_];
   const auto begin = std::chrono::steady_clock::now();
-  const TickOutput& out = sim_.tick(state, ticks);
+  const TickOutput& out = sim_.tick(states, ticks);
   const auto end = std::chrono::steady_clock::now();
   outputs_[j % capacity_] = out;
   if (after_step_)
-    after_step_(out, state, std::chrono::duration<double, std::milli>(end - begin).count());
+    after_step_(out, states, std::chrono::duration<double, std::milli>(end - begin).count());
   done_.store(j, std::memory_order_release);
   // The rate controller reads the median of the recent steps' busy times: a cut's long step, or
   // a few steps the machine stole time from, do not move it.

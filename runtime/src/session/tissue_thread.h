@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <exception>
 #include <functional>
+#include <span>
 #include <thread>
 #include <vector>
 
@@ -27,15 +28,20 @@ namespace bisturi::runtime {
 
 class TissueThread {
  public:
-  /// Called on the simulation's thread after each step with its output, the glove state it ran
-  /// on and the step's wall time.
+  /// Called on the simulation's thread after each step with its output, the device states it
+  /// ran on (one per hand) and the step's wall time.
   using AfterStep =
-      std::function<void(const TickOutput&, const devices::HapticState&, double step_ms)>;
+      std::function<void(const TickOutput&, std::span<const devices::HapticState>, double step_ms)>;
 
-  /// `shape`: a glove state of the device's shape (poses, joints); every ring slot is made like
-  /// it up front, so handing a state over never allocates on the haptic thread.
-  TissueThread(SessionSim& sim, const devices::HapticState& shape, bool threaded,
+  /// `shapes`: one state per hand in its device's shape (poses, joints); every ring slot is made
+  /// like them up front, so handing states over never allocates on the haptic thread.
+  TissueThread(SessionSim& sim, std::vector<devices::HapticState> shapes, bool threaded,
                bool realtime_priority, AfterStep after_step, std::size_t capacity = 8192);
+  /// One hand.
+  TissueThread(SessionSim& sim, const devices::HapticState& shape, bool threaded,
+               bool realtime_priority, AfterStep after_step, std::size_t capacity = 8192)
+      : TissueThread(sim, std::vector<devices::HapticState>{shape}, threaded, realtime_priority,
+                     std::move(after_step), capacity) {}
   ~TissueThread();
   TissueThread(const TissueThread&) = delete;
   TissueThread& operator=(const TissueThread&) = delete;
@@ -44,7 +50,11 @@ class TissueThread {
   /// periods. Never throws: Behind when the simulation is a whole ring (capacity steps) behind
   /// (the state is not queued), Failed once a step has thrown (finish() rethrows it).
   enum class Push : std::uint8_t { Queued, Behind, Failed };
-  Push push(const devices::HapticState& state, std::uint32_t ticks = 1);
+  Push push(std::span<const devices::HapticState> states, std::uint32_t ticks = 1);
+  /// One hand's state.
+  Push push(const devices::HapticState& state, std::uint32_t ticks = 1) {
+    return push(std::span<const devices::HapticState>(&state, 1), ticks);
+  }
   /// Haptic thread: step j's output (1-based) once it is finished, else nullptr.
   [[nodiscard]] const TickOutput* output(std::uint64_t j) const;
 
@@ -75,7 +85,7 @@ class TissueThread {
   SessionSim& sim_;
   AfterStep after_step_;
   std::size_t capacity_;
-  std::vector<devices::HapticState> states_;
+  std::vector<std::vector<devices::HapticState>> states_;  ///< per slot, one per hand
   std::vector<std::uint32_t> ticks_;  ///< haptic periods each pending step covers
   static constexpr std::size_t kRecentSteps = 32;
   std::array<double, kRecentSteps> recent_ms_{};  ///< simulation thread only

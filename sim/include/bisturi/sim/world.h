@@ -1,14 +1,16 @@
 #pragma once
-// A simulation world: soft bodies with their BVHs, one haptic proxy, tissue-tissue contact and
-// the integrator, advanced by one full haptic-rate step at a time:
-//   haptic proxy force (on the current surface, reaction onto the tissue) -> tissue-tissue
+// A simulation world: soft bodies with their BVHs, one haptic proxy per instrument (a hand),
+// tissue-tissue contact and the integrator, advanced by one full haptic-rate step at a time:
+//   each proxy's force (on the current surface, reaction onto the tissue) -> tissue-tissue
 //   contact forces -> implicit step of every body (with the divergence guard) -> BVH refit.
+// Two hands act on the same bodies in the same step, so what one pulls the other feels.
 // A body is a spring membrane stepped by the ImplicitIntegrator unless it was given a volume
 // (set_volume), which then steps it.
 // Single-threaded and deterministic. Divergence events are collected for the runtime to report.
 
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "bisturi/sim/collision.h"
@@ -68,9 +70,22 @@ class SimWorld {
 
   /// One full step with the device (probe tip) at device_m; returns the force for the device.
   HapticOutput step(const glm::dvec3& device_m);
-  /// The body the instrument holds (-1: none): the probe does not touch it, since its held
-  /// vertices follow the instrument and a contact with them would only flicker.
-  void set_held_body(std::int32_t body) { held_body_ = body; }
+  /// One full step with probe i's tip at devices_m[i]; out[i] gets its force (out is as long).
+  void step(std::span<const glm::dvec3> devices_m, std::span<HapticOutput> out);
+  /// What a probe may do in a step. held_body: the body its instrument holds (-1: none), which
+  /// it does not touch, since the held vertices follow it and a contact would only flicker.
+  /// pushes: whether its contact pushes the tissue (not while its blade parts it; the hand
+  /// still feels it).
+  struct ProbeState {
+    std::int32_t held_body = -1;
+    bool pushes = true;
+  };
+  void set_probe(std::size_t probe, ProbeState state);
+  /// set_probe(0, ...)'s held body.
+  void set_held_body(std::int32_t body) { set_probe(0, {body, probe_state(0).pushes}); }
+  [[nodiscard]] ProbeState probe_state(std::size_t probe) const {
+    return probe < probe_states_.size() ? probe_states_[probe] : ProbeState{};
+  }
   /// Cuts body i along blade contact points and rebuilds its BVH.
   CutResult cut(std::uint32_t i, std::span<const glm::dvec3> points_m,
                 const CutOptions& options = {});
@@ -84,8 +99,9 @@ class SimWorld {
   WorldOptions& options() { return options_; }
 
  private:
-  std::int32_t held_body_ = -1;
   void tissue_contacts();
+  /// Makes probes up to `count` (a new hand's proxy starts untouched).
+  void ensure_probes(std::size_t count);
 
   WorldOptions options_;
   std::unique_ptr<CollisionDevice> device_;  // heap: the world stays movable
@@ -94,7 +110,9 @@ class SimWorld {
   std::vector<SurfaceBvh> bvhs_;
   std::vector<StepStats> stats_;
   ImplicitIntegrator integrator_;
-  HapticProxy proxy_;
+  std::vector<HapticProxy> proxies_;
+  std::vector<ProbeState> probe_states_;
+  std::vector<std::vector<TouchTarget>> targets_;  ///< per probe, scratch
   std::vector<SimEvent> events_;
   std::uint64_t steps_ = 0;
   std::size_t last_contacts_ = 0;

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -41,13 +42,15 @@ struct SessionEvent {
   SessionEventKind kind = SessionEventKind::Contact;
   std::uint64_t tick = 0;
   std::int32_t body = -1;
-  std::string detail;  ///< e.g. "42 vertices held", "path of 9 vertices", the cut error
+  std::uint32_t hand = 0;  ///< the hand (haptic device) whose instrument did it
+  std::string detail;      ///< e.g. "42 vertices held", "path of 9 vertices", the cut error
 };
 
-struct TickOutput {
+/// One hand's share of a step: its instrument's force and what its device is commanded.
+struct HandOutput {
   glm::dvec3 force_N{0.0};        ///< proxy force on the tip (world frame)
   glm::dvec3 tip_m{0.0};          ///< the tip the step was computed for
-  std::vector<double> command_N;  ///< per glove force component, before the force guard
+  std::vector<double> command_N;  ///< per force component of the hand's device, before its guard
   /// Per finger actuator (the device's 1-component channels with a force unit, in order): the
   /// force of that finger's own contact with the tissue (N, >= 0; hand_model.h).
   std::vector<double> finger_contact_N;
@@ -57,8 +60,18 @@ struct TickOutput {
   double contact_stiffness_N_per_m = 0.0;
   bool grasping = false;  ///< the grasper holds tissue after this step
   bool cutting = false;   ///< the scalpel is sweeping after this step
+};
+
+/// A step's output. The first hand's is the TickOutput itself (all a one-handed session has);
+/// the others' are in other_hands: hand(i) reads either.
+struct TickOutput : HandOutput {
+  std::vector<HandOutput> other_hands;
   bool topology_changed = false;
   std::size_t events = 0;  ///< events added by this tick (the last ones of events())
+  [[nodiscard]] const HandOutput& hand(std::size_t i) const {
+    return i == 0 ? *this : other_hands[i - 1];
+  }
+  HandOutput& hand(std::size_t i) { return i == 0 ? *this : other_hands[i - 1]; }
 };
 
 /// Most threads a tissue step may use (the integrator's team limit).
@@ -77,6 +90,7 @@ struct SessionSimOptions {
   /// Threads of the soft-tissue step (sim::IntegratorOptions::threads). The bits of the state
   /// depend on it, so a trace records it and its replay uses the same count.
   unsigned tissue_threads = 1;
+  /// The first hand's device (a session with more hands gives each a HandSetup):
   /// Where the haptic device sits in the scene: its poses arrive in the scene frame (the haptic
   /// loop converts them), and a 3-component channel's force vector leaves through the inverse
   /// rotation, in the device's own frame.
@@ -94,17 +108,35 @@ struct SessionSimOptions {
   std::vector<devices::ButtonUse> button_uses;
 };
 
+/// One hand: a haptic device and the instruments it drives (SessionSimOptions' per-device
+/// fields, for each device).
+struct HandSetup {
+  std::vector<devices::ForceChannel> channels;
+  DeviceFrame device_frame;
+  devices::DeviceSpec device_spec;
+  std::vector<devices::ChannelRole> channel_roles;
+  std::vector<devices::ButtonUse> button_uses;
+  double max_force_N = 3.0;  ///< the scene's limit for the device
+};
+
 class SessionSim {
  public:
-  /// Takes the built solids (moved into soft bodies) and the glove's force channel layout.
+  /// Takes the built solids (moved into soft bodies) and the glove's force channel layout: one
+  /// hand, its device the options' (its limit the scene's first haptic device's max_force_N).
   SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> solids,
              std::vector<devices::ForceChannel> glove_channels,
              const SessionSimOptions& options = {});
+  /// One hand per setup (at least one), acting on the same tissue in the same steps.
+  SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> solids,
+             std::vector<HandSetup> hands, const SessionSimOptions& options = {});
 
   /// One simulation step with the glove in `state`, covering `ticks` haptic periods (its time
   /// step; the tissue may step at a fraction of the haptic rate, see step_schedule.h).
   const TickOutput& tick(const devices::HapticState& state, std::uint32_t ticks = 1);
+  /// The same with hand i's device in states[i] (one state per hand).
+  const TickOutput& tick(std::span<const devices::HapticState> states, std::uint32_t ticks = 1);
   [[nodiscard]] double haptic_period_ms() const { return 1000.0 / haptic_hz_; }
+  [[nodiscard]] std::size_t hand_count() const { return hands_.size(); }
 
   /// The device's command for a step's output with the tip now at tip_now_m (scene frame; the
   /// step may be a few ticks old when the tissue runs on its own thread): the proxy force
@@ -117,15 +149,22 @@ class SessionSim {
   /// For the step's own tip it is the step's command_N, bit for bit. Reads only what the
   /// constructor set: safe to call from another thread while tick() runs.
   void command_for(const TickOutput& step, const glm::dvec3& tip_now_m,
+                   std::vector<double>& command_N) const {
+    command_for(step, 0, tip_now_m, command_N);
+  }
+  /// command_for for hand `hand`'s device.
+  void command_for(const TickOutput& step, std::size_t hand, const glm::dvec3& tip_now_m,
                    std::vector<double>& command_N) const;
   /// The probe tip (metres) of a glove state: its first end effector's position.
   static glm::dvec3 tip_of(const devices::HapticState& state);
-  /// Number of force components of the glove's command.
-  [[nodiscard]] std::size_t command_size() const { return command_size_; }
-  /// The glove's force channels as the session limits them (each no stronger than the scene's
+  /// Number of force components of a hand's command.
+  [[nodiscard]] std::size_t command_size(std::size_t hand = 0) const {
+    return hands_[hand].command_size;
+  }
+  /// A hand's force channels as the session limits them (each no stronger than the scene's
   /// max_force_N): what the force guard checks, so a command at the scene's limit counts as
   /// clamped there.
-  [[nodiscard]] std::vector<devices::ForceChannel> guard_channels() const;
+  [[nodiscard]] std::vector<devices::ForceChannel> guard_channels(std::size_t hand = 0) const;
 
   [[nodiscard]] std::size_t body_count() const { return world_.body_count(); }
   sim::SimWorld& world() { return world_; }
@@ -137,40 +176,21 @@ class SessionSim {
   [[nodiscard]] std::uint64_t divergence_events() const { return divergence_events_; }
   /// Combined state hash of every body (FNV-1a over their SoftBody::state_hash in order).
   [[nodiscard]] std::uint64_t state_hash();
-  /// Where the tip and the blade are (mm), for drawing the instruments.
-  [[nodiscard]] const glm::dvec3& tip_mm() const { return tip_mm_; }
-  [[nodiscard]] const glm::dvec3& blade_to_mm() const { return blade_to_mm_; }
-  [[nodiscard]] bool grasping() const { return grasp_body_ >= 0; }
-  [[nodiscard]] bool cutting() const { return cut_body_ >= 0; }
+  /// Where a hand's tip and blade are (mm), for drawing the instruments.
+  [[nodiscard]] const glm::dvec3& tip_mm(std::size_t hand = 0) const { return hands_[hand].tip_mm; }
+  [[nodiscard]] const glm::dvec3& blade_to_mm(std::size_t hand = 0) const {
+    return hands_[hand].blade_to_mm;
+  }
+  [[nodiscard]] bool grasping(std::size_t hand = 0) const { return hands_[hand].grasp_body >= 0; }
+  [[nodiscard]] bool cutting(std::size_t hand = 0) const { return hands_[hand].cut_body >= 0; }
 
  private:
-  std::int32_t nearest_body(const glm::dvec3& p_m);
-  /// The contact stiffness of a step's haptic output (TickOutput::contact_stiffness_N_per_m).
-  [[nodiscard]] double contact_stiffness(const sim::HapticOutput& h) const;
-  /// Per body: the contact modulus E / (1 - nu^2) of a volume (Pa), 0 for a membrane.
-  std::vector<double> contact_modulus_Pa_;
-  double probe_radius_m_ = 0.001;
-  void add_event(SessionEventKind kind, std::int32_t body, std::string detail);
-
-  SessionSimOptions options_;
-  sim::SimWorld world_;
-  std::vector<std::string> names_;
-  std::vector<devices::ForceChannel> channels_;
-  std::vector<devices::ChannelRole> roles_;  ///< one per channel
-  double max_force_N_ = 3.0;
-  double coupling_N_per_m_ = 0.0;
-  double finger_stiffness_N_per_m_ = 300.0;
-  double probe_length_mm_ = 60.0;
-  std::size_t fingers_ = 0;  ///< finger actuators (1-component channels with a force unit)
-  void finger_contacts(const glm::dvec3& tip_m, const glm::dquat& hand,
-                       const std::vector<double>& joints_rad);
-  /// How deep p lies inside the tissue behind its closest surface point (0: outside, or the
-  /// closest point is not straight ahead along its normal).
-  static double penetration_depth(const sim::SurfacePoint& closest, const glm::dvec3& p_m);
   /// A fingertip's touch begins no deeper than this (a normal press at 1 m/s over a 4 ms step).
   static constexpr double kFingerEntryDepth_m = 0.004;
   /// cos 60 degrees: how far off the normal the closest point may lie for an inside point.
   static constexpr double kStraightAhead = 0.5;
+  /// Steps a touching finger keeps its last plane while the closest point lies sideways.
+  static constexpr std::uint32_t kFingerHoldSteps = 8;
   /// A finger's contact at the last step: whether it touched, and the tangent plane it pressed.
   struct FingerTouch {
     bool touching = false;
@@ -180,29 +200,64 @@ class SessionSim {
     double entry_depth_m = 0.0;    ///< where the touch began: the force grows from there
     std::uint32_t held_steps = 0;  ///< steps since then
   };
-  /// Steps a touching finger keeps its last plane while the closest point lies sideways.
-  static constexpr std::uint32_t kFingerHoldSteps = 8;
-  std::vector<FingerTouch> finger_touch_;  ///< one per finger
-  std::size_t command_size_ = 0;
+  /// A hand's device, its instruments and what they hold.
+  struct Hand {
+    HandSetup setup;
+    std::vector<devices::ChannelRole> roles;  ///< one per channel
+    std::size_t command_size = 0;
+    std::size_t fingers = 0;  ///< finger actuators (1-component channels with a force unit)
+    double finger_stiffness_N_per_m = 300.0;
+    std::vector<FingerTouch> finger_touch;  ///< one per finger
+    std::uint64_t cut_buttons = 1;          ///< the bits of the buttons that cut
+    std::uint64_t grasp_buttons = 0;        ///< the bits of the buttons that grasp
+    sim::Grasp grasp;
+    std::int32_t grasp_body = -1;
+    bool hand_closed = false;
+    std::vector<glm::dvec3> cut_points_m;
+    std::int32_t cut_body = -1;
+    bool button = false;
+    bool contact = false;
+    std::uint64_t last_contact_tick = 0;
+    glm::dvec3 tip_mm{0.0};
+    glm::dvec3 blade_to_mm{0.0};
+    glm::dquat orientation{1.0, 0.0, 0.0, 0.0};
+  };
+
+  std::int32_t nearest_body(const glm::dvec3& p_m);
+  /// The contact stiffness of a step's haptic output (TickOutput::contact_stiffness_N_per_m).
+  [[nodiscard]] double contact_stiffness(const sim::HapticOutput& h) const;
+  void add_event(SessionEventKind kind, std::size_t hand, std::int32_t body, std::string detail);
+  /// The hand's grasper closes and opens with its fingers or grasp button; its held tissue
+  /// follows the tip.
+  void update_grasp(std::size_t hand, const devices::HapticState& state, const glm::dvec3& tip_m);
+  /// Closes hand's jaws at its tip on the body nearest it; the vertices held.
+  std::size_t close_jaws(Hand& hand, const glm::dvec3& tip_m);
+  /// The hand's scalpel: a cut button held sweeps the blade, its release cuts.
+  void update_scalpel(std::size_t hand, const devices::HapticState& state, const glm::dvec3& tip_m);
+  void finger_contacts(Hand& hand, HandOutput& out, const glm::dvec3& tip_m,
+                       const std::vector<double>& joints_rad);
+  /// How deep p lies inside the tissue behind its closest surface point (0: outside, or the
+  /// closest point is not straight ahead along its normal).
+  static double penetration_depth(const sim::SurfacePoint& closest, const glm::dvec3& p_m);
+
+  /// Per body: the contact modulus E / (1 - nu^2) of a volume (Pa), 0 for a membrane.
+  std::vector<double> contact_modulus_Pa_;
+  double probe_radius_m_ = 0.001;
+  SessionSimOptions options_;
+  sim::SimWorld world_;
+  std::vector<std::string> names_;
+  std::vector<Hand> hands_;
+  double coupling_N_per_m_ = 0.0;
+  double probe_length_mm_ = 60.0;
   double jaw_radius_mm_ = 1.5;
-  sim::Grasp grasp_;
-  std::int32_t grasp_body_ = -1;
-  bool hand_closed_ = false;
-  std::vector<glm::dvec3> cut_points_m_;
-  std::int32_t cut_body_ = -1;
-  bool button_ = false;
-  std::uint64_t cut_buttons_ = 1;    ///< the bits of the buttons that cut
-  std::uint64_t grasp_buttons_ = 0;  ///< the bits of the buttons that grasp
-  bool contact_ = false;
-  std::uint64_t last_contact_tick_ = 0;
   std::uint64_t ticks_ = 0;
   double haptic_hz_ = 1000.0;
   std::uint32_t step_ticks_ = 1;  ///< ticks the integrator's time step now covers
   std::uint64_t divergence_events_ = 0;
   std::vector<SessionEvent> events_;
   TickOutput out_;
-  glm::dvec3 tip_mm_{0.0};
-  glm::dvec3 blade_to_mm_{0.0};
+  std::vector<glm::dvec3> tips_m_;             ///< per hand, scratch
+  std::vector<sim::HapticOutput> haptic_out_;  ///< per hand, scratch
 };
 
 }  // namespace bisturi::runtime
