@@ -83,8 +83,9 @@ inline devices::Pose at_mm(const glm::dvec3& p_mm) {
 class HangableSteps final : public TickSteps {
  public:
   explicit HangableSteps(TickSteps& inner) : inner_(inner) {}
-  TissueThread::Push push(const devices::HapticState& state, std::uint32_t ticks) override {
-    return hung ? TissueThread::Push::Behind : inner_.push(state, ticks);
+  TissueThread::Push push(std::span<const devices::HapticState> states,
+                          std::uint32_t ticks) override {
+    return hung ? TissueThread::Push::Behind : inner_.push(states, ticks);
   }
   TissueThread::TickStep step_for(std::uint64_t k, std::uint64_t due) override {
     if (hung) {
@@ -140,10 +141,9 @@ struct Rig {
     steps = std::make_unique<LiveTickSteps>(*tissue, false, TissueRateController(1, 1, 1.0));
     hangable = std::make_unique<HangableSteps>(*steps);
     HapticLoopParts parts;
-    parts.haptic = guarded.get();
+    parts.hands = {{guarded.get(), options.device_frame, 0}};
     parts.steps = hangable.get();
     parts.sim = sim.get();
-    parts.frame = options.device_frame;
     parts.clock = &clock;
     parts.head = devices::as_tracker(head_device.get());
     parts.display_live = &display_live;

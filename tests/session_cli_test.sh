@@ -121,6 +121,28 @@ TOML
     echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "the arm's trace did not replay"; }
     echo "arm: ok"
     ;;
+  two-hands)
+    # config/two_hands.toml: the left arm takes hold of the organ beside the cut's path and holds
+    # it while the right glove's scalpel cuts; both in one haptic tick, recorded and replayed
+    # exactly (every force command of both devices, the final state).
+    rm -rf "$work/two-hands"
+    "$bisturi" run "$4" --duration 3 --eye-width 128 --eye-height 128 --no-openxr \
+      --out "$work/two-hands" --record "$work/two-hands.btrace" > "$work/two-hands.txt" 2>&1 ||
+      { cat "$work/two-hands.txt"; fail "bisturi run exited with $?"; }
+    report="$work/two-hands/report.json"
+    grep -q '"ending": "completed"' "$report" || fail "the two-handed session did not complete"
+    # Each event's "hand" comes just before its "kind" (the keys are sorted): who did what.
+    done_by=$(awk -F'"' '/"hand":/ { hand = $4 } /"kind":/ { print hand ":" $4 }' "$report")
+    echo "$done_by" | grep -q '^left:grasp$' || { echo "$done_by"; fail "the left hand held nothing"; }
+    echo "$done_by" | grep -q '^glove:cut$' || { echo "$done_by"; fail "the right hand cut nothing"; }
+    # The left still holds the organ when the cut is made: its release comes after the cut.
+    echo "$done_by" | awk '/^glove:cut$/ { cut = 1 } /^left:release$/ && cut { ok = 1 } END { exit !ok }' ||
+      { echo "$done_by"; fail "the left let go before the cut"; }
+    grep -q '"incision through' "$report" || fail "the cut made no incision"
+    out=$("$bisturi" replay "$work/two-hands.btrace" --json) || { echo "$out"; fail "replay exited $?"; }
+    echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "the two-handed trace did not replay"; }
+    echo "two-hands: ok"
+    ;;
   lockstep)
     # The tissue step inside the haptic tick (for comparison); on its own thread with a lag of one
     # tick (steps often finish late, so late-tick notes get written); at a fixed quarter of the

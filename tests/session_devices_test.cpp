@@ -53,26 +53,45 @@ device = "right"
   const DeviceChoice c = choose_session_devices(scene);
   ASSERT_NE(c.haptic, nullptr);
   EXPECT_EQ(c.haptic->name, "right");
+  ASSERT_EQ(c.hands.size(), 1u) << "only the named device is a hand";
   EXPECT_EQ(c.head->name, "head");
-  // Without a binding the first haptic device drives the instruments.
-  EXPECT_EQ(choose_session_devices(parse_scene(kDevices, "scene.toml")).haptic->name, "left");
+  // Without a binding every haptic device is a hand, in the scene's order.
+  const SceneDescription unbound_scene = parse_scene(kDevices, "scene.toml");
+  const DeviceChoice unbound = choose_session_devices(unbound_scene);
+  ASSERT_EQ(unbound.hands.size(), 2u);
+  EXPECT_EQ(unbound.hands[0]->name, "left");
+  EXPECT_EQ(unbound.hands[1]->name, "right");
+  EXPECT_EQ(unbound.haptic->name, "left");
 }
 
-TEST(SessionDevices, TwoHandsAndMissingRolesAreRefusedClearly) {
-  const std::string two_hands = error_of(std::string(kDevices) + R"(
-[[instruments]]
-name = "probe"
-kind = "probe"
-device = "left"
-
+TEST(SessionDevices, InstrumentsOnTwoDevicesMakeTwoHands) {
+  const SceneDescription scene = parse_scene(std::string(kDevices) + R"(
 [[instruments]]
 name = "scalpel"
 kind = "scalpel"
 device = "right"
+
+[[instruments]]
+name = "probe"
+kind = "probe"
+device = "left"
+)",
+                                             "scene.toml");
+  const DeviceChoice c = choose_session_devices(scene);
+  ASSERT_EQ(c.hands.size(), 2u);
+  EXPECT_EQ(c.hands[0]->name, "left") << "hands come in the scene's device order";
+  EXPECT_EQ(c.hands[1]->name, "right");
+}
+
+TEST(SessionDevices, MissingRolesAndUnknownDevicesAreRefusedClearly) {
+  const std::string not_haptic = error_of(std::string(kDevices) + R"(
+[[instruments]]
+name = "probe"
+kind = "probe"
+device = "head"
 )");
-  EXPECT_NE(two_hands.find("instrument 'scalpel' follows device 'right'"), std::string::npos)
-      << two_hands;
-  EXPECT_NE(two_hands.find("one haptic device"), std::string::npos) << two_hands;
+  EXPECT_NE(not_haptic.find("instrument 'probe' names device 'head'"), std::string::npos)
+      << not_haptic;
   const std::string no_head = error_of(R"(
 [[devices]]
 name = "left"

@@ -154,7 +154,7 @@ TEST(HapticLoop, TheSupervisorZeroesAStalledTickWithinTheWatchdogLimit) {
   // The loop comes back: the guard engages again from zero (ramp-in), never with a jump.
   rig.run_to(rig.clock.now() + milliseconds(5));
   EXPECT_LT(glm::length(rig.applied()), 0.01);
-  EXPECT_EQ(rig.loop->counters().supervisor_zeros, 1u);
+  EXPECT_EQ(rig.loop->counters().hands[0].supervisor_zeros, 1u);
 }
 
 /// From its start the rig's virtual clock is read as following the wall clock, and a thread looks
@@ -247,7 +247,7 @@ TEST(HapticLoop, ATickStuckInTheDevicesWriteIsZeroedPastIt) {
   // Once the write returns, the tick finishes the job: the guard latched, a zero sent, and the
   // arm holds zero (the guard engages again only from a small command, then ramps in).
   EXPECT_NE(rig.guard->state(), devices::GuardState::Engaged);
-  EXPECT_EQ(rig.loop->counters().supervisor_zeros, 1u);
+  EXPECT_EQ(rig.loop->counters().hands[0].supervisor_zeros, 1u);
   (void)rig.loop->tick(rig.clock.now() + milliseconds(1));
   EXPECT_EQ(rig.applied(), glm::dvec3(0.0));
 }
@@ -279,7 +279,7 @@ TEST(HapticLoop, ARealStallIsZeroedByTheSupervisorThread) {
   std::printf("stall to zero output: %.2f ms (limit 3 ms + the supervisor's 0.25 ms)\n",
               zero_after_ms);
   EXPECT_GE(zero_after_ms, 3.0) << "zeroed before the stall passed its limit";
-  EXPECT_EQ(rig.loop->counters().supervisor_zeros, 1u);
+  EXPECT_EQ(rig.loop->counters().hands[0].supervisor_zeros, 1u);
 }
 
 TEST(HapticLoop, AHungTissueFadesTheForceToZeroAndItComesBackRamped) {
@@ -324,7 +324,7 @@ TEST(HapticLoop, ASilentDeviceIsCountedAndItsForceIsZero) {
   Rig rig(scene, pressing_arm(DeviceFrame{}));
   rig.run_to(milliseconds(1000));
   ASSERT_GT(glm::length(rig.applied()), 0.01);
-  EXPECT_EQ(rig.loop->counters().silent_ticks, 0u);
+  EXPECT_EQ(rig.loop->counters().hands[0].silent_ticks, 0u);
   EXPECT_EQ(rig.loop->silent_for_s(), 0.0);
   // The arm stops sending for 1.5 s: silent from 100 ms on, its force zero (the guard's own
   // timeout), and the silence measured for the watching thread.
@@ -332,13 +332,14 @@ TEST(HapticLoop, ASilentDeviceIsCountedAndItsForceIsZero) {
   rig.run_to(rig.clock.now() + milliseconds(1500));
   EXPECT_EQ(glm::length(rig.applied()), 0.0);
   EXPECT_NEAR(rig.loop->silent_for_s(), 1.5, 0.01);
-  EXPECT_NEAR(static_cast<double>(rig.loop->counters().silent_ticks), 1400.0, 2.0);
-  EXPECT_GT(rig.loop->counters().guard_latched_ticks, 1400u);
+  EXPECT_NEAR(static_cast<double>(rig.loop->counters().hands[0].silent_ticks), 1400.0, 2.0);
+  EXPECT_GT(rig.loop->counters().hands[0].guard_latched_ticks, 1400u);
   // It comes back: no longer silent; the longest silence stays on record.
   rig.arm_muted = false;
   rig.run_to(rig.clock.now() + milliseconds(10));
   EXPECT_EQ(rig.loop->silent_for_s(), 0.0);
-  EXPECT_NEAR(static_cast<double>(rig.loop->counters().longest_silence_ticks), 1400.0, 2.0);
+  EXPECT_NEAR(static_cast<double>(rig.loop->counters().hands[0].longest_silence_ticks), 1400.0,
+              2.0);
 }
 
 TEST(HapticLoop, StopSendsZeroAndLatches) {
@@ -363,8 +364,8 @@ TEST(HapticLoop, ALostDeviceIsZeroAndTheInstrumentHolds) {
   rig.arm_twin->disconnect();
   rig.run_to(milliseconds(900));  // never throws
   EXPECT_TRUE(rig.loop->device_lost());
-  EXPECT_GE(rig.loop->counters().haptic_lost_s, 0.0);
-  EXPECT_FALSE(rig.loop->counters().haptic_lost_reason.empty());
+  EXPECT_GE(rig.loop->counters().hands[0].lost_s, 0.0);
+  EXPECT_FALSE(rig.loop->counters().hands[0].lost_reason.empty());
   EXPECT_EQ(SessionSim::tip_of(rig.loop->state()), tip_before) << "the instrument holds";
   EXPECT_EQ(rig.guard->state(), devices::GuardState::Latched);
 }

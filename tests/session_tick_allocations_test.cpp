@@ -40,18 +40,27 @@ void* counted(std::size_t n, std::size_t align) {
       if (i < g_sites.size()) g_sites[i] = site;
     }
   }
-  void* p = align > alignof(std::max_align_t) ? std::aligned_alloc(align, (n + align - 1) / align * align)
-                                              : std::malloc(n == 0 ? 1 : n);
+  void* p = align > alignof(std::max_align_t)
+                ? std::aligned_alloc(align, (n + align - 1) / align * align)
+                : std::malloc(n == 0 ? 1 : n);
   if (p == nullptr) throw std::bad_alloc();
   return p;
 }
 
 }  // namespace
 
-void* operator new(std::size_t n) { return counted(n, 0); }
-void* operator new[](std::size_t n) { return counted(n, 0); }
-void* operator new(std::size_t n, std::align_val_t a) { return counted(n, std::size_t(a)); }
-void* operator new[](std::size_t n, std::align_val_t a) { return counted(n, std::size_t(a)); }
+void* operator new(std::size_t n) {
+  return counted(n, 0);
+}
+void* operator new[](std::size_t n) {
+  return counted(n, 0);
+}
+void* operator new(std::size_t n, std::align_val_t a) {
+  return counted(n, std::size_t(a));
+}
+void* operator new[](std::size_t n, std::align_val_t a) {
+  return counted(n, std::size_t(a));
+}
 void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
   try {
     return counted(n, 0);
@@ -66,14 +75,30 @@ void* operator new[](std::size_t n, const std::nothrow_t&) noexcept {
     return nullptr;
   }
 }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
+void operator delete(void* p) noexcept {
+  std::free(p);
+}
+void operator delete[](void* p) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::size_t) noexcept {
+  std::free(p);
+}
+void operator delete[](void* p, std::size_t) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::align_val_t) noexcept {
+  std::free(p);
+}
+void operator delete[](void* p, std::align_val_t) noexcept {
+  std::free(p);
+}
+void operator delete(void* p, std::size_t, std::align_val_t) noexcept {
+  std::free(p);
+}
+void operator delete[](void* p, std::size_t, std::align_val_t) noexcept {
+  std::free(p);
+}
 
 namespace bisturi::runtime {
 namespace {
@@ -116,7 +141,6 @@ TEST(HapticTick, AllocatesNothingOnItsPaths) {
   rig.twins_running = [](bool running) { g_counting = !running && g_counting_ticks; };
   // Until contact (the first ticks size what they keep: not counted).
   (void)paced_ticks(rig, 1000, false);
-  std::fprintf(stderr, "DBG cmd %g %g %g late %lu stale %lu dropped %lu latched %lu silent %lu\n", rig.loop->command()[0], rig.loop->command()[1], rig.loop->command()[2], rig.loop->counters().late_ticks, rig.loop->counters().stale_ticks, rig.loop->counters().dropped_steps, rig.loop->counters().guard_latched_ticks, rig.loop->counters().silent_ticks);
   ASSERT_GT(glm::length(rig.applied()), 0.0) << "pressing";
   EXPECT_EQ(paced_ticks(rig, 400), 0u) << "in contact" << sites();
   EXPECT_EQ(paced_ticks(rig, 100, true, false), 0u) << "late steps" << sites();
@@ -127,7 +151,7 @@ TEST(HapticTick, AllocatesNothingOnItsPaths) {
   rig.hangable->hung = false;
   rig.arm_muted = true;
   EXPECT_EQ(paced_ticks(rig, 300), 0u) << "a silent arm" << sites();
-  EXPECT_GT(rig.loop->counters().silent_ticks, 100u);
+  EXPECT_GT(rig.loop->counters().hands[0].silent_ticks, 100u);
   rig.arm_muted = false;
   EXPECT_EQ(paced_ticks(rig, 200), 0u) << "back" << sites();
 }

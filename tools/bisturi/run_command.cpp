@@ -274,6 +274,8 @@ int run_run(const RunOptions& options) {
                       {"time_s", e.time_s},
                       {"tick", e.event.tick},
                       {"body", e.event.body},
+                      {"hand", e.event.hand < r.hands.size() ? nlohmann::json(r.hands[e.event.hand])
+                                                             : nlohmann::json(nullptr)},
                       {"detail", e.event.detail},
                       {"response_ms", e.response_ms < 0 ? nlohmann::json(nullptr)
                                                         : nlohmann::json(e.response_ms)}});
@@ -316,6 +318,7 @@ int run_run(const RunOptions& options) {
         {"changes", r.tissue_rate_changes}}},
       {"tissue_threads", r.tissue_threads},
       {"devices", r.devices},
+      {"hands", r.hands},
       {"solids", solids},
       {"ticks", r.ticks},
       {"frames", r.frames},

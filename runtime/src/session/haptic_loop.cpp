@@ -19,19 +19,64 @@ double seconds(devices::Nanoseconds t) {
 
 }  // namespace
 
+/// One hand's device: its link through the guard, what the tick watches on it and what it was
+/// last sent. The supervisor reads the atomics and tries the lock; the rest is the tick's.
+struct HapticLoop::Hand {
+  Hand(std::size_t index, const HapticHandParts& parts, const SessionSim& sim,
+       HandCounters& counters)
+      : index(index),
+        parts(parts),
+        counters(counters),
+        slew(parts.haptic->guard().channels(), sim.haptic_period_ms() * 1e-3),
+        clutch(parts.clutch_buttons),
+        command(sim.command_size(index), 0.0),
+        zeros(sim.command_size(index), 0.0) {}
+  std::size_t index;
+  HapticHandParts parts;
+  HandCounters& counters;  ///< the loop's counters().hands[index]
+  CommandSlew slew;
+  Clutch clutch;
+  std::vector<double> command;
+  std::vector<double> zeros;
+  std::uint64_t last_reports = 0;          ///< the device's report count at the last tick
+  devices::Nanoseconds last_report_t{-1};  ///< session time a new report was last seen
+  std::uint64_t silence_run = 0;
+  std::uint64_t untracked_run = 0;
+  bool lost = false;
+  bool guard_latched = false;  ///< the guard's state at this tick's poll
+  std::atomic<double> silent_for_s{0.0};
+  std::atomic<double> untracked_for_s{0.0};
+  std::atomic<std::uint64_t> guard_latches_now{0};
+  std::mutex device_mutex;  ///< the guard and the device's output: tick, stop, supervisor
+  std::atomic<bool> zeroed_for_stall{false};
+  /// A zero went past the tick's stuck device I/O: the tick finishes the job when it returns.
+  std::atomic<bool> preempted{false};
+  std::atomic<bool> device_live{true};  ///< !lost, for the supervisor's lock-free path
+  std::atomic<double> first_output_N{0.0}, largest_output_N{0.0};
+  /// The notes before this hand's zeros: the first hand's plain (as one-handed traces have them),
+  /// the others' with their hand number.
+  std::string stop_note, watchdog_note;
+};
+
 HapticLoop::HapticLoop(HapticLoopParts parts, std::uint32_t lag, std::uint32_t ticks_per_step)
-    : parts_(std::move(parts)),
-      schedule_(lag, ticks_per_step),
-      slew_(parts_.haptic->guard().channels(), parts_.sim->haptic_period_ms() * 1e-3),
-      clutch_(parts_.clutch_buttons),
-      command_(parts_.sim->command_size(), 0.0),
-      zeros_(parts_.sim->command_size(), 0.0) {
+    : parts_(std::move(parts)), schedule_(lag, ticks_per_step) {
   counters_.max_ticks_per_step = ticks_per_step;
-  const devices::Capabilities& caps = parts_.haptic->device().capabilities();
-  // The state the loop copies is made in the device's shape now: a tick never allocates.
-  scene_state_.end_effector_poses.resize(caps.end_effectors);
-  scene_state_.finger_joint_angles_rad.resize(caps.finger_joints.size());
+  counters_.hands.resize(parts_.hands.size());  // never resized again: the hands refer to them
+  for (std::size_t i = 0; i < parts_.hands.size(); ++i) {
+    hands_.push_back(std::make_unique<Hand>(i, parts_.hands[i], *parts_.sim, counters_.hands[i]));
+    Hand& hand = *hands_.back();
+    hand.stop_note = hand_note("haptic_stop", i);
+    hand.watchdog_note = hand_note("watchdog_zero", i);
+    const devices::Capabilities& caps = hand.parts.haptic->device().capabilities();
+    // The state the loop copies is made in the device's shape now: a tick never allocates.
+    devices::HapticState shape;
+    shape.end_effector_poses.resize(caps.end_effectors);
+    shape.finger_joint_angles_rad.resize(caps.finger_joints.size());
+    scene_states_.push_back(std::move(shape));
+  }
 }
+
+HapticLoop::~HapticLoop() = default;
 
 void HapticLoop::note(std::string_view text) noexcept {
   if (parts_.writer == nullptr || !recording_.load(std::memory_order_acquire)) return;
@@ -52,59 +97,73 @@ void HapticLoop::recording_failed(const char* why) noexcept {
   }
 }
 
-void HapticLoop::lose_device(devices::Nanoseconds t, const std::string& why) noexcept {
-  if (lost_) return;
-  lost_ = true;
-  device_live_.store(false, std::memory_order_release);
-  counters_.haptic_lost_s = seconds(t);
-  counters_.haptic_lost_reason = why;
+void HapticLoop::lose_device(Hand& hand, devices::Nanoseconds t, const std::string& why) noexcept {
+  if (hand.lost) return;
+  hand.lost = true;
+  hand.device_live.store(false, std::memory_order_release);
+  hand.counters.lost_s = seconds(t);
+  try {
+    hand.counters.lost_reason = why;
+  } catch (...) {
+  }
 }
 
 void HapticLoop::poll_devices(devices::Nanoseconds t) noexcept {
   if (parts_.step_twins) parts_.step_twins(t);
-  if (!lost_) {
-    std::lock_guard lock(device_mutex_);
+  for (const auto& h : hands_) {
+    Hand& hand = *h;
+    if (hand.lost) continue;
+    devices::GuardedHaptic& haptic = *hand.parts.haptic;
+    std::lock_guard lock(hand.device_mutex);
     try {
-      parts_.haptic->poll(std::chrono::microseconds(0));
+      haptic.poll(std::chrono::microseconds(0));
     } catch (const devices::DeviceDisconnected& e) {
-      lose_device(t, e.what());  // the guard has latched: its output is zero
+      lose_device(hand, t, e.what());  // the guard has latched: its output is zero
     } catch (const devices::ProtocolError&) {
-      ++counters_.malformed_reports;  // dropped; the state keeps its previous values
+      ++hand.counters.malformed_reports;  // dropped; the state keeps its previous values
     } catch (const devices::TraceError& e) {
       recording_failed(e.what());
     } catch (const std::exception& e) {
       // Any other failure of the device (an I/O error of its transport) loses it too.
-      parts_.haptic->guard().device_disconnected();
-      lose_device(t, e.what());
+      haptic.guard().device_disconnected();
+      lose_device(hand, t, e.what());
     }
     // Read under the lock: the supervisor may latch the guard while a slow tick runs.
-    guard_latched_ = parts_.haptic->guard().state() == devices::GuardState::Latched;
+    hand.guard_latched = haptic.guard().state() == devices::GuardState::Latched;
   }
-  if (parts_.head != nullptr && !head_lost_) {
-    try {
-      parts_.head->poll(std::chrono::microseconds(0));
-    } catch (const devices::ProtocolError&) {
-      ++counters_.malformed_reports;
-    } catch (const std::exception& e) {
-      // The view holds the last pose the tracker gave.
-      head_lost_ = true;
-      counters_.head_lost_s = seconds(t);
-      counters_.head_lost_reason = e.what();
-    }
-    if (!head_lost_ && parts_.head_state) parts_.head_state(parts_.head->state());
-  }
+  poll_head(t);
   // A lost device keeps its last state: the instrument holds where it was.
-  if (!lost_) {
-    parts_.frame.to_scene(parts_.haptic->device().state(), scene_state_);
-    (void)clutch_.apply(scene_state_);
+  for (const auto& h : hands_) {
+    Hand& hand = *h;
+    if (hand.lost) continue;
+    hand.parts.frame.to_scene(hand.parts.haptic->device().state(), scene_states_[hand.index]);
+    (void)hand.clutch.apply(scene_states_[hand.index]);
   }
 }
 
+void HapticLoop::poll_head(devices::Nanoseconds t) noexcept {
+  if (parts_.head == nullptr || head_lost_) return;
+  try {
+    parts_.head->poll(std::chrono::microseconds(0));
+  } catch (const devices::ProtocolError&) {
+    ++counters_.head_malformed_reports;
+  } catch (const std::exception& e) {
+    // The view holds the last pose the tracker gave.
+    head_lost_ = true;
+    counters_.head_lost_s = seconds(t);
+    try {
+      counters_.head_lost_reason = e.what();
+    } catch (...) {
+    }
+  }
+  if (!head_lost_ && parts_.head_state) parts_.head_state(parts_.head->state());
+}
+
 void HapticLoop::hand_over(std::uint64_t k) noexcept {
-  // A hand-over tick gives its state to the tissue as the next step (and may change the steps'
+  // A hand-over tick gives its states to the tissue as the next step (and may change the steps'
   // length, noted in the trace).
   if (!schedule_.hands_over(k)) return;
-  switch (parts_.steps->push(scene_state_, schedule_.handed_over_ticks())) {
+  switch (parts_.steps->push(scene_states_, schedule_.handed_over_ticks())) {
     case TissueThread::Push::Queued:
       break;
     case TissueThread::Push::Behind:
@@ -126,39 +185,43 @@ void HapticLoop::hand_over(std::uint64_t k) noexcept {
   }
 }
 
-void HapticLoop::send(devices::Nanoseconds t) noexcept {
-  std::lock_guard lock(device_mutex_);
+void HapticLoop::send(Hand& hand, devices::Nanoseconds t) noexcept {
+  std::lock_guard lock(hand.device_mutex);
   if (stopped_.load(std::memory_order_acquire)) return;
+  devices::GuardedHaptic& haptic = *hand.parts.haptic;
   try {
-    const devices::GuardStep g = parts_.haptic->send(command_);
+    const devices::GuardStep g = haptic.send(hand.command);
     if (g.latched != devices::Fault::None) {
-      ++counters_.guard_latches;
-      guard_latches_now_.fetch_add(1, std::memory_order_relaxed);
+      ++hand.counters.guard_latches;
+      hand.guard_latches_now.fetch_add(1, std::memory_order_relaxed);
     }
-    publish_output_locked();
+    publish_output_locked(hand);
   } catch (const devices::DeviceDisconnected& e) {
-    lose_device(t, e.what());
+    lose_device(hand, t, e.what());
   } catch (const devices::TraceError& e) {
     // The command went out (GuardedHaptic sends first); only its record is lost.
     recording_failed(e.what());
   } catch (const std::exception& e) {
-    parts_.haptic->guard().device_disconnected();
-    lose_device(t, e.what());
+    haptic.guard().device_disconnected();
+    lose_device(hand, t, e.what());
   }
 }
 
 TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
   tick_start_ns_.store(parts_.clock->now().count(), std::memory_order_release);
-  zeroed_for_stall_.store(false, std::memory_order_release);
+  for (const auto& h : hands_)
+    h->zeroed_for_stall.store(false, std::memory_order_release);
   ++counters_.ticks;
   if (stopped_.load(std::memory_order_acquire)) return TickStatus::Stopped;
   poll_devices(t);
-  watch_inputs(t);
-  if (parts_.scene_box_min_m.x <= parts_.scene_box_max_m.x) {
-    const glm::dvec3 tip = SessionSim::tip_of(scene_state_);
-    if (glm::any(glm::lessThan(tip, parts_.scene_box_min_m)) ||
-        glm::any(glm::greaterThan(tip, parts_.scene_box_max_m)))
-      ++counters_.outside_scene_ticks;
+  for (const auto& h : hands_) {
+    watch_inputs(*h, t);
+    if (parts_.scene_box_min_m.x <= parts_.scene_box_max_m.x) {
+      const glm::dvec3 tip = SessionSim::tip_of(scene_states_[h->index]);
+      if (glm::any(glm::lessThan(tip, parts_.scene_box_min_m)) ||
+          glm::any(glm::greaterThan(tip, parts_.scene_box_max_m)))
+        ++h->counters.outside_scene_ticks;
+    }
   }
 
   // Every tick sends the command of the step due (or, when that step is late, the newest one,
@@ -172,71 +235,82 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
     note(late_tick_note(k, use.step));
   }
   step_output_ = use.output;
-  if (step_output_ != nullptr && !counters_.tissue_failed) {
-    parts_.sim->command_for(*step_output_, SessionSim::tip_of(scene_state_), command_);
-  } else {
-    std::fill(command_.begin(), command_.end(), 0.0);
-  }
-  fade_if_stale(k, use.late);
-  const bool instrument_held = watch_instrument();
+  const double gain = stale_gain(k, use.late);
   watch_display();
-  // Held at zero, the slew starts again from zero (forces come back as a ramp).
-  if (instrument_held || display_held_) {
-    std::fill(command_.begin(), command_.end(), 0.0);
-    slew_.reset();
-    if (display_held_) ++counters_.display_held_ticks;
-  } else if (slew_.apply(command_)) {
-    ++counters_.slewed_ticks;
+  bool any_lost = false;
+  for (const auto& h : hands_) {
+    Hand& hand = *h;
+    if (step_output_ != nullptr && !counters_.tissue_failed) {
+      parts_.sim->command_for(*step_output_, hand.index,
+                              SessionSim::tip_of(scene_states_[hand.index]), hand.command);
+    } else {
+      std::fill(hand.command.begin(), hand.command.end(), 0.0);
+    }
+    if (gain < 1.0) {
+      for (double& c : hand.command)
+        c *= gain;
+    }
+    const bool instrument_held = watch_instrument(hand);
+    // Held at zero, the slew starts again from zero (forces come back as a ramp).
+    if (instrument_held || display_held_) {
+      std::fill(hand.command.begin(), hand.command.end(), 0.0);
+      hand.slew.reset();
+    } else if (hand.slew.apply(hand.command)) {
+      ++hand.counters.slewed_ticks;
+    }
+    const bool was_lost = hand.lost;
+    if (!hand.lost) send(hand, t);
+    if (hand.preempted.exchange(false, std::memory_order_acq_rel)) {
+      // The supervisor's zero went past this tick's stuck write: latch, note and zero here too,
+      // so the guard holds zero from now on and the trace says where it happened.
+      std::lock_guard lock(hand.device_mutex);
+      (void)zero_for_stall_locked(hand);
+    }
+    // A tick without the first hand's force command is noted, so the replay counts it too.
+    if (was_lost && hand.index == 0) note("tick");
+    any_lost = any_lost || hand.lost;
   }
-  const bool was_lost = lost_;
-  if (!lost_) send(t);
-  if (preempted_.exchange(false, std::memory_order_acq_rel)) {
-    // The supervisor's zero went past this tick's stuck write: latch, note and zero here too,
-    // so the guard holds zero from now on and the trace says where it happened.
-    std::lock_guard lock(device_mutex_);
-    (void)zero_for_stall_locked();
-  }
-  // A tick without a force command is noted, so the replay counts it too.
-  if (was_lost) note("tick");
+  if (display_held_) ++counters_.display_held_ticks;
   if (stopped_.load(std::memory_order_acquire)) return TickStatus::Stopped;
-  return lost_ ? TickStatus::DeviceLost : TickStatus::Sent;
+  return any_lost ? TickStatus::DeviceLost : TickStatus::Sent;
 }
 
-void HapticLoop::watch_inputs(devices::Nanoseconds t) noexcept {
-  const std::uint64_t reports = parts_.haptic->device().state().reports;
-  if (reports != last_reports_ || last_report_t_.count() < 0) {
-    last_report_t_ = t;
-    last_reports_ = reports;
+void HapticLoop::watch_inputs(Hand& hand, devices::Nanoseconds t) noexcept {
+  const std::uint64_t reports = hand.parts.haptic->device().state().reports;
+  if (reports != hand.last_reports || hand.last_report_t.count() < 0) {
+    hand.last_report_t = t;
+    hand.last_reports = reports;
   }
-  const devices::Nanoseconds quiet = t - last_report_t_;
-  if (!lost_ && quiet > kSilentAfter) {
-    ++counters_.silent_ticks;
-    counters_.longest_silence_ticks = std::max(counters_.longest_silence_ticks, ++silence_run_);
-    silent_for_s_.store(seconds(quiet), std::memory_order_relaxed);
+  const devices::Nanoseconds quiet = t - hand.last_report_t;
+  HandCounters& c = hand.counters;
+  if (!hand.lost && quiet > kSilentAfter) {
+    ++c.silent_ticks;
+    c.longest_silence_ticks = std::max(c.longest_silence_ticks, ++hand.silence_run);
+    hand.silent_for_s.store(seconds(quiet), std::memory_order_relaxed);
   } else {
-    silence_run_ = 0;
-    silent_for_s_.store(0.0, std::memory_order_relaxed);
+    hand.silence_run = 0;
+    hand.silent_for_s.store(0.0, std::memory_order_relaxed);
   }
-  if (guard_latched_) ++counters_.guard_latched_ticks;
+  if (hand.guard_latched) ++c.guard_latched_ticks;
 }
 
-bool HapticLoop::watch_instrument() noexcept {
+bool HapticLoop::watch_instrument(Hand& hand) noexcept {
   // A device that does not know where it is: its instrument holds its last pose, and a force
   // computed there would push the hand towards a place it may no longer be. The same while the
   // clutch is held: the hand moves the handle, not the instrument.
-  if (clutch_.held()) ++counters_.clutched_ticks;
-  const bool untracked = !lost_ && !parts_.haptic->device().state().tracked;
+  HandCounters& c = hand.counters;
+  if (hand.clutch.held()) ++c.clutched_ticks;
+  const bool untracked = !hand.lost && !hand.parts.haptic->device().state().tracked;
   if (untracked) {
-    ++counters_.untracked_ticks;
-    counters_.longest_untracked_ticks =
-        std::max(counters_.longest_untracked_ticks, ++untracked_run_);
+    ++c.untracked_ticks;
+    c.longest_untracked_ticks = std::max(c.longest_untracked_ticks, ++hand.untracked_run);
   } else {
-    untracked_run_ = 0;
+    hand.untracked_run = 0;
   }
-  untracked_for_s_.store(
-      static_cast<double>(untracked_run_) * parts_.sim->haptic_period_ms() * 1e-3,
+  hand.untracked_for_s.store(
+      static_cast<double>(hand.untracked_run) * parts_.sim->haptic_period_ms() * 1e-3,
       std::memory_order_relaxed);
-  return clutch_.held() || untracked;
+  return hand.clutch.held() || untracked;
 }
 
 void HapticLoop::watch_display() noexcept {
@@ -255,7 +329,7 @@ void HapticLoop::watch_display() noexcept {
   display_held_ = held;
 }
 
-void HapticLoop::fade_if_stale(std::uint64_t k, bool late) noexcept {
+double HapticLoop::stale_gain(std::uint64_t k, bool late) noexcept {
   if (!late) fresh_k_ = k;
   const bool stale = late && k - fresh_k_ > parts_.stale_margin_ticks;
   if (stale) {
@@ -266,79 +340,120 @@ void HapticLoop::fade_if_stale(std::uint64_t k, bool late) noexcept {
   }
   constexpr double kFadeStep = 1.0 / kStaleFadeTicks;
   stale_gain_ = std::clamp(stale_gain_ + (stale ? -kFadeStep : kFadeStep), 0.0, 1.0);
-  if (stale_gain_ < 1.0) {
-    for (double& c : command_)
-      c *= stale_gain_;
-  }
+  return stale_gain_;
 }
 
-void HapticLoop::send_zero_locked(const char* note_text) noexcept {
+void HapticLoop::send_zero_locked(Hand& hand, const char* note_text) noexcept {
   note(note_text);
   try {
-    parts_.haptic->send(zeros_);
+    hand.parts.haptic->send(hand.zeros);
   } catch (const std::exception&) {
     // Gone or unrecordable: the guard is latched either way, nothing more can be sent.
-    parts_.haptic->guard().device_disconnected();
+    hand.parts.haptic->guard().device_disconnected();
   }
-  publish_output_locked();
+  publish_output_locked(hand);
 }
 
-void HapticLoop::publish_output_locked() noexcept {
-  const std::vector<double>& output = parts_.haptic->last_output_N();
+void HapticLoop::publish_output_locked(Hand& hand) noexcept {
+  const std::vector<double>& output = hand.parts.haptic->last_output_N();
   double largest = 0.0;
   for (const double f : output)
     largest = std::max(largest, std::abs(f));
-  first_output_N_.store(output.empty() ? 0.0 : output[0], std::memory_order_relaxed);
-  largest_output_N_.store(largest, std::memory_order_release);
+  hand.first_output_N.store(output.empty() ? 0.0 : output[0], std::memory_order_relaxed);
+  hand.largest_output_N.store(largest, std::memory_order_release);
 }
 
 void HapticLoop::stop() noexcept {
-  std::lock_guard lock(device_mutex_);
   if (stopped_.exchange(true, std::memory_order_acq_rel)) return;
-  // Latched first, so the zero goes out at once (a zero command alone is rate-limited down).
-  parts_.haptic->guard().device_disconnected();
-  if (!lost_) send_zero_locked("haptic_stop");
+  for (const auto& h : hands_) {
+    Hand& hand = *h;
+    std::lock_guard lock(hand.device_mutex);
+    // Latched first, so the zero goes out at once (a zero command alone is rate-limited down).
+    hand.parts.haptic->guard().device_disconnected();
+    if (!hand.lost) send_zero_locked(hand, hand.stop_note.c_str());
+  }
 }
 
 bool HapticLoop::zero_if_stalled(devices::Nanoseconds now, devices::Nanoseconds limit) noexcept {
   const auto start = tick_start_ns_.load(std::memory_order_acquire);
   if (start < 0 || now.count() - start <= limit.count()) return false;
-  if (zeroed_for_stall_.load(std::memory_order_acquire)) return false;
-  if (stopped_.load(std::memory_order_acquire) || !device_live_.load(std::memory_order_acquire))
-    return false;
+  if (stopped_.load(std::memory_order_acquire)) return false;
+  bool zeroed = false;
+  for (const auto& h : hands_)
+    zeroed = zero_hand_if_stalled(*h) || zeroed;
+  return zeroed;
+}
+
+bool HapticLoop::zero_hand_if_stalled(Hand& hand) noexcept {
+  if (hand.zeroed_for_stall.load(std::memory_order_acquire)) return false;
+  if (!hand.device_live.load(std::memory_order_acquire)) return false;
   // The zero that waits for nothing goes first, where the transport has one: past a tick stuck
   // in the device's write, and ahead of this thread's own write below, which a device that has
   // stopped taking reports would hold as well.
-  const bool preempted = parts_.haptic->device().send_zero_preempting();
+  const bool preempted = hand.parts.haptic->device().send_zero_preempting();
   if (preempted) {
-    first_output_N_.store(0.0, std::memory_order_relaxed);
-    largest_output_N_.store(0.0, std::memory_order_release);
+    hand.first_output_N.store(0.0, std::memory_order_relaxed);
+    hand.largest_output_N.store(0.0, std::memory_order_release);
   }
-  std::unique_lock lock(device_mutex_, std::try_to_lock);
+  std::unique_lock lock(hand.device_mutex, std::try_to_lock);
   if (!lock.owns_lock()) {
     // The tick holds the device. Without a preempting zero the next look tries again (the zero
     // then goes out when the tick lets go); with one, the tick finishes the job.
     if (!preempted) return false;
-    zeroed_for_stall_.store(true, std::memory_order_release);
-    preempted_.store(true, std::memory_order_release);
+    hand.zeroed_for_stall.store(true, std::memory_order_release);
+    hand.preempted.store(true, std::memory_order_release);
     return true;
   }
-  if (zeroed_for_stall_.exchange(true, std::memory_order_acq_rel)) return preempted;
-  return zero_for_stall_locked() || preempted;
+  if (hand.zeroed_for_stall.exchange(true, std::memory_order_acq_rel)) return preempted;
+  return zero_for_stall_locked(hand) || preempted;
 }
 
-void HapticLoop::zero_now() noexcept {
-  std::lock_guard lock(device_mutex_);
-  (void)zero_for_stall_locked();
+void HapticLoop::zero_now(std::size_t hand) noexcept {
+  Hand& h = *hands_[hand];
+  std::lock_guard lock(h.device_mutex);
+  (void)zero_for_stall_locked(h);
 }
 
-bool HapticLoop::zero_for_stall_locked() noexcept {
-  if (stopped_.load(std::memory_order_acquire) || lost_) return false;
+bool HapticLoop::zero_for_stall_locked(Hand& hand) noexcept {
+  if (stopped_.load(std::memory_order_acquire) || hand.lost) return false;
   // Latched first, so the zero goes out at once (a zero command alone is rate-limited down).
-  parts_.haptic->guard().deadline_missed();
-  send_zero_locked("watchdog_zero");
-  ++counters_.supervisor_zeros;
+  hand.parts.haptic->guard().deadline_missed();
+  send_zero_locked(hand, hand.watchdog_note.c_str());
+  ++hand.counters.supervisor_zeros;
   return true;
+}
+
+double HapticLoop::silent_for_s(std::size_t hand) const {
+  return hands_[hand]->silent_for_s.load(std::memory_order_relaxed);
+}
+
+std::uint64_t HapticLoop::guard_latches_now(std::size_t hand) const {
+  return hands_[hand]->guard_latches_now.load(std::memory_order_relaxed);
+}
+
+double HapticLoop::untracked_for_s(std::size_t hand) const {
+  return hands_[hand]->untracked_for_s.load(std::memory_order_relaxed);
+}
+
+const std::vector<double>& HapticLoop::command(std::size_t hand) const {
+  return hands_[hand]->command;
+}
+
+bool HapticLoop::device_lost(std::size_t hand) const {
+  return hands_[hand]->lost;
+}
+
+double HapticLoop::first_output_N() const {
+  return hands_.front()->first_output_N.load(std::memory_order_relaxed);
+}
+
+double HapticLoop::largest_output_N() const {
+  double largest = 0.0;
+  for (const auto& h : hands_) {
+    if (h->device_live.load(std::memory_order_acquire))
+      largest = std::max(largest, h->largest_output_N.load(std::memory_order_acquire));
+  }
+  return largest;
 }
 
 }  // namespace bisturi::runtime

@@ -30,10 +30,11 @@ std::optional<std::array<std::uint64_t, 2>> two_fields(std::string_view text, co
 NoteText format_note(const char* key, const char* a, std::uint64_t va, const char* b,
                      std::uint64_t vb) {
   NoteText note;
-  const int n = std::snprintf(note.text_.data(), note.text_.size(), "{\"%s\":{\"%s\":%llu,\"%s\":%llu}}",
-                              key, a, static_cast<unsigned long long>(va), b,
-                              static_cast<unsigned long long>(vb));
-  note.size_ = n < 0 ? 0 : std::min<std::size_t>(static_cast<std::size_t>(n), note.text_.size() - 1);
+  const int n =
+      std::snprintf(note.text_.data(), note.text_.size(), "{\"%s\":{\"%s\":%llu,\"%s\":%llu}}", key,
+                    a, static_cast<unsigned long long>(va), b, static_cast<unsigned long long>(vb));
+  note.size_ =
+      n < 0 ? 0 : std::min<std::size_t>(static_cast<std::size_t>(n), note.text_.size() - 1);
   return note;
 }
 
@@ -65,6 +66,25 @@ std::optional<DroppedStep> parse_dropped_step_note(std::string_view text) {
   const auto f = two_fields(text, "dropped_step", "tick", "step");
   if (!f) return std::nullopt;
   return DroppedStep{(*f)[0], (*f)[1]};
+}
+
+std::string hand_note(std::string_view what, std::size_t hand) {
+  std::string text(what);
+  if (hand > 0) text += " " + std::to_string(hand);
+  return text;
+}
+
+std::optional<std::size_t> parse_hand_note(std::string_view text, std::string_view what) {
+  if (text.substr(0, what.size()) != what) return std::nullopt;
+  text.remove_prefix(what.size());
+  if (text.empty()) return 0;
+  if (text.front() != ' ' || text.size() < 2) return std::nullopt;
+  std::size_t hand = 0;
+  for (const char c : text.substr(1)) {
+    if (c < '0' || c > '9' || hand > 1000) return std::nullopt;
+    hand = hand * 10 + static_cast<std::size_t>(c - '0');
+  }
+  return hand;
 }
 
 }  // namespace bisturi::runtime

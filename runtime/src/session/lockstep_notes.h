@@ -55,4 +55,11 @@ struct DroppedStep {
 };
 std::optional<DroppedStep> parse_dropped_step_note(std::string_view text);
 
+/// A zero a hand's device is about to get ("haptic_stop" at the end, "watchdog_zero" from the
+/// supervisor): the note names the hand after the first ("watchdog_zero 1"), so a one-handed
+/// trace reads as it always has. Made once, at the loop's start.
+std::string hand_note(std::string_view what, std::size_t hand);
+/// The hand a note's text names for `what` (0 for the plain word), if it is that note.
+std::optional<std::size_t> parse_hand_note(std::string_view text, std::string_view what);
+
 }  // namespace bisturi::runtime

@@ -60,22 +60,95 @@ ProcedureDescription targets_from_bounds(const Box& first, const Box& second) {
 
 }  // namespace
 
-Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid>& solids,
-                         devices::Nanoseconds duration, std::size_t glove_joints,
-                         const std::vector<devices::ButtonUse>& buttons) {
-  if (script != "default")
-    throw SceneFileError("device script '" + script + "': the only script is \"default\"");
+namespace {
+
+struct Targets {
+  Box first, second;
+  ProcedureDescription d;
+};
+
+Targets targets_of(const std::vector<BuiltSolid>& solids) {
   if (solids.empty()) throw SceneFileError("the scripted procedure needs at least one solid");
-  const Box first = bounds(solids.front().mesh);
-  const Box second = bounds(solids.size() > 1 ? solids[1].mesh : solids.front().mesh);
+  Targets t;
+  t.first = bounds(solids.front().mesh);
+  t.second = bounds(solids.size() > 1 ? solids[1].mesh : solids.front().mesh);
   const SceneDescription* scene = solids.front().scene;
-  const ProcedureDescription d =
-      scene != nullptr && scene->procedure ? *scene->procedure : targets_from_bounds(first, second);
+  t.d = scene != nullptr && scene->procedure ? *scene->procedure
+                                             : targets_from_bounds(t.first, t.second);
+  return t;
+}
+
+/// Where the assisting hand takes hold: the outermost vertex of the first solid (along the cut's
+/// normal) within 2 mm of the line through `near` along that normal, else `near`.
+glm::dvec3 surface_point(const Dlfl& mesh, const glm::dvec3& near, const glm::dvec3& normal) {
+  glm::dvec3 best = near;
+  double best_height = -std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < mesh.vertex_capacity(); ++i) {
+    const VertexId v{static_cast<std::uint32_t>(i)};
+    if (!mesh.alive(v)) continue;
+    const glm::dvec3 p = mesh.position(v);
+    const double height = glm::dot(p - near, normal);
+    if (glm::length((p - near) - height * normal) > 2.0 || height <= best_height) continue;
+    best = p;
+    best_height = height;
+  }
+  return best;
+}
+
+int button_for(const std::vector<devices::ButtonUse>& buttons, devices::ButtonUse use,
+               int fallback) {
+  const auto it = std::find(buttons.begin(), buttons.end(), use);
+  return it != buttons.end() ? static_cast<int>(it - buttons.begin()) : fallback;
+}
+
+devices::DeviceScript hold_script(const std::vector<BuiltSolid>& solids,
+                                  devices::Nanoseconds duration, std::size_t joints,
+                                  const std::vector<devices::ButtonUse>& buttons) {
+  const Targets t = targets_of(solids);
+  const glm::dvec3 cut_a = vec(t.d.cut_from_mm), cut_b = vec(t.d.cut_to_mm);
+  const glm::dvec3 cn = glm::normalize(vec(t.d.cut_normal));
+  glm::dvec3 side = glm::cross(cn, cut_b - cut_a);
+  side = glm::length(side) > 1e-9 ? glm::normalize(side) : glm::dvec3(0.0, -1.0, 0.0);
+  const glm::dvec3 hold =
+      surface_point(solids.front().mesh, 0.5 * (cut_a + cut_b) + 10.0 * side, cn) - 1.0 * cn;
+  const glm::dvec3 held = hold + 4.0 * cn + 2.0 * side;
+  devices::DeviceScript script;
+  const double total = static_cast<double>(duration.count());
+  const auto at = [total](double fraction) {
+    return devices::Nanoseconds{static_cast<std::int64_t>(std::llround(fraction * total))};
+  };
+  const auto key = [&](double fraction, const glm::dvec3& tip_mm, double joints_rad) {
+    devices::MotionKey k;
+    k.t = at(fraction);
+    k.pose.position_m = to_metres(tip_mm);
+    k.joints_rad.assign(joints, joints_rad);
+    script.motion.push_back(k);
+  };
+  const double open = 0.1, closed = 1.1;
+  key(0.00, hold + 25.0 * cn + 10.0 * side, open);
+  key(0.55, hold + 6.0 * cn, open);
+  key(0.62, hold, open);
+  key(0.65, hold, closed);  // takes hold
+  key(0.72, held, closed);  // lifts and draws the tissue from the path
+  key(0.93, held, closed);  // through the cut
+  key(0.95, held, open);    // lets go
+  key(1.00, hold + 25.0 * cn + 10.0 * side, open);
+  const int grasp_button = button_for(buttons, devices::ButtonUse::Grasp, -1);
+  if (grasp_button >= 0) {
+    script.presses.push_back({at(0.65), static_cast<std::uint32_t>(grasp_button), true});
+    script.presses.push_back({at(0.95), static_cast<std::uint32_t>(grasp_button), false});
+  }
+  return script;
+}
+
+devices::DeviceScript default_script(const Targets& t, devices::Nanoseconds duration,
+                                     std::size_t glove_joints,
+                                     const std::vector<devices::ButtonUse>& buttons) {
+  const ProcedureDescription& d = t.d;
   const glm::dvec3 palpate = vec(d.palpate_mm), pn = vec(d.palpate_normal);
   const glm::dvec3 grasp = vec(d.grasp_mm), gn = vec(d.grasp_normal);
   const glm::dvec3 cut_a = vec(d.cut_from_mm), cut_b = vec(d.cut_to_mm), cn = vec(d.cut_normal);
-
-  Procedure p;
+  devices::DeviceScript glove;
   const double total = static_cast<double>(duration.count());
   const auto at = [total](double fraction) {
     return devices::Nanoseconds{static_cast<std::int64_t>(std::llround(fraction * total))};
@@ -91,7 +164,7 @@ Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid
     k.pose.position_m = to_metres(tip_mm);
     if (cutting) k.pose.orientation = {blade.w, blade.x, blade.y, blade.z};
     k.joints_rad.assign(glove_joints, joints_rad);
-    p.glove.motion.push_back(k);
+    glove.motion.push_back(k);
   };
   const double open = 0.1, closed = 1.1;
   key(0.00, palpate + 30.0 * pn, open);
@@ -109,20 +182,44 @@ Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid
   key(0.78, cut_a - d.cut_depth_mm * cn, open, true);  // blade in
   key(0.90, cut_b - d.cut_depth_mm * cn, open, true);  // sweep
   key(0.96, cut_b + 20.0 * cn, open, true);
-  const auto button_for = [&](devices::ButtonUse use, int fallback) {
-    const auto it = std::find(buttons.begin(), buttons.end(), use);
-    return it != buttons.end() ? static_cast<int>(it - buttons.begin()) : fallback;
-  };
-  const int cut_button = button_for(devices::ButtonUse::Cut, buttons.empty() ? 0 : -1);
-  const int grasp_button = button_for(devices::ButtonUse::Grasp, -1);
+  const int cut_button = button_for(buttons, devices::ButtonUse::Cut, buttons.empty() ? 0 : -1);
+  const int grasp_button = button_for(buttons, devices::ButtonUse::Grasp, -1);
   if (grasp_button >= 0) {  // held while the hand is closed
-    p.glove.presses.push_back({at(0.46), static_cast<std::uint32_t>(grasp_button), true});
-    p.glove.presses.push_back({at(0.63), static_cast<std::uint32_t>(grasp_button), false});
+    glove.presses.push_back({at(0.46), static_cast<std::uint32_t>(grasp_button), true});
+    glove.presses.push_back({at(0.63), static_cast<std::uint32_t>(grasp_button), false});
   }
   if (cut_button >= 0) {
-    p.glove.presses.push_back({at(0.785), static_cast<std::uint32_t>(cut_button), true});
-    p.glove.presses.push_back({at(0.905), static_cast<std::uint32_t>(cut_button), false});
+    glove.presses.push_back({at(0.785), static_cast<std::uint32_t>(cut_button), true});
+    glove.presses.push_back({at(0.905), static_cast<std::uint32_t>(cut_button), false});
   }
+  return glove;
+}
+
+}  // namespace
+
+devices::DeviceScript make_hand_script(const std::string& script,
+                                       const std::vector<BuiltSolid>& solids,
+                                       devices::Nanoseconds duration, std::size_t joints,
+                                       const std::vector<devices::ButtonUse>& buttons) {
+  if (script == "default") return default_script(targets_of(solids), duration, joints, buttons);
+  if (script == "hold") return hold_script(solids, duration, joints, buttons);
+  throw SceneFileError("device script '" + script +
+                       "': the scripts are \"default\" (the whole procedure) and \"hold\" (an "
+                       "assisting hand holding the tissue beside the cut)");
+}
+
+Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid>& solids,
+                         devices::Nanoseconds duration, std::size_t glove_joints,
+                         const std::vector<devices::ButtonUse>& buttons) {
+  Procedure p;
+  p.glove = make_hand_script(script, solids, duration, glove_joints, buttons);
+  const Targets t = targets_of(solids);
+  const Box& first = t.first;
+  const Box& second = t.second;
+  const double total = static_cast<double>(duration.count());
+  const auto at = [total](double fraction) {
+    return devices::Nanoseconds{static_cast<std::int64_t>(std::llround(fraction * total))};
+  };
   p.phases = {{"approach", at(0.0), at(0.12)},
               {"palpate", at(0.12), at(0.26)},
               {"grasp", at(0.36), at(0.63)},

@@ -88,7 +88,7 @@ std::unique_ptr<devices::TraceWriter> open_session_trace(const SceneDescription&
       std::chrono::duration_cast<Nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
           .count();
   header.producer = std::string("bisturi ") + kVersion;
-  // The haptic device is opened first, so it is device 0 of the trace.
+  // The hands' devices are opened first, in order: hand h is device h of the trace.
   header.config = session_trace_config(
       toml, scene.file.empty() ? std::filesystem::path() : scene.file.parent_path(),
       scene.rates.haptic_hz, 0, lag, ticks_per_step, tissue_threads);
@@ -98,7 +98,8 @@ std::unique_ptr<devices::TraceWriter> open_session_trace(const SceneDescription&
   return std::make_unique<devices::TraceWriter>(options.record, header, writer_options);
 }
 
-/// What the haptic loop counted, into the report.
+/// What the haptic loop counted, into the report: each hand's device figures summed (the
+/// longest runs the longest of any hand, a loss the first hand's to be lost).
 void add_loop_counters(const HapticLoop& loop, SessionReport& report) {
   const HapticLoopCounters& c = loop.counters();
   report.late_ticks = c.late_ticks;
@@ -107,23 +108,32 @@ void add_loop_counters(const HapticLoop& loop, SessionReport& report) {
   report.max_tissue_ticks_per_step =
       std::max(report.max_tissue_ticks_per_step, c.max_ticks_per_step);
   report.tissue_ticks_per_step = loop.schedule().ticks_per_step();
-  report.malformed_reports = c.malformed_reports;
-  report.guard_latches = c.guard_latches;
   report.dropped_tissue_steps = c.dropped_steps;
-  report.supervisor_zeros = c.supervisor_zeros;
   report.stale_ticks = c.stale_ticks;
   report.longest_stale_run = c.longest_stale_run;
-  report.slewed_ticks = c.slewed_ticks;
+  report.malformed_reports = c.head_malformed_reports;
   const double period_s = 1.0 / report.haptic_hz;
-  report.haptic_silent_s = static_cast<double>(c.silent_ticks) * period_s;
-  report.haptic_longest_silence_s = static_cast<double>(c.longest_silence_ticks) * period_s;
-  report.guard_latched_s = static_cast<double>(c.guard_latched_ticks) * period_s;
-  report.haptic_untracked_s = static_cast<double>(c.untracked_ticks) * period_s;
-  report.haptic_longest_untracked_s = static_cast<double>(c.longest_untracked_ticks) * period_s;
-  report.instrument_outside_scene_s = static_cast<double>(c.outside_scene_ticks) * period_s;
-  report.haptic_clutched_s = static_cast<double>(c.clutched_ticks) * period_s;
-  report.haptic_device_lost_s = c.haptic_lost_s;
-  report.haptic_device_lost_reason = c.haptic_lost_reason;
+  const auto s = [period_s](std::uint64_t ticks) { return static_cast<double>(ticks) * period_s; };
+  for (const HandCounters& h : c.hands) {
+    report.malformed_reports += h.malformed_reports;
+    report.guard_latches += h.guard_latches;
+    report.supervisor_zeros += h.supervisor_zeros;
+    report.slewed_ticks += h.slewed_ticks;
+    report.haptic_silent_s += s(h.silent_ticks);
+    report.haptic_longest_silence_s =
+        std::max(report.haptic_longest_silence_s, s(h.longest_silence_ticks));
+    report.guard_latched_s += s(h.guard_latched_ticks);
+    report.haptic_untracked_s += s(h.untracked_ticks);
+    report.haptic_longest_untracked_s =
+        std::max(report.haptic_longest_untracked_s, s(h.longest_untracked_ticks));
+    report.instrument_outside_scene_s += s(h.outside_scene_ticks);
+    report.haptic_clutched_s += s(h.clutched_ticks);
+    if (h.lost_s >= 0.0 &&
+        (report.haptic_device_lost_s < 0.0 || h.lost_s < report.haptic_device_lost_s)) {
+      report.haptic_device_lost_s = h.lost_s;
+      report.haptic_device_lost_reason = h.lost_reason;
+    }
+  }
   report.head_tracker_lost_s = c.head_lost_s;
   report.head_tracker_lost_reason = c.head_lost_reason;
   report.recording_error = c.recording_error;
@@ -164,27 +174,86 @@ std::uint32_t auto_tissue_threads(std::size_t simulated_vertices, unsigned cores
 
 namespace {
 
-void warn_what_was_ignored(SessionReport& report, const std::string& device) {
+/// What the watching thread says about one hand's device, each once: dead inputs within a
+/// second (the forces are zero meanwhile: the guard latched), and a guard that keeps latching.
+struct HandWatch {
+  std::string device;  ///< "'left' (vendor-arm)"
+  std::string name;    ///< "'left'"
+  int silence_limit_ms = 0;
+  bool warned_silent = false;
+  bool warned_untracked = false;
+  bool warned_latching = false;
+  std::uint64_t latches_at_window = 0;
+  static constexpr std::uint64_t kLatchesToWarn = 3;
+
+  /// The warning due now for hand h (empty: none); `window_over`: a second of latches counted.
+  std::string look(const HapticLoop& loop, std::size_t h, bool window_over) {
+    std::string said;
+    const double silent_s = loop.silent_for_s(h);
+    if (silent_s >= 1.0 && !warned_silent) {
+      said = "the haptic device " + device + " has sent nothing for " +
+             std::to_string(static_cast<int>(silent_s)) +
+             " s: its forces are zero until it reports again";
+    }
+    warned_silent = silent_s >= 1.0;
+    const double untracked_s = loop.untracked_for_s(h);
+    if (untracked_s >= 0.5 && !warned_untracked) {
+      // A controller whose grip the runtime never located (none bound, switched off, out of
+      // view) says so here, not only in the report.
+      said = "the haptic device " + device + " has not been tracked for " +
+             std::to_string(static_cast<int>(untracked_s * 1000.0)) +
+             " ms: its instrument holds still and its forces are zero until it is";
+    }
+    warned_untracked = untracked_s >= 0.5;
+    // A guard that keeps latching zeros the force again and again: the device's reports come
+    // late or irregularly (a controller at a slow display rate, a loaded bus).
+    if (window_over) {
+      const std::uint64_t latches = loop.guard_latches_now(h);
+      if (latches - latches_at_window >= kLatchesToWarn && !warned_latching && said.empty()) {
+        said = "the force guard of " + name + " latched " +
+               std::to_string(latches - latches_at_window) +
+               " times in the last second, zeroing its forces each time: its reports come late "
+               "or irregularly, or the ticks ran late (its silence limit is " +
+               std::to_string(silence_limit_ms) + " ms)";
+        warned_latching = true;
+      }
+      latches_at_window = latches;
+    }
+    return said;
+  }
+};
+
+/// A hand whose instrument touched nothing, or spent half a second or more away from the
+/// solids, is named in the report's warnings.
+void warn_what_was_ignored(SessionReport& report, const HapticLoopCounters& counters,
+                           const DeviceChoice& choice) {
   const double ran_s = static_cast<double>(report.ticks) / report.haptic_hz;
-  const bool touched = std::any_of(report.events.begin(), report.events.end(), [](const auto& e) {
-    return e.event.kind == SessionEventKind::Contact;
-  });
   const auto seconds_text = [](double s) {
     char text[32];
     std::snprintf(text, sizeof text, "%.1f s", s);
     return std::string(text);
   };
-  if (!touched && ran_s >= 1.0) {
-    report.warnings.push_back("the instrument of '" + device + "' touched nothing in " +
-                              seconds_text(ran_s) +
-                              ": is the device where the scene expects it "
-                              "(device_to_scene_rotation_deg, device_to_scene_translation_mm)?");
-  }
-  if (report.instrument_outside_scene_s >= 0.5) {
-    report.warnings.push_back("the instrument of '" + device + "' was away from the solids for " +
-                              seconds_text(report.instrument_outside_scene_s) + " of " +
-                              seconds_text(ran_s) +
-                              " (outside their box widened by half its size)");
+  for (std::size_t h = 0; h < choice.hands.size(); ++h) {
+    const std::string& device = choice.hands[h]->name;
+    const bool touched =
+        std::any_of(report.events.begin(), report.events.end(), [h](const EventReport& e) {
+          return e.event.kind == SessionEventKind::Contact && e.event.hand == h;
+        });
+    if (!touched && ran_s >= 1.0) {
+      report.warnings.push_back("the instrument of '" + device + "' touched nothing in " +
+                                seconds_text(ran_s) +
+                                ": is the device where the scene expects it "
+                                "(device_to_scene_rotation_deg, device_to_scene_translation_mm)?");
+    }
+    const double outside_s =
+        h < counters.hands.size()
+            ? static_cast<double>(counters.hands[h].outside_scene_ticks) / report.haptic_hz
+            : 0.0;
+    if (outside_s >= 0.5) {
+      report.warnings.push_back("the instrument of '" + device + "' was away from the solids for " +
+                                seconds_text(outside_s) + " of " + seconds_text(ran_s) +
+                                " (outside their box widened by half its size)");
+    }
   }
 }
 
@@ -251,15 +320,25 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   const auto duration =
       Nanoseconds{static_cast<std::int64_t>(std::llround(report.duration_s * 1e9))};
   const devices::Registry registry = devices::builtin_registry();
-  // The script presses the buttons the driver says cut and grasp.
-  const devices::DriverInfo* haptic_driver = registry.find_by_name(choice.haptic->driver);
-  Procedure procedure = make_procedure(
-      choice.haptic->simulated ? choice.haptic->script : std::string("default"), solids, duration,
-      devices::SimulatedGlove::kJoints,
-      haptic_driver != nullptr ? haptic_driver->layout.buttons : std::vector<devices::ButtonUse>{});
-  // The procedure is written in scene coordinates; the twin moves as the device would where the
-  // scene puts it (the session brings its poses back through device_to_scene).
+  // Each hand's script presses the buttons its driver says cut and grasp. The procedure is
+  // written in scene coordinates; a twin moves as its device would where the scene puts it (the
+  // session brings its poses back through device_to_scene).
+  const auto hand_buttons = [&](const DeviceDescription& d) {
+    const devices::DriverInfo* driver = registry.find_by_name(d.driver);
+    return driver != nullptr ? driver->layout.buttons : std::vector<devices::ButtonUse>{};
+  };
+  const auto script_of = [](const DeviceDescription& d) {
+    return d.simulated ? d.script : std::string("default");
+  };
+  Procedure procedure =
+      make_procedure(script_of(*choice.haptic), solids, duration, devices::SimulatedGlove::kJoints,
+                     hand_buttons(*choice.haptic));
   procedure.glove = device_frame_of(*choice.haptic).script_to_device(std::move(procedure.glove));
+  for (std::size_t h = 1; h < choice.hands.size(); ++h) {
+    const DeviceDescription& d = *choice.hands[h];
+    procedure.other_hands.push_back(device_frame_of(d).script_to_device(make_hand_script(
+        script_of(d), solids, duration, devices::SimulatedGlove::kJoints, hand_buttons(d))));
+  }
 
   std::unique_ptr<devices::TraceWriter> writer =
       open_session_trace(scene, options, clock, lag, first_ticks_per_step, report.tissue_threads);
@@ -269,31 +348,47 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   SessionDevices session_devices(
       scene, procedure, registry, clock, writer.get(),
       [&](const devices::DriverInfo& driver) { return controller_feed.open_for(driver); });
-  devices::HapticDevice* glove = &session_devices.haptic();
   devices::Tracker* head = &session_devices.head();
-  const std::uint16_t glove_index = session_devices.haptic_trace_index();
   report.devices = session_devices.summary();
+  for (const DeviceDescription* hand : choice.hands)
+    report.hands.push_back(hand->name);
   devices::ForceGuardConfig guard_config = devices::force_guard_config_from_json(
       session_trace_config("", {}, scene.rates.haptic_hz, 0, lag));
   report.max_force_N = choice.haptic->max_force_N;
-  report.haptic_write_bounded = session_devices.haptic_write_bounded();
-  if (!report.haptic_write_bounded && options.progress) {
+  for (std::size_t h = 0; h < session_devices.hand_count(); ++h) {
+    if (session_devices.haptic_write_bounded(h)) continue;
+    report.haptic_write_bounded = false;
+    if (!options.progress) continue;
     SessionProgress said;
     said.stage = "start";
-    said.warning = "the haptic device '" + choice.haptic->name +
+    said.warning = "the haptic device '" + choice.hands[h]->name +
                    "' is written through a transport without a bounded write (hidapi): a device "
                    "that stops taking reports holds the haptic tick, and no zero reaches it "
                    "before it takes reports again";
     options.progress(said);
   }
 
-  sim_options.device_frame = device_frame_of(*choice.haptic);
-  sim_options.device_spec = glove->capabilities().spec;
-  sim_options.channel_roles = session_devices.haptic_channels();
-  sim_options.button_uses = session_devices.haptic_buttons();
-  SessionSim sim(scene, std::move(solids), glove->capabilities().force_channels, sim_options);
-  devices::ForceGuard guard(sim.guard_channels(), guard_config);
-  devices::GuardedHaptic guarded(*glove, guard, clock, writer.get(), glove_index);
+  // One hand per haptic device, each with its own force guard.
+  std::vector<HandSetup> hand_setups;
+  for (std::size_t h = 0; h < session_devices.hand_count(); ++h) {
+    devices::HapticDevice& device = session_devices.haptic(h);
+    hand_setups.push_back({device.capabilities().force_channels, device_frame_of(*choice.hands[h]),
+                           device.capabilities().spec, session_devices.haptic_channels(h),
+                           session_devices.haptic_buttons(h), choice.hands[h]->max_force_N});
+  }
+  sim_options.device_frame = hand_setups.front().device_frame;
+  sim_options.device_spec = hand_setups.front().device_spec;
+  sim_options.channel_roles = hand_setups.front().channel_roles;
+  sim_options.button_uses = hand_setups.front().button_uses;
+  SessionSim sim(scene, std::move(solids), hand_setups, sim_options);
+  std::vector<std::unique_ptr<devices::ForceGuard>> guards;
+  std::vector<std::unique_ptr<devices::GuardedHaptic>> guarded;
+  for (std::size_t h = 0; h < session_devices.hand_count(); ++h) {
+    guards.push_back(std::make_unique<devices::ForceGuard>(sim.guard_channels(h), guard_config));
+    guarded.push_back(std::make_unique<devices::GuardedHaptic>(
+        session_devices.haptic(h), *guards.back(), clock, writer.get(),
+        session_devices.haptic_trace_index(h)));
+  }
 
   // ---- The hand-off ----
   const Snapshot initial = initial_snapshot(sim);
@@ -328,10 +423,13 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     if (faults.hang_tissue.exchange(false))
       std::this_thread::sleep_for(std::chrono::duration<double>(kFaultHangSeconds));
   };
-  devices::HapticState glove_shape;
-  glove_shape.end_effector_poses.resize(glove->capabilities().end_effectors);
-  glove_shape.finger_joint_angles_rad.resize(glove->capabilities().finger_joints.size());
-  TissueThread tissue(sim, glove_shape, options.tissue_thread, options.realtime_priority,
+  std::vector<devices::HapticState> hand_shapes(session_devices.hand_count());
+  for (std::size_t h = 0; h < hand_shapes.size(); ++h) {
+    const devices::Capabilities& caps = session_devices.haptic(h).capabilities();
+    hand_shapes[h].end_effector_poses.resize(caps.end_effectors);
+    hand_shapes[h].finger_joint_angles_rad.resize(caps.finger_joints.size());
+  }
+  TissueThread tissue(sim, hand_shapes, options.tissue_thread, options.realtime_priority,
                       publish_step);
 
   // ---- Render thread ----
@@ -382,18 +480,19 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   HapticLoopParts parts;
   parts.stale_margin_ticks = static_cast<std::uint32_t>(scene.simulation.stale_margin_ticks);
   report.stale_margin_ticks = parts.stale_margin_ticks;
-  parts.haptic = &guarded;
+  for (std::size_t h = 0; h < session_devices.hand_count(); ++h) {
+    parts.hands.push_back(
+        {guarded[h].get(), hand_setups[h].device_frame,
+         devices::buttons_with(session_devices.haptic_buttons(h), devices::ButtonUse::Clutch)});
+  }
   parts.steps = &steps;
   parts.sim = &sim;
-  parts.frame = sim_options.device_frame;
   parts.clock = &clock;
   parts.writer = writer.get();
   parts.head = head;
   parts.step_twins = [&](Nanoseconds t) { session_devices.step_twins(t); };
   parts.display_live = &display_live;
   parts.display_deadline_ns = &display_deadline_ns;
-  parts.clutch_buttons =
-      devices::buttons_with(session_devices.haptic_buttons(), devices::ButtonUse::Clutch);
   // The solids' box at the start, widened by half its size on every side: the instrument comes
   // from outside, but not from across the room.
   {
@@ -449,11 +548,13 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
 
   // ---- The calling thread watches (and makes the injected faults happen) ----
   progress.stage = "run";
-  bool warned_silent = false;
-  bool warned_untracked = false;
-  bool warned_latching = false;
-  constexpr std::uint64_t kLatchesToWarn = 3;
-  std::uint64_t latches_at_window = 0;
+  std::vector<HandWatch> watches;
+  for (std::size_t h = 0; h < session_devices.hand_count(); ++h) {
+    watches.push_back(
+        {"'" + choice.hands[h]->name + "' (" + session_devices.haptic(h).driver_name() + ")",
+         "'" + choice.hands[h]->name + "'",
+         static_cast<int>(ms(guard_config.device_silence_timeout))});
+  }
   auto latch_window_start = std::chrono::steady_clock::now();
   auto last_progress = wall_start;
   while (!stop.load()) {
@@ -471,43 +572,14 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     progress.overruns = overruns.load();
     progress.events = publisher.events();
     progress.force_N = force_now.load();
-    // A dead input is said within a second (the forces are zero meanwhile: the guard latched).
-    const double silent_s = loop.silent_for_s();
     progress.warning.clear();
-    if (silent_s >= 1.0 && !warned_silent) {
-      progress.warning = "the haptic device '" + choice.haptic->name + "' (" +
-                         glove->driver_name() + ") has sent nothing for " +
-                         std::to_string(static_cast<int>(silent_s)) +
-                         " s: its forces are zero until it reports again";
+    const bool latch_window_over =
+        std::chrono::steady_clock::now() - latch_window_start >= std::chrono::seconds(1);
+    for (std::size_t h = 0; h < watches.size(); ++h) {
+      const std::string said = watches[h].look(loop, h, latch_window_over);
+      if (!said.empty()) progress.warning += (progress.warning.empty() ? "" : "; ") + said;
     }
-    warned_silent = silent_s >= 1.0;
-    const double untracked_s = loop.untracked_for_s();
-    if (untracked_s >= 0.5 && !warned_untracked) {
-      // A controller whose grip the runtime never located (none bound, switched off, out of
-      // view) says so here, not only in the report.
-      progress.warning = "the haptic device '" + choice.haptic->name + "' (" +
-                         glove->driver_name() + ") has not been tracked for " +
-                         std::to_string(static_cast<int>(untracked_s * 1000.0)) +
-                         " ms: its instrument holds still and its forces are zero until it is";
-    }
-    warned_untracked = untracked_s >= 0.5;
-    // A guard that keeps latching zeros the force again and again: the device's reports come
-    // late or irregularly (a controller at a slow display rate, a loaded bus). Said once.
-    if (std::chrono::steady_clock::now() - latch_window_start >= std::chrono::seconds(1)) {
-      const std::uint64_t latches = loop.guard_latches_now();
-      if (latches - latches_at_window >= kLatchesToWarn && !warned_latching &&
-          progress.warning.empty()) {
-        progress.warning =
-            "the force guard of '" + choice.haptic->name + "' latched " +
-            std::to_string(latches - latches_at_window) +
-            " times in the last second, zeroing its forces each time: its "
-            "reports come late or irregularly, or the ticks ran late (its silence limit is " +
-            std::to_string(static_cast<int>(ms(guard_config.device_silence_timeout))) + " ms)";
-        warned_latching = true;
-      }
-      latches_at_window = latches;
-      latch_window_start = std::chrono::steady_clock::now();
-    }
+    if (latch_window_over) latch_window_start = std::chrono::steady_clock::now();
     if (options.progress) options.progress(progress);
   }
   haptic_thread.join();
@@ -531,8 +603,10 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   report.overruns = overruns.load();
   report.realtime_priority = realtime.load();
   report.final_state_hash = sim.state_hash();
-  report.clamped_forces = guard.clamp_count();
-  report.rate_limited_forces = guard.rate_limit_count();
+  for (const auto& guard : guards) {
+    report.clamped_forces += guard->clamp_count();
+    report.rate_limited_forces += guard->rate_limit_count();
+  }
   report.divergence_events = sim.divergence_events();
   report.render_fps = report.frames > 1 && report.frame_ms.count() > 0
                           ? 1000.0 / report.frame_ms.summary().mean
@@ -544,7 +618,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     if (i < event_response.size()) e.response_ms = event_response[i];
     report.events.push_back(std::move(e));
   }
-  warn_what_was_ignored(report, choice.haptic->name);
+  warn_what_was_ignored(report, loop.counters(), choice);
   // Every ending writes the closing note and closes the devices and the trace; a failure there
   // is reported, not thrown, so the report is written either way.
   try {

@@ -2,6 +2,7 @@
 
 #include "bisturi/runtime/session/session_devices.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <utility>
 
@@ -75,24 +76,24 @@ DeviceChoice choose_session_devices(const SceneDescription& scene) {
       if (d.name == name) return &d;
     return nullptr;
   };
+  std::vector<const DeviceDescription*> named;
   for (const InstrumentDescription& in : scene.instruments) {
     if (in.device.empty()) continue;
     const DeviceDescription* d = by_name(in.device);
     if (d == nullptr || d->role != DeviceDescription::Role::Haptic)
       throw SceneFileError(scene.name + ": instrument '" + in.name + "' names device '" +
                            in.device + "', which is not a haptic device of the scene");
-    if (c.haptic != nullptr && c.haptic != d)
-      throw SceneFileError(scene.name + ": instrument '" + in.name + "' follows device '" +
-                           d->name + "' but another instrument follows '" + c.haptic->name +
-                           "'; the session drives every instrument from one haptic device");
-    c.haptic = d;
+    named.push_back(d);
   }
   for (const DeviceDescription& d : scene.devices) {
-    if (d.role == DeviceDescription::Role::Haptic && c.haptic == nullptr) c.haptic = &d;
+    const bool hand = d.role == DeviceDescription::Role::Haptic &&
+                      (named.empty() || std::find(named.begin(), named.end(), &d) != named.end());
+    if (hand) c.hands.push_back(&d);
     if (d.role == DeviceDescription::Role::HeadTracker && c.head == nullptr) c.head = &d;
   }
-  if (c.haptic == nullptr)
+  if (c.hands.empty())
     throw SceneFileError(scene.name + ": the session needs a device with role = \"haptic\"");
+  c.haptic = c.hands.front();
   if (c.head == nullptr)
     throw SceneFileError(scene.name + ": the session needs a device with role = \"head-tracker\"");
   return c;
@@ -134,9 +135,19 @@ SessionDevices::SessionDevices(const SceneDescription& scene, const Procedure& p
       haptic_hz_(scene.rates.haptic_hz),
       in_process_(std::move(in_process)) {
   const std::string where = scene.file.empty() ? scene.name + " scene" : scene.file.string();
+  hands_.resize(choice_.hands.size());
   try {
-    haptic_device_ = open_one(*choice_.haptic, procedure.glove, registry, clock, writer,
-                              &haptic_index_, &haptic_write_bounded_);
+    for (std::size_t i = 0; i < hands_.size(); ++i) {
+      Hand& hand = hands_[i];
+      const std::size_t twins_before = twins_.size();
+      const devices::DeviceScript& script =
+          i == 0 ? procedure.glove
+                 : (i - 1 < procedure.other_hands.size() ? procedure.other_hands[i - 1]
+                                                         : procedure.glove);
+      hand.device = open_one(*choice_.hands[i], script, registry, clock, writer, &hand.trace_index,
+                             &hand.write_bounded);
+      if (twins_.size() > twins_before) hand.twin = twins_.back().get();
+    }
     head_device_ =
         open_one(*choice_.head, procedure.head, registry, clock, writer, nullptr, nullptr);
   } catch (const SceneFileError& e) {
@@ -144,19 +155,22 @@ SessionDevices::SessionDevices(const SceneDescription& scene, const Procedure& p
   } catch (const devices::DeviceError& e) {
     throw devices::DeviceError(where + ": " + e.what());
   }
-  haptic_ = devices::as_haptic(haptic_device_.get());
+  for (std::size_t i = 0; i < hands_.size(); ++i) {
+    Hand& hand = hands_[i];
+    hand.haptic = devices::as_haptic(hand.device.get());
+    if (hand.haptic == nullptr)
+      throw SceneFileError(describe(*choice_.hands[i]) + ": its driver '" +
+                           hand.device->driver_name() + "' is not a haptic device");
+    const devices::DriverInfo* driver = registry.find_by_name(hand.haptic->driver_name());
+    const devices::ChannelLayout layout =
+        driver != nullptr ? driver->layout : devices::ChannelLayout{};
+    hand.roles = layout.roles(hand.haptic->capabilities());
+    hand.buttons = layout.button_uses(hand.haptic->capabilities());
+  }
   head_ = devices::as_tracker(head_device_.get());
-  if (haptic_ == nullptr)
-    throw SceneFileError(describe(*choice_.haptic) + ": its driver '" +
-                         haptic_device_->driver_name() + "' is not a haptic device");
   if (head_ == nullptr)
     throw SceneFileError(describe(*choice_.head) + ": its driver '" + head_device_->driver_name() +
                          "' is not a head tracker");
-  const devices::DriverInfo* driver = registry.find_by_name(haptic_->driver_name());
-  const devices::ChannelLayout layout =
-      driver != nullptr ? driver->layout : devices::ChannelLayout{};
-  haptic_roles_ = layout.roles(haptic_->capabilities());
-  haptic_buttons_ = layout.button_uses(haptic_->capabilities());
 }
 
 SessionDevices::~SessionDevices() = default;
@@ -210,20 +224,21 @@ std::vector<std::string> SessionDevices::summary() const {
 }
 
 bool SessionDevices::unplug_haptic() {
-  // The haptic device is opened first: a simulated one's twin is the first.
-  if (!choice_.haptic->simulated || twins_.empty()) return false;
-  twins_.front()->disconnect();
+  if (hands_.front().twin == nullptr) return false;
+  hands_.front().twin->disconnect();
   return true;
 }
 
 bool SessionDevices::stall_haptic_io(devices::Nanoseconds duration) {
-  if (!choice_.haptic->simulated || twins_.empty()) return false;
-  twins_.front()->stall_host_writes(duration);
+  if (hands_.front().twin == nullptr) return false;
+  hands_.front().twin->stall_host_writes(duration);
   return true;
 }
 
 void SessionDevices::close() {
-  if (haptic_device_) haptic_device_->close();
+  for (Hand& hand : hands_) {
+    if (hand.device) hand.device->close();
+  }
   if (head_device_) head_device_->close();
 }
 

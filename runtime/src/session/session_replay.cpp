@@ -40,12 +40,13 @@ bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {
 class ReplayTickSteps final : public TickSteps {
  public:
   explicit ReplayTickSteps(SessionSim& sim) : sim_(sim) {}
-  TissueThread::Push push(const devices::HapticState& state, std::uint32_t ticks) override {
+  TissueThread::Push push(std::span<const devices::HapticState> states,
+                          std::uint32_t ticks) override {
     if (dropped) {  // the live tissue could not take this one (its note precedes the push)
       dropped.reset();
       return TissueThread::Push::Behind;
     }
-    queued_.emplace_back(state, ticks);
+    queued_.emplace_back(std::vector<devices::HapticState>(states.begin(), states.end()), ticks);
     ++pushed_;
     return TissueThread::Push::Queued;
   }
@@ -78,7 +79,7 @@ class ReplayTickSteps final : public TickSteps {
   }
 
   SessionSim& sim_;
-  std::deque<std::pair<devices::HapticState, std::uint32_t>> queued_;
+  std::deque<std::pair<std::vector<devices::HapticState>, std::uint32_t>> queued_;
   std::uint64_t pushed_ = 0;
   std::uint64_t run_ = 0;
   const TickOutput* newest_ = nullptr;
@@ -133,52 +134,82 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
   const devices::ForceGuardConfig guard_config =
       devices::force_guard_config_from_json(reader.header().config);
   const DeviceChoice choice = choose_session_devices(scene);
-  std::unique_ptr<devices::Device> device;
-  devices::HapticDevice* glove = nullptr;
-  std::shared_ptr<devices::ReplayLink> link;
-  std::unique_ptr<devices::ForceGuard> guard;
-  std::unique_ptr<devices::GuardedHaptic> guarded;
+  // One per hand: hand h's device is device glove_index + h of the trace (opened in order).
+  struct ReplayHand {
+    std::uint16_t index = 0;
+    std::unique_ptr<devices::Device> device;
+    devices::HapticDevice* haptic = nullptr;
+    std::shared_ptr<devices::ReplayLink> link;
+    std::unique_ptr<devices::ForceGuard> guard;
+    std::unique_ptr<devices::GuardedHaptic> guarded;
+    bool open_pending = false;
+    /// A "haptic_stop" or "watchdog_zero" note for this hand: its next force command is that
+    /// zero, not a tick.
+    enum class Zero : std::uint8_t { None, Stop, Watchdog } pending_zero = Zero::None;
+    std::vector<double> zeros;
+  };
+  std::vector<ReplayHand> hands(choice.hands.size());
+  for (std::size_t h = 0; h < hands.size(); ++h)
+    hands[h].index = static_cast<std::uint16_t>(glove_index + h);
+  const auto hand_of = [&](std::uint16_t device) -> ReplayHand* {
+    for (ReplayHand& h : hands)
+      if (h.index == device) return &h;
+    return nullptr;
+  };
   std::unique_ptr<SessionSim> sim;
   std::unique_ptr<ReplayTickSteps> steps;
   std::unique_ptr<HapticLoop> loop;
-  // A "haptic_stop" or "watchdog_zero" note: the next force command is that zero, not a tick.
-  enum class Zero : std::uint8_t { None, Stop, Watchdog } pending_zero = Zero::None;
-  std::vector<double> zeros;
 
-  bool open_pending = false;
-  // Opens the glove's driver and everything that follows it; false while the driver waits for
-  // the recording's first report (devices::open_replayed).
-  const auto open_glove = [&]() -> bool {
-    device = devices::open_replayed(
-        registry, devices::to_device_descriptor(reader.devices().at(glove_index)), clock, link);
-    if (!device) return false;
-    glove = devices::as_haptic(device.get());
-    if (glove == nullptr)
-      throw devices::TraceError(reader.name() + ": the recorded glove is not a haptic device");
+  // Builds the simulation and the loop once every hand's driver is open.
+  const auto start_loop = [&] {
+    std::vector<HandSetup> setups;
+    for (std::size_t h = 0; h < hands.size(); ++h) {
+      const devices::HapticDevice& d = *hands[h].haptic;
+      HandSetup setup{d.capabilities().force_channels,
+                      device_frame_of(*choice.hands[h]),
+                      d.capabilities().spec,
+                      {},
+                      {},
+                      choice.hands[h]->max_force_N};
+      if (const devices::DriverInfo* driver = registry.find_by_name(d.driver_name())) {
+        setup.channel_roles = driver->layout.roles(d.capabilities());
+        setup.button_uses = driver->layout.button_uses(d.capabilities());
+      }
+      setups.push_back(std::move(setup));
+    }
     SessionSimOptions sim_options;
     sim_options.tissue_threads = tissue_threads;
-    sim_options.device_frame = device_frame_of(*choice.haptic);
-    sim_options.device_spec = glove->capabilities().spec;
-    if (const devices::DriverInfo* driver = registry.find_by_name(glove->driver_name())) {
-      sim_options.channel_roles = driver->layout.roles(glove->capabilities());
-      sim_options.button_uses = driver->layout.button_uses(glove->capabilities());
-    }
-    sim = std::make_unique<SessionSim>(scene, std::move(solids),
-                                       glove->capabilities().force_channels, sim_options);
-    guard = std::make_unique<devices::ForceGuard>(sim->guard_channels(), guard_config);
-    guarded = std::make_unique<devices::GuardedHaptic>(*glove, *guard, clock);
+    sim = std::make_unique<SessionSim>(scene, std::move(solids), setups, sim_options);
     steps = std::make_unique<ReplayTickSteps>(*sim);
     HapticLoopParts parts;
     parts.stale_margin_ticks = static_cast<std::uint32_t>(scene.simulation.stale_margin_ticks);
-    parts.haptic = guarded.get();
+    for (std::size_t h = 0; h < hands.size(); ++h) {
+      ReplayHand& hand = hands[h];
+      hand.guard = std::make_unique<devices::ForceGuard>(sim->guard_channels(h), guard_config);
+      hand.guarded = std::make_unique<devices::GuardedHaptic>(*hand.haptic, *hand.guard, clock);
+      hand.zeros.assign(sim->command_size(h), 0.0);
+      parts.hands.push_back(
+          {hand.guarded.get(), setups[h].device_frame,
+           devices::buttons_with(setups[h].button_uses, devices::ButtonUse::Clutch)});
+    }
     parts.steps = steps.get();
     parts.sim = sim.get();
-    parts.frame = sim_options.device_frame;
     parts.clock = &clock;
-    parts.clutch_buttons =
-        devices::buttons_with(sim_options.button_uses, devices::ButtonUse::Clutch);
     loop = std::make_unique<HapticLoop>(std::move(parts), lag, ticks_per_step);
-    zeros.assign(sim->command_size(), 0.0);
+  };
+  // Opens a hand's driver (false while it waits for the recording's first report:
+  // devices::open_replayed), and the loop once every hand's is open.
+  const auto open_hand = [&](ReplayHand& hand) -> bool {
+    hand.device = devices::open_replayed(
+        registry, devices::to_device_descriptor(reader.devices().at(hand.index)), clock, hand.link);
+    if (!hand.device) return false;
+    hand.haptic = devices::as_haptic(hand.device.get());
+    if (hand.haptic == nullptr)
+      throw devices::TraceError(reader.name() + ": recorded device " + std::to_string(hand.index) +
+                                " is not a haptic device");
+    const bool all_open = std::all_of(hands.begin(), hands.end(),
+                                      [](const ReplayHand& h) { return h.haptic != nullptr; });
+    if (all_open) start_loop();
     return true;
   };
   const auto compare = [&](const std::vector<double>& expected, const std::vector<double>& actual,
@@ -193,7 +224,9 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
   const auto tick = [&] {
     (void)loop->tick(clock.now() - t0);
     result.ticks = loop->counters().ticks;
-    if (link) (void)link->take_written();  // devices::replay_trace checks the bytes
+    for (ReplayHand& h : hands) {
+      if (h.link) (void)h.link->take_written();  // devices::replay_trace checks the bytes
+    }
   };
 
   for (;;) {
@@ -210,10 +243,10 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
       const std::string text(r->payload.begin(), r->payload.end());
       if (text == "tick" && loop) {
         tick();
-      } else if (text == "haptic_stop") {
-        pending_zero = Zero::Stop;
-      } else if (text == "watchdog_zero") {
-        pending_zero = Zero::Watchdog;
+      } else if (const auto stop = parse_hand_note(text, "haptic_stop")) {
+        if (*stop < hands.size()) hands[*stop].pending_zero = ReplayHand::Zero::Stop;
+      } else if (const auto zero = parse_hand_note(text, "watchdog_zero")) {
+        if (*zero < hands.size()) hands[*zero].pending_zero = ReplayHand::Zero::Watchdog;
       } else if (text == "display_hold" || text == "display_live") {
         if (loop) loop->hold_display(text == "display_hold");
       } else if (auto l = parse_late_tick_note(text)) {
@@ -233,53 +266,60 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
       }
       continue;
     }
-    if (r->device != glove_index) continue;
+    ReplayHand* hand = hand_of(r->device);
+    if (hand == nullptr) continue;
+    const std::size_t h = static_cast<std::size_t>(hand - hands.data());
     switch (r->type) {
       case devices::TraceRecordType::kConnect: {
-        if (device || open_pending)
-          throw devices::TraceError(reader.name() +
-                                    ": the glove connects twice; a session never reopens it");
-        open_pending = !open_glove();
+        if (hand->device || hand->open_pending)
+          throw devices::TraceError(reader.name() + ": haptic device " +
+                                    std::to_string(hand->index) +
+                                    " connects twice; a session never reopens it");
+        hand->open_pending = !open_hand(*hand);
         break;
       }
       case devices::TraceRecordType::kReportIn:
-        if (!link || (loop && loop->device_lost())) break;
-        link->push_input(devices::Nanoseconds{r->time_ns}, r->payload);
-        if (open_pending) {
-          open_pending = !open_glove();
+        if (!hand->link || (loop && loop->device_lost(h))) break;
+        hand->link->push_input(devices::Nanoseconds{r->time_ns}, r->payload);
+        if (hand->open_pending) {
+          hand->open_pending = !open_hand(*hand);
           break;
         }
+        if (!hand->guarded) break;
         // Read at its own time, as the live driver did (its sample time feeds the guard).
         try {
-          guarded->poll(std::chrono::microseconds(0));
+          hand->guarded->poll(std::chrono::microseconds(0));
         } catch (const devices::ProtocolError&) {
         } catch (const devices::DeviceDisconnected&) {
         }
         break;
       case devices::TraceRecordType::kForceCommand: {
-        if (!loop) throw devices::TraceError(reader.name() + ": a force command before the glove");
+        if (!loop)
+          throw devices::TraceError(reader.name() + ": a force command before every hand's device");
         const std::vector<double> expected = r->forces_N();
-        if (pending_zero == Zero::Stop) {
-          loop->stop();
-          compare(expected, zeros, r->time_ns);
-        } else if (pending_zero == Zero::Watchdog) {
-          loop->zero_now();
-          compare(expected, zeros, r->time_ns);
+        if (hand->pending_zero == ReplayHand::Zero::Stop) {
+          loop->stop();  // every hand's zero (the live stop sent them one after another)
+          compare(expected, hand->zeros, r->time_ns);
+        } else if (hand->pending_zero == ReplayHand::Zero::Watchdog) {
+          loop->zero_now(h);
+          compare(expected, hand->zeros, r->time_ns);
         } else {
-          tick();
-          compare(expected, loop->command(), r->time_ns);
+          if (h == 0) tick();  // the first hand's command is the tick's first
+          compare(expected, loop->command(h), r->time_ns);
         }
-        pending_zero = Zero::None;
+        hand->pending_zero = ReplayHand::Zero::None;
         break;
       }
       case devices::TraceRecordType::kDisconnect:
-        if (link) link->disconnect();
+        if (hand->link) hand->link->disconnect();
         break;
       default:
         break;
     }
   }
-  if (device) device->close();
+  for (ReplayHand& hand : hands) {
+    if (hand.device) hand.device->close();
+  }
   if (sim) {
     steps->run_all();  // the live session ran every queued step before its hash
     result.state_hash = sim->state_hash();

@@ -27,17 +27,30 @@ struct ProcedurePhase {
 };
 
 struct Procedure {
-  devices::DeviceScript glove;
+  devices::DeviceScript glove;  ///< the first hand's
+  /// The other hands' scripts, in order (a hand past them follows the first's).
+  std::vector<devices::DeviceScript> other_hands;
   devices::DeviceScript head;
   std::vector<ProcedurePhase> phases;
 };
 
-/// The default procedure over `duration` for `solids` (at least one). `buttons`: what the
-/// device's buttons do (its driver's ChannelLayout::buttons; empty: button 0 cuts): the script
-/// presses the cut button for the incision and holds a grasp button, where there is one, while
-/// the hand closes. Throws SceneFileError for a script name other than "default".
+/// The procedure over `duration` for `solids` (at least one), the first hand following `script`.
+/// `buttons`: what the device's buttons do (its driver's ChannelLayout::buttons; empty: button 0
+/// cuts): the script presses the cut button for the incision and holds a grasp button, where
+/// there is one, while the hand closes. Throws SceneFileError for an unknown script name.
 Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid>& solids,
                          devices::Nanoseconds duration, std::size_t glove_joints,
                          const std::vector<devices::ButtonUse>& buttons = {});
+
+/// One hand's script over the same timeline:
+///  - "default": approach, palpate, grasp the vessel and pull it, release, cut;
+///  - "hold": the assisting hand: comes down beside the middle of the cut's path (10 mm to its
+///    side on the first solid's surface), grasps the tissue there before the incision, lifts it
+///    4 mm and draws it 2 mm away from the path, holds it so through the cut, then lets go.
+/// Throws SceneFileError for another name.
+devices::DeviceScript make_hand_script(const std::string& script,
+                                       const std::vector<BuiltSolid>& solids,
+                                       devices::Nanoseconds duration, std::size_t joints,
+                                       const std::vector<devices::ButtonUse>& buttons = {});
 
 }  // namespace bisturi::runtime

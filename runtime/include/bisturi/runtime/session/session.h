@@ -153,6 +153,8 @@ struct SessionReport {
   std::uint32_t tissue_threads = 1;
   std::vector<SolidReport> solids;
   std::vector<std::string> devices;  ///< "glove: hid-glove (simulated)"
+  /// The hands: the scene names of the haptic devices, in hand order (an event's hand indexes it).
+  std::vector<std::string> hands;
 
   std::uint64_t ticks = 0;
   std::uint64_t frames = 0;

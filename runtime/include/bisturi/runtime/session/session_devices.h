@@ -22,12 +22,13 @@
 
 namespace bisturi::runtime {
 
-/// Which scene devices the session uses: the haptic device every instrument names (or the first
-/// haptic device when no instrument names one) and the first head tracker. Throws SceneFileError
-/// when a role is missing or the instruments name different haptic devices (the session has one
-/// hand: every instrument follows the same device).
+/// Which scene devices the session uses: its hands, the haptic devices the instruments name (all
+/// the scene's haptic devices when no instrument names one), in the scene's order, and the first
+/// head tracker. Every hand drives its own probe, grasper and scalpel. Throws SceneFileError when
+/// a role is missing or an instrument names a device that is not a haptic device of the scene.
 struct DeviceChoice {
-  const DeviceDescription* haptic = nullptr;
+  std::vector<const DeviceDescription*> hands;
+  const DeviceDescription* haptic = nullptr;  ///< the first hand's
   const DeviceDescription* head = nullptr;
 };
 DeviceChoice choose_session_devices(const SceneDescription& scene);
@@ -48,11 +49,11 @@ using InProcessTransports =
 
 class SessionDevices {
  public:
-  /// Opens both devices (recording them into `writer` when it is not null). `procedure` scripts
-  /// the simulated twins. Throws SceneFileError for a simulated driver without a twin or real
-  /// hardware for a driver without a bus, and devices::DeviceError when real hardware is not
-  /// connected or cannot be opened. `in_process` serves drivers on the virtual bus that are not
-  /// simulated.
+  /// Opens the hands' devices, then the head tracker (recording them into `writer` when it is not
+  /// null, in that order). `procedure` scripts the simulated twins. Throws SceneFileError for a
+  /// simulated driver without a twin or real hardware for a driver without a bus, and
+  /// devices::DeviceError when real hardware is not connected or cannot be opened. `in_process`
+  /// serves drivers on the virtual bus that are not simulated.
   SessionDevices(const SceneDescription& scene, const Procedure& procedure,
                  const devices::Registry& registry, devices::Clock& clock,
                  devices::TraceWriter* writer, InProcessTransports in_process = {});
@@ -63,32 +64,43 @@ class SessionDevices {
   /// The twins send the reports due at session time t (hardware sends on its own: no-op there).
   void step_twins(devices::Nanoseconds t);
 
-  [[nodiscard]] devices::HapticDevice& haptic() const { return *haptic_; }
+  [[nodiscard]] std::size_t hand_count() const { return hands_.size(); }
+  /// A hand's haptic device (the first: the session's first hand).
+  [[nodiscard]] devices::HapticDevice& haptic(std::size_t hand = 0) const {
+    return *hands_[hand].haptic;
+  }
   [[nodiscard]] devices::Tracker& head() const { return *head_; }
-  [[nodiscard]] const DeviceDescription& haptic_description() const { return *choice_.haptic; }
-  /// What the session sends on each of the haptic device's force channels (its driver's layout,
+  [[nodiscard]] const DeviceDescription& haptic_description(std::size_t hand = 0) const {
+    return *choice_.hands[hand];
+  }
+  /// What the session sends on each of a hand's device's force channels (its driver's layout,
   /// in capabilities().force_channels order).
-  [[nodiscard]] const std::vector<devices::ChannelRole>& haptic_channels() const {
-    return haptic_roles_;
+  [[nodiscard]] const std::vector<devices::ChannelRole>& haptic_channels(
+      std::size_t hand = 0) const {
+    return hands_[hand].roles;
   }
-  /// What each of the haptic device's buttons does (its driver's layout).
-  [[nodiscard]] const std::vector<devices::ButtonUse>& haptic_buttons() const {
-    return haptic_buttons_;
+  /// What each of a hand's device's buttons does (its driver's layout).
+  [[nodiscard]] const std::vector<devices::ButtonUse>& haptic_buttons(std::size_t hand = 0) const {
+    return hands_[hand].buttons;
   }
-  /// The haptic device's index in the trace (0 when not recording).
-  [[nodiscard]] std::uint16_t haptic_trace_index() const { return haptic_index_; }
+  /// A hand's device's index in the trace (0 when not recording).
+  [[nodiscard]] std::uint16_t haptic_trace_index(std::size_t hand = 0) const {
+    return hands_[hand].trace_index;
+  }
   /// "glove: hid-glove (simulated)", "head: hid-tracker (GloveCo Tracker (1234:5678, ...))".
   [[nodiscard]] std::vector<std::string> summary() const;
-  /// Closes both drivers (zero forces first).
+  /// Closes every driver (zero forces first).
   void close();
-  /// Breaks a simulated haptic device's link as an unplug would (an injected fault): false for
-  /// hardware, which only a hand can unplug.
+  /// Breaks the first hand's simulated device's link as an unplug would (an injected fault):
+  /// false for hardware, which only a hand can unplug.
   bool unplug_haptic();
-  /// Makes a simulated haptic device hold off the host's next write for `duration` (an injected
-  /// fault): false for hardware.
+  /// Makes the first hand's simulated device hold off the host's next write for `duration` (an
+  /// injected fault): false for hardware.
   bool stall_haptic_io(devices::Nanoseconds duration);
-  /// Whether the haptic device's writes return within a bound (Transport::write_is_bounded).
-  [[nodiscard]] bool haptic_write_bounded() const { return haptic_write_bounded_; }
+  /// Whether a hand's device's writes return within a bound (Transport::write_is_bounded).
+  [[nodiscard]] bool haptic_write_bounded(std::size_t hand = 0) const {
+    return hands_[hand].write_bounded;
+  }
 
  private:
   std::unique_ptr<devices::Device> open_one(const DeviceDescription& d,
@@ -97,17 +109,24 @@ class SessionDevices {
                                             devices::Clock& clock, devices::TraceWriter* writer,
                                             std::uint16_t* trace_index, bool* write_bounded);
 
+  /// One hand's device, opened.
+  struct Hand {
+    std::unique_ptr<devices::Device> device;
+    devices::HapticDevice* haptic = nullptr;
+    devices::SimulatedDevice* twin = nullptr;  ///< null: hardware or fed in process
+    bool write_bounded = true;
+    std::uint16_t trace_index = 0;
+    std::vector<devices::ChannelRole> roles;
+    std::vector<devices::ButtonUse> buttons;
+  };
+
   DeviceChoice choice_;
   double haptic_hz_;
   InProcessTransports in_process_;
   std::vector<std::unique_ptr<devices::SimulatedDevice>> twins_;
-  std::unique_ptr<devices::Device> haptic_device_, head_device_;
-  devices::HapticDevice* haptic_ = nullptr;
+  std::vector<Hand> hands_;
+  std::unique_ptr<devices::Device> head_device_;
   devices::Tracker* head_ = nullptr;
-  bool haptic_write_bounded_ = true;
-  std::uint16_t haptic_index_ = 0;
-  std::vector<devices::ChannelRole> haptic_roles_;
-  std::vector<devices::ButtonUse> haptic_buttons_;
   std::vector<std::string> summary_;
 };
 
