@@ -1,6 +1,6 @@
 #!/bin/sh
-# bisturi device list|describe and bisturi trace dump, as CTest runs them:
-#   device_cli_test.sh BISTURI WORKDIR list|describe|malformed|dump HID_DATA_DIR
+# bisturi device list|describe|check and bisturi trace dump, as CTest runs them:
+#   device_cli_test.sh BISTURI WORKDIR list|describe|malformed|dump|check HID_DATA_DIR
 set -u
 bisturi="$1"
 work="$2"
@@ -25,6 +25,22 @@ case "$mode" in
       fail "openxr-controller is listed without its channel roles"
     "$bisturi" device list > /dev/null || fail "device list (text) exited $?"
     echo "list: ok"
+    ;;
+  check)
+    # The arm against its twin through the guard: its grip grasps, its second button cuts, the
+    # force stays within the cap asked for; a driver without a twin is refused (exit 2).
+    out=$("$bisturi" device check vendor-arm --seconds 2 --max-force-N 2 --json) ||
+      { echo "$out"; fail "device check exited $?"; }
+    echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "the arm's check did not pass"; }
+    echo "$out" | grep -q '"kind": "grasp"' || fail "the arm's grip grasped nothing"
+    echo "$out" | grep -q '"kind": "cut"' || fail "the arm's second button cut nothing"
+    echo "$out" | grep -q '"limit_N": 2.0' || fail "the cap is not the channel's limit"
+    "$bisturi" device check hid-glove --seconds 1 > "$work/check.txt" 2>&1
+    grep -q 'finger 2' "$work/check.txt" || { cat "$work/check.txt"; fail "no finger channels"; }
+    "$bisturi" device check openxr-controller > "$work/check.txt" 2>&1
+    [ $? -eq 2 ] || fail "a driver without a twin was checked"
+    grep -q 'no simulated twin' "$work/check.txt" || { cat "$work/check.txt"; fail "no reason"; }
+    echo "check: ok"
     ;;
   describe)
     out=$("$bisturi" device describe "$data/sony_dualshock4_v2_usb.bin") || fail "exit $?"

@@ -91,6 +91,7 @@ void add_device_command(CLI::App& app, DeviceOptions& options, int (*&run)(const
       ->check(CLI::ExistingFile);
   describe->add_flag("--json", options.json, "write one JSON object on stdout");
   describe->callback([&run] { run = run_device_describe; });
+  add_device_check_command(*device, options, run);
 }
 
 namespace {
