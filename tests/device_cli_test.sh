@@ -1,6 +1,6 @@
 #!/bin/sh
 # bisturi device list|describe|check and bisturi trace dump, as CTest runs them:
-#   device_cli_test.sh BISTURI WORKDIR list|describe|malformed|dump|check HID_DATA_DIR
+#   device_cli_test.sh BISTURI WORKDIR list|describe|malformed|dump|check|udev HID_DATA_DIR
 set -u
 bisturi="$1"
 work="$2"
@@ -41,6 +41,17 @@ case "$mode" in
     [ $? -eq 2 ] || fail "a driver without a twin was checked"
     grep -q 'no simulated twin' "$work/check.txt" || { cat "$work/check.txt"; fail "no reason"; }
     echo "check: ok"
+    ;;
+  udev)
+    # Rules from the registry: the vendor arm's raw USB node by its ids, in the lower-case hex
+    # sysfs gives (udev compares text), for the seat's user and plugdev.
+    out=$("$bisturi" device udev-rules) || fail "device udev-rules exited $?"
+    echo "$out" | grep -q '^SUBSYSTEM=="usb", ATTR{idVendor}=="1209", ATTR{idProduct}=="b157", MODE="0660", GROUP="plugdev", TAG+="uaccess"$' ||
+      { echo "$out"; fail "no rule for the vendor arm"; }
+    echo "$out" | grep -q '^# hid-glove' || fail "the HID glove is not mentioned"
+    echo "$out" | grep -o 'id[VP][a-z]*}=="[^"]*"' | grep -q '[A-F]' &&
+      fail "upper-case ids: udev would not match them"
+    echo "udev: ok"
     ;;
   describe)
     out=$("$bisturi" device describe "$data/sony_dualshock4_v2_usb.bin") || fail "exit $?"

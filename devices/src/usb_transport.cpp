@@ -16,41 +16,29 @@ struct UsbSource::Context {
 
 namespace {
 
-struct Endpoints {
-  int interface = -1;
-  std::uint8_t in = 0, out = 0;
-  std::uint16_t in_size = 64;
-};
+using Endpoints = UsbEndpoints;
 
-// The first vendor-specific interface with interrupt IN and OUT endpoints.
-Endpoints find_endpoints(libusb_device* device) {
-  Endpoints found;
+/// The device's active configuration as choose_usb_endpoints reads it.
+std::vector<UsbAltSetting> alt_settings(libusb_device* device) {
+  std::vector<UsbAltSetting> out;
   libusb_config_descriptor* config = nullptr;
-  if (libusb_get_active_config_descriptor(device, &config) != 0 || !config) return found;
-  for (int i = 0; i < config->bNumInterfaces && found.interface < 0; ++i) {
+  if (libusb_get_active_config_descriptor(device, &config) != 0 || !config) return out;
+  for (int i = 0; i < config->bNumInterfaces; ++i) {
     const libusb_interface& interface = config->interface[i];
-    for (int a = 0; a < interface.num_altsetting && found.interface < 0; ++a) {
+    for (int a = 0; a < interface.num_altsetting; ++a) {
       const libusb_interface_descriptor& alt = interface.altsetting[a];
-      if (alt.bInterfaceClass != LIBUSB_CLASS_VENDOR_SPEC) continue;
-      Endpoints e;
+      UsbAltSetting s;
+      s.interface_number = alt.bInterfaceNumber;
+      s.interface_class = alt.bInterfaceClass;
       for (int k = 0; k < alt.bNumEndpoints; ++k) {
         const libusb_endpoint_descriptor& ep = alt.endpoint[k];
-        if ((ep.bmAttributes & 0x03) != LIBUSB_TRANSFER_TYPE_INTERRUPT) continue;
-        if (ep.bEndpointAddress & LIBUSB_ENDPOINT_IN) {
-          e.in = ep.bEndpointAddress;
-          e.in_size = ep.wMaxPacketSize;
-        } else {
-          e.out = ep.bEndpointAddress;
-        }
+        s.endpoints.push_back({ep.bEndpointAddress, ep.bmAttributes, ep.wMaxPacketSize});
       }
-      if (e.in && e.out) {
-        e.interface = alt.bInterfaceNumber;
-        found = e;
-      }
+      out.push_back(std::move(s));
     }
   }
   libusb_free_config_descriptor(config);
-  return found;
+  return out;
 }
 
 std::string usb_path(libusb_device* device) {
@@ -195,8 +183,35 @@ class LibusbIo final : public UsbIo {
 
 }  // namespace
 
-UsbSource::UsbSource(std::vector<UsbId> wanted)
-    : wanted_(std::move(wanted)), context_(std::make_unique<Context>()) {
+UsbEndpoints choose_usb_endpoints(const std::vector<UsbAltSetting>& settings,
+                                  const UsbInterface& declared) {
+  for (const UsbAltSetting& alt : settings) {
+    if (declared.number >= 0 ? alt.interface_number != declared.number
+                             : alt.interface_class != LIBUSB_CLASS_VENDOR_SPEC)
+      continue;
+    UsbEndpoints e;
+    for (const UsbAltSetting::Endpoint& ep : alt.endpoints) {
+      if ((ep.attributes & 0x03) != LIBUSB_TRANSFER_TYPE_INTERRUPT) continue;
+      if (ep.address & LIBUSB_ENDPOINT_IN) {
+        if (declared.in_endpoint != 0 && ep.address != declared.in_endpoint) continue;
+        if (e.in != 0) continue;  // the first that fits
+        e.in = ep.address;
+        e.in_size = ep.max_packet_size;
+      } else {
+        if (declared.out_endpoint != 0 && ep.address != declared.out_endpoint) continue;
+        if (e.out == 0) e.out = ep.address;
+      }
+    }
+    if (e.in && e.out) {
+      e.interface = alt.interface_number;
+      return e;
+    }
+  }
+  return {};
+}
+
+UsbSource::UsbSource(std::vector<UsbId> wanted, UsbInterface interface)
+    : wanted_(std::move(wanted)), interface_(interface), context_(std::make_unique<Context>()) {
   const int rc = libusb_init(&context_->ctx);
   if (rc != 0) throw DeviceError(std::string("libusb: ") + libusb_error_name(rc));
 }
@@ -218,7 +233,7 @@ std::vector<DeviceDescriptor> UsbSource::enumerate() {
     if (!wanted_.empty() && std::find(wanted_.begin(), wanted_.end(), id) == wanted_.end()) {
       continue;
     }
-    if (find_endpoints(device).interface < 0) continue;
+    if (choose_usb_endpoints(alt_settings(device), interface_).interface < 0) continue;
     DeviceDescriptor d;
     d.kind = TransportKind::Usb;
     d.vendor_id = dd.idVendor;
@@ -253,7 +268,7 @@ std::unique_ptr<Transport> UsbSource::open(const DeviceDescriptor& wanted) {
   for (ssize_t i = 0; i < n; ++i) {
     libusb_device* device = list[i];
     if (usb_path(device) != wanted.path) continue;
-    endpoints = find_endpoints(device);
+    endpoints = choose_usb_endpoints(alt_settings(device), interface_);
     rc = endpoints.interface < 0 ? LIBUSB_ERROR_NOT_FOUND : libusb_open(device, &handle);
     if (rc == 0) {
       libusb_set_auto_detach_kernel_driver(handle, 1);

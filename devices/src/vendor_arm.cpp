@@ -198,6 +198,8 @@ DriverInfo vendor_arm_driver_info() {
     return open_vendor_arm(std::move(transport), clock);
   };
   info.bus = TransportKind::Usb;
+  // Interface 0, vendor-specific: interrupt IN 0x81 (state packets), interrupt OUT 0x01 (forces).
+  info.usb_interface = {0, ap::kEndpointIn, ap::kEndpointOut};
   info.device_class = DeviceClass::HapticArm;
   info.make_twin = [](const DeviceScript& script, const std::string& serial,
                       double haptic_hz) -> std::unique_ptr<SimulatedDevice> {

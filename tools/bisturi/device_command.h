@@ -16,6 +16,8 @@
 //                                 virtual time: poses in the scene, commands and what the guard
 //                                 let through per channel against its limits, clamps, rate
 //                                 limiting, latches, events (runtime/session/device_check.h)
+//   udev-rules                    udev rules giving the user access to the devices the drivers
+//                                 claim (by their USB ids), generated from the registry
 
 #include <string>
 #include <vector>
@@ -41,6 +43,7 @@ void add_device_command(CLI::App& app, DeviceOptions& options, int (*&run)(const
 int run_device_list(const DeviceOptions& options);
 int run_device_describe(const DeviceOptions& options);
 int run_device_check(const DeviceOptions& options);
+int run_device_udev_rules(const DeviceOptions& options);
 /// Adds `device check` to the `device` command.
 void add_device_check_command(CLI::App& device, DeviceOptions& options,
                               int (*&run)(const DeviceOptions&));

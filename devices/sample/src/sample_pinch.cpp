@@ -69,7 +69,7 @@ class SamplePinch final : public HapticDevice {
 
  private:
   static std::array<std::uint8_t, pp::kPacketSize> force_packet(std::span<const double> forces_N,
-                                                                 std::uint8_t sequence) {
+                                                                std::uint8_t sequence) {
     std::array<std::uint8_t, pp::kPacketSize> packet{};
     packet[0] = pp::kForce;
     packet[1] = sequence;
@@ -121,6 +121,9 @@ DriverInfo sample_pinch_driver_info() {
     return open_sample_pinch(std::move(transport), clock);
   };
   info.bus = TransportKind::Usb;  // the session looks for it with libusb
+  // The interface and interrupt endpoints it talks to, as `lsusb -v` lists them for the device
+  // (left at {}: the first vendor-specific interface with an interrupt IN and OUT endpoint).
+  info.usb_interface = {0, 0x81, 0x01};
   info.device_class = DeviceClass::HapticGlove;
   info.make_twin = [](const DeviceScript& script, const std::string& serial,
                       double haptic_hz) -> std::unique_ptr<SimulatedDevice> {

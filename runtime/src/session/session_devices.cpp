@@ -57,7 +57,7 @@ std::unique_ptr<devices::DeviceSource> source_for(const devices::DriverInfo& dri
     case devices::TransportKind::Usb: {
       std::vector<devices::UsbId> wanted = devices::usb_ids(registry);
       if (d.vendor_id != 0 && d.product_id != 0) wanted.push_back({d.vendor_id, d.product_id});
-      return std::make_unique<devices::UsbSource>(std::move(wanted));
+      return std::make_unique<devices::UsbSource>(std::move(wanted), driver.usb_interface);
     }
     case devices::TransportKind::Virtual:
       break;

@@ -5,6 +5,7 @@
 // asynchronous USB logic through an in-process bus (docs/devices/usb-transport.md).
 #pragma once
 
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -26,13 +27,37 @@ class HidSource final : public DeviceSource {
   std::uint16_t vendor_id_, product_id_;
 };
 
+// One alternate setting of a USB interface as its configuration descriptor gives it (what
+// choose_usb_endpoints reads; libusb-free so that it can be tested without a device).
+struct UsbAltSetting {
+  int interface_number = 0;
+  std::uint8_t interface_class = 0;  // 0xff: vendor-specific
+  struct Endpoint {
+    std::uint8_t address = 0;     // bit 7 set: IN
+    std::uint8_t attributes = 0;  // bits 0-1: transfer type (3: interrupt)
+    std::uint16_t max_packet_size = 64;
+  };
+  std::vector<Endpoint> endpoints;
+};
+
+struct UsbEndpoints {
+  int interface = -1;  // -1: none fits
+  std::uint8_t in = 0, out = 0;
+  std::uint16_t in_size = 64;
+};
+
+// The interface a driver talks to among a device's alternate settings: the one `declared` names
+// (its number, with interrupt IN and OUT endpoints at the declared addresses where given), or the
+// first vendor-specific one with an interrupt IN and an interrupt OUT endpoint.
+UsbEndpoints choose_usb_endpoints(const std::vector<UsbAltSetting>& settings,
+                                  const UsbInterface& declared = {});
+
 // libusb. Lists devices whose vendor/product id is in `wanted` (all devices with a
-// vendor-specific interface when empty) and opens the first vendor-specific interface with an
-// interrupt IN and an interrupt OUT endpoint, as an AsyncUsbTransport with a libusb context of
-// its own.
+// vendor-specific interface when empty) and opens the interface `interface` chooses
+// (choose_usb_endpoints), as an AsyncUsbTransport with a libusb context of its own.
 class UsbSource final : public DeviceSource {
  public:
-  explicit UsbSource(std::vector<UsbId> wanted = {});
+  explicit UsbSource(std::vector<UsbId> wanted = {}, UsbInterface interface = {});
   ~UsbSource() override;
   std::vector<DeviceDescriptor> enumerate() override;
   std::unique_ptr<Transport> open(const DeviceDescriptor& device) override;
@@ -40,6 +65,7 @@ class UsbSource final : public DeviceSource {
  private:
   struct Context;
   std::vector<UsbId> wanted_;
+  UsbInterface interface_;
   std::unique_ptr<Context> context_;
 };
 

@@ -77,6 +77,16 @@ struct ChannelLayout {
   std::vector<ButtonUse> button_uses(const Capabilities& capabilities) const;
 };
 
+// Which interface and endpoints of a raw USB device a driver talks to (libusb, UsbSource). The
+// defaults pick the first vendor-specific interface with an interrupt IN and an interrupt OUT
+// endpoint; a driver whose device has several, or other classes first, names its own.
+struct UsbInterface {
+  int number = -1;                // bInterfaceNumber; -1: the first vendor-specific one that fits
+  std::uint8_t in_endpoint = 0;   // bEndpointAddress of the interrupt IN endpoint (0x81); 0: any
+  std::uint8_t out_endpoint = 0;  // and of the interrupt OUT endpoint (0x01); 0: any
+  bool operator==(const UsbInterface&) const = default;
+};
+
 struct DriverInfo {
   std::string name;            // unique: "hid-glove", "vendor-arm", ...
   std::string summary;         // one line for listings
@@ -87,6 +97,7 @@ struct DriverInfo {
   // Where its hardware is found: Hid -> hidapi (HidSource), Usb -> libusb (UsbSource), Virtual ->
   // nowhere (a driver for twins or traces only).
   TransportKind bus = TransportKind::Virtual;
+  UsbInterface usb_interface;  // bus Usb: the interface and endpoints it talks to
   DeviceClass device_class = DeviceClass::HapticGlove;  // what it opens
   TwinFactory make_twin;                                // empty: no twin
   ChannelLayout layout;
