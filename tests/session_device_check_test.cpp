@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "bisturi/devices/registry.h"
+#include "bisturi/devices/sample/sample_arm.h"
 #include "bisturi/runtime/session/device_check.h"
 
 namespace bisturi::runtime {
@@ -67,6 +68,27 @@ TEST(DeviceCheck, ATurnedDeviceDoesWhatAStraightOneDoes) {
   ASSERT_EQ(straight.samples.size(), turned.samples.size());
   for (std::size_t i = 0; i < straight.samples.size(); ++i)
     EXPECT_NEAR(glm::length(straight.samples[i].tip_mm - turned.samples[i].tip_mm), 0.0, 1e-6);
+}
+
+TEST(DeviceCheck, TheArmTemplateGraspsCutsAndKeepsItsAxisRating) {
+  // devices/sample's arm, added to a registry of the test's own as an integrator's program adds
+  // its driver: its grip grasps, its thumb button cuts, and its force stays within 8 N per axis.
+  devices::Registry registry = devices::builtin_registry();
+  registry.add(devices::sample_arm_driver_info());
+  DeviceCheckOptions options;
+  options.driver = devices::kSampleArmDriver;
+  options.seconds = 3.0;
+  options.max_force_N = 20.0;  // above the arm's own rating: the device's limit holds
+  const DeviceCheckResult r = check_device(options, registry);
+  const std::vector<std::string> done = kinds(r);
+  EXPECT_TRUE(has(done, "grasp"));
+  EXPECT_TRUE(has(done, "cut"));
+  ASSERT_EQ(r.channels.size(), 1u);
+  EXPECT_TRUE(r.channels[0].per_axis);
+  EXPECT_DOUBLE_EQ(r.channels[0].limit_N, 8.0);
+  EXPECT_LE(r.channels[0].peak_output_N, 8.0 + 1e-9);
+  EXPECT_EQ(r.buttons, (std::vector<std::string>{"grasp", "cut", "clutch"}));
+  EXPECT_TRUE(r.warnings.empty());
 }
 
 TEST(DeviceCheck, DriversItCannotCheckAreNamed) {
