@@ -121,6 +121,23 @@ TOML
     echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "the arm's trace did not replay"; }
     echo "arm: ok"
     ;;
+  heartbeat)
+    # The default scene's vessel pulsing at 90 beats a minute (80/120 mmHg): the report says so,
+    # and the recording replays exactly (the pulse follows the simulated time, never a clock).
+    rm -rf "$work/heartbeat"
+    sed -e 's/^offset_mm = \[62.0, 20.0, 0.0\].*/&\npulse_mmHg = [80.0, 120.0]/' "$4" > "$work/heartbeat.toml"
+    printf '\n[physiology]\nheart_rate_bpm = 90.0\n' >> "$work/heartbeat.toml"
+    grep -q 'pulse_mmHg' "$work/heartbeat.toml" || fail "the vessel was not given a pulse"
+    "$bisturi" run "$work/heartbeat.toml" --duration 2 --eye-width 128 --eye-height 128 --no-openxr \
+      --out "$work/heartbeat" --record "$work/heartbeat.btrace" > "$work/heartbeat.txt" 2>&1 ||
+      { cat "$work/heartbeat.txt"; fail "bisturi run exited with $?"; }
+    tr -d ' \n' < "$work/heartbeat/report.json" |
+      grep -q '"physiology":{"heart_rate_bpm":90.0,"pulsing":\[{"diastolic_mmHg":80.0,"solid":"vessel","systolic_mmHg":120.0}\]}' ||
+      fail "report.json does not give the heartbeat"
+    out=$("$bisturi" replay "$work/heartbeat.btrace" --json) || { echo "$out"; fail "replay exited $?"; }
+    echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "the pulsing session did not replay"; }
+    echo "heartbeat: ok"
+    ;;
   two-hands)
     # config/two_hands.toml: the left arm takes hold of the organ beside the cut's path and holds
     # it while the right glove's scalpel cuts; both in one haptic tick, recorded and replayed

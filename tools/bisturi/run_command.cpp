@@ -279,6 +279,11 @@ int run_run(const RunOptions& options) {
                       {"detail", e.event.detail},
                       {"response_ms", e.response_ms < 0 ? nlohmann::json(nullptr)
                                                         : nlohmann::json(e.response_ms)}});
+  nlohmann::json pulsing = nlohmann::json::array();
+  for (const runtime::PulseReport& p : r.pulsing)
+    pulsing.push_back({{"solid", p.solid},
+                       {"diastolic_mmHg", p.diastolic_mmHg},
+                       {"systolic_mmHg", p.systolic_mmHg}});
   nlohmann::json solids = nlohmann::json::array();
   for (const runtime::SolidReport& s : r.solids)
     solids.push_back(
@@ -320,6 +325,7 @@ int run_run(const RunOptions& options) {
       {"devices", r.devices},
       {"hands", r.hands},
       {"solids", solids},
+      {"physiology", {{"heart_rate_bpm", r.heart_rate_bpm}, {"pulsing", pulsing}}},
       {"ticks", r.ticks},
       {"frames", r.frames},
       {"images", r.images},

@@ -27,8 +27,8 @@ class SceneReader {
   SceneDescription read(const toml::table& root) {
     SceneDescription scene;
     only_keys(root, "",
-              {"name", "duration_s", "rates", "simulation", "headset", "solids", "devices",
-               "instruments", "procedure"});
+              {"name", "duration_s", "rates", "simulation", "physiology", "headset", "solids",
+               "devices", "instruments", "procedure"});
     scene.name = string_or(root, "", "name", scene.name);
     scene.duration_s = positive(root, "", "duration_s", scene.duration_s);
     if (const toml::table* t = table_at(root, "", "rates")) {
@@ -39,12 +39,21 @@ class SceneReader {
     if (const toml::table* t = table_at(root, "", "simulation")) {
       only_keys(*t, "simulation",
                 {"far_field_interval", "stale_margin_ticks", "continuous_collision"});
-      scene.simulation.continuous_collision = boolean(
-          *t, "simulation", "continuous_collision", scene.simulation.continuous_collision);
+      scene.simulation.continuous_collision =
+          boolean(*t, "simulation", "continuous_collision", scene.simulation.continuous_collision);
       scene.simulation.far_field_interval = static_cast<int>(integer(
           *t, "simulation", "far_field_interval", scene.simulation.far_field_interval, 1, 256));
       scene.simulation.stale_margin_ticks = static_cast<int>(integer(
           *t, "simulation", "stale_margin_ticks", scene.simulation.stale_margin_ticks, 1, 1000));
+    }
+    if (const toml::table* t = table_at(root, "", "physiology")) {
+      only_keys(*t, "physiology", {"heart_rate_bpm"});
+      scene.physiology.heart_rate_bpm =
+          positive(*t, "physiology", "heart_rate_bpm", scene.physiology.heart_rate_bpm);
+      if (scene.physiology.heart_rate_bpm < 20.0 || scene.physiology.heart_rate_bpm > 300.0) {
+        fail(t->get("heart_rate_bpm"), *t, "physiology.heart_rate_bpm",
+             "must be between 20 and 300 beats per minute");
+      }
     }
     if (const toml::table* t = table_at(root, "", "headset")) read_headset(*t, scene.headset);
     for_each_table(root, "solids", [&](const toml::table& t, const std::string& path) {
@@ -283,8 +292,8 @@ class SceneReader {
     h.eye_height = static_cast<int>(integer(t, "headset", "eye_height", h.eye_height, 16, 8192));
     h.refresh_hz = positive(t, "headset", "refresh_hz", h.refresh_hz);
     // Where the scene sits in an OpenXR headset's space.
-    h.stage_space = choice(t, "headset", "reference_space", h.stage_space,
-                           {{"local", false}, {"stage", true}});
+    h.stage_space =
+        choice(t, "headset", "reference_space", h.stage_space, {{"local", false}, {"stage", true}});
     if (t.get("field_centre_mm") != nullptr) {
       h.field_centre_mm = numbers<3>(t, "headset", "field_centre_mm", {});
     }
@@ -295,11 +304,10 @@ class SceneReader {
   }
 
   SolidDescription read_solid(const toml::table& t, const std::string& path) const {
-    only_keys(
-        t, path,
-        {"name", "mesh", "volume", "phantom", "dims", "spacing_mm", "a_mm", "b_mm", "iso", "label",
-         "downsample", "decimate", "smooth", "offset_mm", "material", "anchors", "simulate",
-         "model", "cell_mm"});
+    only_keys(t, path, {"name",       "mesh",     "volume", "phantom",   "dims",
+                        "spacing_mm", "a_mm",     "b_mm",   "iso",       "label",
+                        "downsample", "decimate", "smooth", "offset_mm", "material",
+                        "anchors",    "simulate", "model",  "cell_mm",   "pulse_mmHg"});
     SolidDescription s;
     s.name = string_or(t, path, "name", path);
     const int sources = (t.contains("mesh") ? 1 : 0) + (t.contains("volume") ? 1 : 0) +
@@ -363,6 +371,16 @@ class SceneReader {
     s.cell_mm = positive(t, path, "cell_mm", s.cell_mm);
     if (t.contains("cell_mm") && s.model != SolidDescription::Model::Volume) {
       fail(t.get("cell_mm"), t, path + ".cell_mm", "only for model = \"volume\"");
+    }
+    if (t.contains("pulse_mmHg")) {
+      const std::array<double, 2> p = numbers<2>(t, path, "pulse_mmHg", {0.0, 0.0});
+      if (!(p[0] >= 0.0 && p[1] > p[0] && p[1] <= 400.0)) {
+        fail(t.get("pulse_mmHg"), t, path + ".pulse_mmHg",
+             "expected [diastolic, systolic] with 0 <= diastolic < systolic <= 400 mmHg");
+      }
+      if (!s.simulate)
+        fail(t.get("pulse_mmHg"), t, path + ".pulse_mmHg", "a rigid solid cannot pulse");
+      s.pulse_mmHg = p;
     }
     if (s.model == SolidDescription::Model::Volume && !s.material.elastic) {
       fail(t.get("model"), t, path + ".model",

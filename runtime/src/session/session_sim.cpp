@@ -13,6 +13,7 @@
 
 #include "bisturi/sim/collision.h"
 #include "bisturi/sim/errors.h"
+#include "bisturi/sim/pulse.h"
 #include "bisturi/sim/units.h"
 #include "hand_model.h"
 
@@ -108,6 +109,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   coupling_N_per_m_ = world_.options().haptic.coupling_N_per_m;
   probe_radius_m_ = world_.options().haptic.probe_radius_m;
   haptic_hz_ = scene.rates.haptic_hz;
+  heart_rate_hz_ = scene.physiology.heart_rate_bpm / 60.0;
   world_.options().integrator.dt_s = 1.0 / haptic_hz_;
   world_.options().integrator.far_field_interval = scene.simulation.far_field_interval;
   world_.options().integrator.threads = std::max(1u, options_.tissue_threads);
@@ -130,6 +132,8 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
     names_.push_back(d.name);
     const std::uint32_t index = world_.add_body(std::move(body));
     contact_modulus_Pa_.push_back(0.0);  // a membrane's
+    pulse_pressure_Pa_.push_back(
+        d.pulse_mmHg ? ((*d.pulse_mmHg)[1] - (*d.pulse_mmHg)[0]) * sim::kPascalPerMmHg : 0.0);
     if (d.model == SolidDescription::Model::Volume && d.simulate) {
       sim::VolumeOptions volume;
       volume.cell_m = d.cell_mm * sim::kMetresPerMillimetre;
@@ -253,6 +257,7 @@ const TickOutput& SessionSim::tick(std::span<const devices::HapticState> states,
     world_.set_probe(i, {hand.grasp_body, hand.cut_body < 0});
   }
 
+  apply_heartbeat();
   // The probes, tissue contact and the soft-tissue step, every hand's in one step.
   world_.step(tips_m_, haptic_out_);
   for (std::size_t i = 0; i < hands_.size(); ++i) {
@@ -284,6 +289,18 @@ const TickOutput& SessionSim::tick(std::span<const devices::HapticState> states,
   }
   ticks_ += ticks;
   return out_;
+}
+
+void SessionSim::apply_heartbeat() {
+  // Session time from the ticks simulated, never a clock: a replay pulses the same.
+  const double t_s = static_cast<double>(ticks_) / haptic_hz_;
+  const double beat = sim::cardiac_waveform(t_s * heart_rate_hz_);
+  pulse_now_Pa_ = 0.0;
+  for (std::size_t b = 0; b < pulse_pressure_Pa_.size(); ++b) {
+    if (pulse_pressure_Pa_[b] <= 0.0) continue;
+    pulse_now_Pa_ = pulse_pressure_Pa_[b] * beat;
+    sim::apply_lumen_pressure(world_.body(static_cast<std::uint32_t>(b)), pulse_now_Pa_);
+  }
 }
 
 std::size_t SessionSim::close_jaws(Hand& hand, const glm::dvec3& tip_m) {

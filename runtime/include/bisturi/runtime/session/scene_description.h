@@ -70,8 +70,8 @@ struct SolidDescription {
   /// Label maps: blocks of this many samples per axis become one before extraction (a label
   /// where at least half the block is; see downsample_label), for a coarse tissue model.
   std::array<int, 3> downsample{1, 1, 1};
-  double decimate = 1.0;               ///< fraction of faces kept
-  int smooth = 0;                      ///< Taubin iterations
+  double decimate = 1.0;  ///< fraction of faces kept
+  int smooth = 0;         ///< Taubin iterations
   /// Added to every vertex (mm): places the solid in the scene.
   std::array<double, 3> offset_mm{0, 0, 0};
   MaterialDescription material;
@@ -81,6 +81,9 @@ struct SolidDescription {
   /// (sim/volume/volume_body.h) with cells of cell_mm, elastic from the material's modulus.
   enum class Model { Surface, Volume } model = Model::Surface;
   double cell_mm = 8.0;
+  /// A vessel's lumen pressure over the heartbeat, diastolic and systolic (mmHg): the wall is at
+  /// rest at diastole and the pressure above it pushes the wall out (sim/pulse.h). None: no pulse.
+  std::optional<std::array<double, 2>> pulse_mmHg;
 };
 
 struct InstrumentDescription {
@@ -162,14 +165,19 @@ struct SimulationDescription {
 struct ProcedureDescription {
   std::array<double, 3> palpate_mm{0, 0, 0};  ///< a point on the organ's surface the probe presses
   std::array<double, 3> palpate_normal{0, 0, 1};
-  double palpate_depth_mm = 6.0;              ///< how far the probe presses in
-  std::array<double, 3> grasp_mm{0, 0, 0};    ///< a point on a vessel's wall the grasper takes
+  double palpate_depth_mm = 6.0;            ///< how far the probe presses in
+  std::array<double, 3> grasp_mm{0, 0, 0};  ///< a point on a vessel's wall the grasper takes
   std::array<double, 3> grasp_normal{0, -1, 0};
-  double pull_mm = 6.0;                       ///< how far the grasper pulls the wall out
+  double pull_mm = 6.0;                        ///< how far the grasper pulls the wall out
   std::array<double, 3> cut_from_mm{0, 0, 0};  ///< the cut's path along the surface
   std::array<double, 3> cut_to_mm{0, 0, 0};
   std::array<double, 3> cut_normal{0, 0, 1};
   double cut_depth_mm = 9.0;  ///< how deep the blade goes below the path
+};
+
+/// The body's own motion: the heartbeat that pulses the vessels with a pulse_mmHg.
+struct PhysiologyDescription {
+  double heart_rate_bpm = 72.0;
 };
 
 struct SceneDescription {
@@ -182,6 +190,7 @@ struct SceneDescription {
   HeadsetDescription headset;
   RateDescription rates;
   SimulationDescription simulation;
+  PhysiologyDescription physiology;
   /// The [procedure] table; empty: targets from the solids' bounds.
   std::optional<ProcedureDescription> procedure;
   /// Session length when the command line does not give one.

@@ -109,6 +109,13 @@ struct SolidReport {
   double build_ms = 0.0;
 };
 
+/// A vessel that pulses with the heartbeat: its lumen pressure over the beat.
+struct PulseReport {
+  std::string solid;
+  double diastolic_mmHg = 0.0;
+  double systolic_mmHg = 0.0;
+};
+
 struct EventReport {
   SessionEvent event;
   double time_s = 0.0;  ///< since the session started
@@ -153,6 +160,9 @@ struct SessionReport {
   std::uint32_t tissue_threads = 1;
   std::vector<SolidReport> solids;
   std::vector<std::string> devices;  ///< "glove: hid-glove (simulated)"
+  /// The heartbeat in force: its rate and the vessels it pulses (none: no pulse).
+  double heart_rate_bpm = 0.0;
+  std::vector<PulseReport> pulsing;
   /// The hands: the scene names of the haptic devices, in hand order (an event's hand indexes it).
   std::vector<std::string> hands;
 

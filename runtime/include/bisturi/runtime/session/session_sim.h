@@ -176,6 +176,8 @@ class SessionSim {
   [[nodiscard]] std::uint64_t divergence_events() const { return divergence_events_; }
   /// Combined state hash of every body (FNV-1a over their SoftBody::state_hash in order).
   [[nodiscard]] std::uint64_t state_hash();
+  /// The pulsing bodies' pressure above diastole now (Pa, as of the last step; 0 without any).
+  [[nodiscard]] double pulse_pressure_Pa() const { return pulse_now_Pa_; }
   /// Where a hand's tip and blade are (mm), for drawing the instruments.
   [[nodiscard]] const glm::dvec3& tip_mm(std::size_t hand = 0) const { return hands_[hand].tip_mm; }
   [[nodiscard]] const glm::dvec3& blade_to_mm(std::size_t hand = 0) const {
@@ -242,6 +244,12 @@ class SessionSim {
 
   /// Per body: the contact modulus E / (1 - nu^2) of a volume (Pa), 0 for a membrane.
   std::vector<double> contact_modulus_Pa_;
+  /// Per body: its pulse pressure (systolic less diastolic, Pa; 0: it does not pulse).
+  std::vector<double> pulse_pressure_Pa_;
+  double heart_rate_hz_ = 1.2;
+  double pulse_now_Pa_ = 0.0;
+  /// The pulsing bodies' lumen pressure at the step beginning at ticks_ (sim/pulse.h).
+  void apply_heartbeat();
   double probe_radius_m_ = 0.001;
   SessionSimOptions options_;
   sim::SimWorld world_;
