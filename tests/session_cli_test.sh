@@ -122,17 +122,20 @@ TOML
     echo "arm: ok"
     ;;
   heartbeat)
-    # The default scene's vessel pulsing at 90 beats a minute (80/120 mmHg): the report says so,
-    # and the recording replays exactly (the pulse follows the simulated time, never a clock).
+    # The default scene's vessel pulsing at 90 beats a minute (80/120 mmHg) and its organ breathing
+    # 6 mm up every 2 s: the report says so, and the recording replays exactly (both follow the
+    # simulated time, never a clock).
     rm -rf "$work/heartbeat"
-    sed -e 's/^offset_mm = \[62.0, 20.0, 0.0\].*/&\npulse_mmHg = [80.0, 120.0]/' "$4" > "$work/heartbeat.toml"
-    printf '\n[physiology]\nheart_rate_bpm = 90.0\n' >> "$work/heartbeat.toml"
+    sed -e 's/^offset_mm = \[62.0, 20.0, 0.0\].*/&\npulse_mmHg = [80.0, 120.0]/' \
+        -e 's/^cell_mm = 8.0.*/&\nbreathing_mm = [0.0, 0.0, 6.0]/' "$4" > "$work/heartbeat.toml"
+    printf '\n[physiology]\nheart_rate_bpm = 90.0\nbreathing_period_s = 2.0\n' >> "$work/heartbeat.toml"
+    grep -q 'breathing_mm' "$work/heartbeat.toml" || fail "the organ was not given a breath"
     grep -q 'pulse_mmHg' "$work/heartbeat.toml" || fail "the vessel was not given a pulse"
     "$bisturi" run "$work/heartbeat.toml" --duration 2 --eye-width 128 --eye-height 128 --no-openxr \
       --out "$work/heartbeat" --record "$work/heartbeat.btrace" > "$work/heartbeat.txt" 2>&1 ||
       { cat "$work/heartbeat.txt"; fail "bisturi run exited with $?"; }
     tr -d ' \n' < "$work/heartbeat/report.json" |
-      grep -q '"physiology":{"heart_rate_bpm":90.0,"pulsing":\[{"diastolic_mmHg":80.0,"solid":"vessel","systolic_mmHg":120.0}\]}' ||
+      grep -q '"physiology":{"breathing":\[{"breathing_mm":\[0.0,0.0,6.0\],"solid":"organ"}\],"breathing_period_s":2.0,"heart_rate_bpm":90.0,"pulsing":\[{"diastolic_mmHg":80.0,"solid":"vessel","systolic_mmHg":120.0}\]}' ||
       fail "report.json does not give the heartbeat"
     out=$("$bisturi" replay "$work/heartbeat.btrace" --json) || { echo "$out"; fail "replay exited $?"; }
     echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "the pulsing session did not replay"; }

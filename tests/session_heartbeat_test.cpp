@@ -1,6 +1,8 @@
-// The heartbeat (sim/pulse.h) through the session's simulation: the default scene's vessel with a
-// lumen pressure of 80/120 mmHg at 72 beats a minute pulses at that period, by an amount a wall
-// of its stiffness gives, and a probe resting on it feels the beat.
+// The body's own motion through the session's simulation. The heartbeat (sim/pulse.h): the default
+// scene's vessel with a lumen pressure of 80/120 mmHg at 72 beats a minute pulses at that
+// period, by an amount a wall of its stiffness gives, and a probe resting on it feels the beat.
+// Breathing: the default organ's anchored base carried up and back over each breath, the organ
+// following through its volume, and a probe held still feeling it come up.
 
 #include <gtest/gtest.h>
 
@@ -164,6 +166,97 @@ TEST(Heartbeat, AProbeRestingOnTheVesselFeelsTheBeat) {
   RecordProperty("force_swing_N", std::to_string(beat_swing_N[1]));
   EXPECT_GT(beat_swing_N[1], 0.02) << "the beat in the hand";
   EXPECT_GT(beat_swing_N[1], 10.0 * beat_swing_N[0]);
+}
+
+constexpr std::size_t kOrgan = 0;
+
+/// The default organ breathing `breathing_mm` over 2 s: its free surface's centroid (mm) each
+/// tick for `seconds`, the probe resting `press_mm` into its top (none when negative), and the
+/// probe's force each tick.
+struct Breath {
+  std::vector<glm::dvec3> centroid_mm;
+  std::vector<double> force_N;
+  std::uint64_t divergence_events = 0;
+};
+Breath breathe(const glm::dvec3& breathing_mm, double seconds, double press_mm) {
+  SceneDescription scene = default_scene();
+  scene.physiology.breathing_period_s = 2.0;
+  if (breathing_mm != glm::dvec3(0.0))
+    scene.solids.at(kOrgan).breathing_mm = {breathing_mm.x, breathing_mm.y, breathing_mm.z};
+  SessionSim sim(scene, build_solids(scene), std::vector<devices::ForceChannel>{});
+  const sim::SoftBody& organ = sim.world().body(kOrgan);
+  glm::dvec3 top(0.0, 0.0, -1e9);
+  for (const glm::dvec3& p : organ.positions())
+    if (p.z > top.z) top = p;
+  const glm::dvec3 top_mm = sim::sim_to_scene(top);
+  Breath b;
+  const auto ticks = static_cast<int>(seconds * scene.rates.haptic_hz);
+  for (int k = 0; k < ticks; ++k) {
+    // The probe comes down over the first 200 ms, then rests.
+    const double above = press_mm < 0.0 ? 40.0 : std::max(-press_mm, 10.0 - 0.05 * k);
+    const TickOutput& out = sim.tick(tip_at_mm(top_mm + glm::dvec3(0.0, 0.0, above)));
+    b.force_N.push_back(glm::length(out.force_N));
+    glm::dvec3 c(0.0);
+    std::size_t n = 0;
+    for (std::size_t i = 0; i < organ.positions().size(); ++i) {
+      if (organ.masses()[i] <= 0.0) continue;
+      c += organ.positions()[i];
+      ++n;
+    }
+    b.centroid_mm.push_back(sim::sim_to_scene(c / static_cast<double>(n)));
+  }
+  b.divergence_events = sim.divergence_events();
+  return b;
+}
+
+TEST(Breathing, TheOrganRisesAndFallsWithEachBreath) {
+  // 10 mm up at full inspiration (1 s, 3 s), back at the end of expiration (2 s, 4 s), against
+  // the same organ not breathing (its sag under gravity subtracted).
+  const Breath still = breathe(glm::dvec3(0.0), 4.2, -1.0);
+  const Breath breathing = breathe(glm::dvec3(0.0, 0.0, 10.0), 4.2, -1.0);
+  const auto lift_at = [&](double t_s) {
+    const auto k = static_cast<std::size_t>(std::lround(t_s * 1000.0)) - 1;
+    return breathing.centroid_mm[k] - still.centroid_mm[k];
+  };
+  RecordProperty("lift_mm_at_inspiration", std::to_string(lift_at(3.0).z));
+  for (const double inspiration : {1.0, 3.0}) {
+    EXPECT_NEAR(lift_at(inspiration).z, 10.0, 1.0) << inspiration << " s";
+    EXPECT_NEAR(lift_at(inspiration).x, 0.0, 0.5);
+  }
+  for (const double expiration : {2.0, 4.0})
+    EXPECT_NEAR(lift_at(expiration).z, 0.0, 1.0) << expiration << " s";
+  EXPECT_EQ(breathing.divergence_events, 0u);
+}
+
+TEST(Breathing, AProbeHeldStillFeelsTheOrganComeUpAgainstIt) {
+  const Breath b = breathe(glm::dvec3(0.0, 0.0, 4.0), 3.2, 1.0);
+  const auto force_at = [&](double t_s) {
+    return b.force_N[static_cast<std::size_t>(std::lround(t_s * 1000.0)) - 1];
+  };
+  RecordProperty("force_N_expiration", std::to_string(force_at(2.0)));
+  RecordProperty("force_N_inspiration", std::to_string(force_at(3.0)));
+  EXPECT_GT(force_at(2.0), 0.0) << "resting on the organ at the end of expiration";
+  EXPECT_GT(force_at(3.0), 2.0 * force_at(2.0)) << "pressed harder as it breathes in";
+  EXPECT_EQ(b.divergence_events, 0u);
+}
+
+TEST(Breathing, OnlyAVolumeWithAnchorsBreathes) {
+  const std::string membrane = R"(
+[[solids]]
+name = "vessel"
+phantom = "tube"
+breathing_mm = [0.0, 0.0, 5.0]
+[[solids.anchors]]
+point_mm = [0.0, 0.0, 2.0]
+normal = [0.0, 0.0, 1.0]
+)";
+  try {
+    (void)parse_scene(membrane, "breathing.toml");
+    FAIL() << "a membrane was given breathing";
+  } catch (const SceneFileError& e) {
+    EXPECT_NE(std::string(e.what()).find("solids[0].breathing_mm"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("model = \"volume\""), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

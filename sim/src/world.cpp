@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <limits>
+#include <stdexcept>
+#include <string>
 
 #include <glm/geometric.hpp>
 #include <glm/vector_relational.hpp>
@@ -40,6 +42,13 @@ void SimWorld::prepare() {
 
 void SimWorld::set_volume(std::uint32_t i, const VolumeOptions& options) {
   volumes_.at(i) = std::make_unique<VolumeBody>(bodies_[i], options);
+}
+
+void SimWorld::move_support(std::uint32_t i, const glm::dvec3& velocity_m_s) {
+  if (!volumes_.at(i))
+    throw std::invalid_argument("SimWorld::move_support: body " + std::to_string(i) +
+                                " is a surface model (its anchors never move)");
+  volumes_[i]->move_support(velocity_m_s);
 }
 
 void SimWorld::prepare_body(std::uint32_t i) {

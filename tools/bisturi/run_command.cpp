@@ -284,6 +284,9 @@ int run_run(const RunOptions& options) {
     pulsing.push_back({{"solid", p.solid},
                        {"diastolic_mmHg", p.diastolic_mmHg},
                        {"systolic_mmHg", p.systolic_mmHg}});
+  nlohmann::json breathing = nlohmann::json::array();
+  for (const auto& [solid, mm] : r.breathing)
+    breathing.push_back({{"solid", solid}, {"breathing_mm", mm}});
   nlohmann::json solids = nlohmann::json::array();
   for (const runtime::SolidReport& s : r.solids)
     solids.push_back(
@@ -325,7 +328,11 @@ int run_run(const RunOptions& options) {
       {"devices", r.devices},
       {"hands", r.hands},
       {"solids", solids},
-      {"physiology", {{"heart_rate_bpm", r.heart_rate_bpm}, {"pulsing", pulsing}}},
+      {"physiology",
+       {{"heart_rate_bpm", r.heart_rate_bpm},
+        {"pulsing", pulsing},
+        {"breathing_period_s", r.breathing_period_s},
+        {"breathing", breathing}}},
       {"ticks", r.ticks},
       {"frames", r.frames},
       {"images", r.images},

@@ -47,7 +47,13 @@ class SceneReader {
           *t, "simulation", "stale_margin_ticks", scene.simulation.stale_margin_ticks, 1, 1000));
     }
     if (const toml::table* t = table_at(root, "", "physiology")) {
-      only_keys(*t, "physiology", {"heart_rate_bpm"});
+      only_keys(*t, "physiology", {"heart_rate_bpm", "breathing_period_s"});
+      scene.physiology.breathing_period_s =
+          positive(*t, "physiology", "breathing_period_s", scene.physiology.breathing_period_s);
+      if (scene.physiology.breathing_period_s < 1.0 || scene.physiology.breathing_period_s > 60.0) {
+        fail(t->get("breathing_period_s"), *t, "physiology.breathing_period_s",
+             "must be between 1 and 60 seconds");
+      }
       scene.physiology.heart_rate_bpm =
           positive(*t, "physiology", "heart_rate_bpm", scene.physiology.heart_rate_bpm);
       if (scene.physiology.heart_rate_bpm < 20.0 || scene.physiology.heart_rate_bpm > 300.0) {
@@ -304,10 +310,11 @@ class SceneReader {
   }
 
   SolidDescription read_solid(const toml::table& t, const std::string& path) const {
-    only_keys(t, path, {"name",       "mesh",     "volume", "phantom",   "dims",
-                        "spacing_mm", "a_mm",     "b_mm",   "iso",       "label",
-                        "downsample", "decimate", "smooth", "offset_mm", "material",
-                        "anchors",    "simulate", "model",  "cell_mm",   "pulse_mmHg"});
+    only_keys(t, path,
+              {"name",    "mesh",       "volume",      "phantom", "dims",       "spacing_mm",
+               "a_mm",    "b_mm",       "iso",         "label",   "downsample", "decimate",
+               "smooth",  "offset_mm",  "material",    "anchors", "simulate",   "model",
+               "cell_mm", "pulse_mmHg", "breathing_mm"});
     SolidDescription s;
     s.name = string_or(t, path, "name", path);
     const int sources = (t.contains("mesh") ? 1 : 0) + (t.contains("volume") ? 1 : 0) +
@@ -400,6 +407,18 @@ class SceneReader {
       anchor.distance_mm = number(a, ap, "distance_mm", anchor.distance_mm);
       s.anchors.push_back(anchor);
     });
+    if (t.contains("breathing_mm")) {
+      s.breathing_mm = numbers<3>(t, path, "breathing_mm", {0.0, 0.0, 0.0});
+      // A spring membrane's anchors never move; a volume's anchored cells can carry the organ.
+      if (s.model != SolidDescription::Model::Volume || !s.simulate || s.anchors.empty()) {
+        fail(t.get("breathing_mm"), t, path + ".breathing_mm",
+             "breathing moves a solid by its anchors: it needs model = \"volume\" and "
+             "[[" +
+                 path + ".anchors]]");
+      }
+      if (std::hypot((*s.breathing_mm)[0], (*s.breathing_mm)[1], (*s.breathing_mm)[2]) > 50.0)
+        fail(t.get("breathing_mm"), t, path + ".breathing_mm", "more than 50 mm");
+    }
     return s;
   }
 

@@ -355,7 +355,9 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   report.heart_rate_bpm = scene.physiology.heart_rate_bpm;
   for (const SolidDescription& s : scene.solids) {
     if (s.pulse_mmHg) report.pulsing.push_back({s.name, (*s.pulse_mmHg)[0], (*s.pulse_mmHg)[1]});
+    if (s.breathing_mm) report.breathing.emplace_back(s.name, *s.breathing_mm);
   }
+  report.breathing_period_s = scene.physiology.breathing_period_s;
   devices::ForceGuardConfig guard_config = devices::force_guard_config_from_json(
       session_trace_config("", {}, scene.rates.haptic_hz, 0, lag));
   report.max_force_N = choice.haptic->max_force_N;

@@ -110,6 +110,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   probe_radius_m_ = world_.options().haptic.probe_radius_m;
   haptic_hz_ = scene.rates.haptic_hz;
   heart_rate_hz_ = scene.physiology.heart_rate_bpm / 60.0;
+  breathing_period_s_ = scene.physiology.breathing_period_s;
   world_.options().integrator.dt_s = 1.0 / haptic_hz_;
   world_.options().integrator.far_field_interval = scene.simulation.far_field_interval;
   world_.options().integrator.threads = std::max(1u, options_.tissue_threads);
@@ -134,6 +135,10 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
     contact_modulus_Pa_.push_back(0.0);  // a membrane's
     pulse_pressure_Pa_.push_back(
         d.pulse_mmHg ? ((*d.pulse_mmHg)[1] - (*d.pulse_mmHg)[0]) * sim::kPascalPerMmHg : 0.0);
+    breathing_m_.push_back(
+        d.breathing_mm ? sim::scene_to_sim(glm::dvec3((*d.breathing_mm)[0], (*d.breathing_mm)[1],
+                                                      (*d.breathing_mm)[2]))
+                       : glm::dvec3(0.0));
     if (d.model == SolidDescription::Model::Volume && d.simulate) {
       sim::VolumeOptions volume;
       volume.cell_m = d.cell_mm * sim::kMetresPerMillimetre;
@@ -257,7 +262,7 @@ const TickOutput& SessionSim::tick(std::span<const devices::HapticState> states,
     world_.set_probe(i, {hand.grasp_body, hand.cut_body < 0});
   }
 
-  apply_heartbeat();
+  apply_physiology(ticks);
   // The probes, tissue contact and the soft-tissue step, every hand's in one step.
   world_.step(tips_m_, haptic_out_);
   for (std::size_t i = 0; i < hands_.size(); ++i) {
@@ -291,9 +296,21 @@ const TickOutput& SessionSim::tick(std::span<const devices::HapticState> states,
   return out_;
 }
 
-void SessionSim::apply_heartbeat() {
-  // Session time from the ticks simulated, never a clock: a replay pulses the same.
+void SessionSim::apply_physiology(std::uint32_t ticks) {
+  // Session time from the ticks simulated, never a clock: a replay pulses and breathes the same.
   const double t_s = static_cast<double>(ticks_) / haptic_hz_;
+  const double dt_s = static_cast<double>(ticks) / haptic_hz_;
+  // Breathing: each breathing body's support goes to where the breath has it at the step's end
+  // (0 at the end of expiration, the whole displacement at full inspiration, smoothly).
+  const double breath =
+      0.5 * (1.0 - std::cos(2.0 * 3.141592653589793 * (t_s + dt_s) / breathing_period_s_));
+  for (std::size_t b = 0; b < breathing_m_.size(); ++b) {
+    if (breathing_m_[b] == glm::dvec3(0.0)) continue;
+    const auto i = static_cast<std::uint32_t>(b);
+    const sim::VolumeBody* volume = world_.volume(i);
+    if (volume == nullptr) continue;
+    world_.move_support(i, (breath * breathing_m_[b] - volume->support_offset()) / dt_s);
+  }
   const double beat = sim::cardiac_waveform(t_s * heart_rate_hz_);
   pulse_now_Pa_ = 0.0;
   for (std::size_t b = 0; b < pulse_pressure_Pa_.size(); ++b) {

@@ -22,7 +22,9 @@ struct ElasticVolume::Solver {
   std::vector<glm::dvec3> force;
   std::vector<glm::dvec3> step;
   std::vector<glm::dvec3> start;
-  std::vector<glm::dvec3> product;  ///< (h tau + h^2) K v in a dynamic step
+  std::vector<glm::dvec3> product;       ///< (h tau + h^2) K v in a dynamic step
+  std::vector<glm::dvec3> held_step;     ///< the held nodes' given dv (zero elsewhere)
+  std::vector<glm::dvec3> held_product;  ///< the matrix times held_step
   /// Element stiffness at unit fill, one per distinct box shape (a graded lattice has few), and
   /// each cell's shape: computed once, not per assembly.
   std::vector<HexStiffness> shapes;
@@ -96,8 +98,7 @@ void ElasticVolume::set_state(std::span<const glm::dvec3> positions,
   std::copy(velocities.begin(), velocities.end(), v_.begin());
 }
 
-DynamicResult ElasticVolume::advance(std::span<const PointLoad> loads,
-                                     const DynamicOptions& o) {
+DynamicResult ElasticVolume::advance(std::span<const PointLoad> loads, const DynamicOptions& o) {
   Solver& s = *solver_;
   const std::size_t n = x_.size();
   const double h = o.dt_s;
@@ -127,16 +128,40 @@ DynamicResult ElasticVolume::advance(std::span<const PointLoad> loads,
         s.matrix.add(slots[a * 8 + b], glm::mat3((w[a] * w[b]) * scaled));
     }
   }
+  // Held nodes that move (or stop moving) have a given dv: its coupling to the free nodes goes to
+  // the right-hand side, A_ff dv_f = b_f - A_fh dv_h.
+  bool held_moves = false;
+  for (std::size_t i = 0; i < n && !held_moves; ++i)
+    held_moves = held_[i] && v_[i] != held_velocity_;
+  if (held_moves) {
+    s.held_step.assign(n, glm::dvec3(0.0));
+    s.held_product.resize(n);
+    for (std::size_t i = 0; i < n; ++i)
+      if (held_[i]) s.held_step[i] = held_velocity_ - v_[i];
+    s.matrix.multiply(s.held_step, s.held_product);
+    for (std::size_t i = 0; i < n; ++i)
+      s.force[i] -= s.held_product[i];
+  }
   // Warm start: the last step's velocity change (the motion changes smoothly step to step).
   if (s.step.size() != n) s.step.assign(n, glm::dvec3(0.0));
   const BlockMatrix::SolveStats cg =
       s.matrix.solve(s.force, s.step, held_, o.cg_tolerance, o.max_cg);
   for (std::size_t i = 0; i < n; ++i) {
-    if (held_[i]) continue;
+    if (held_[i]) {
+      v_[i] = held_velocity_;
+      x_[i] += h * v_[i];
+      continue;
+    }
     v_[i] += s.step[i];
     x_[i] += h * v_[i];
   }
   return {cg.iterations, cg.relative_residual};
+}
+
+glm::dvec3 ElasticVolume::held_offset() const {
+  for (std::size_t i = 0; i < held_.size(); ++i)
+    if (held_[i]) return x_[i] - lattice_.rest[i];
+  return glm::dvec3(0.0);
 }
 
 std::size_t ElasticVolume::held_count() const {

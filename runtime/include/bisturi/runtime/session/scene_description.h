@@ -84,6 +84,10 @@ struct SolidDescription {
   /// A vessel's lumen pressure over the heartbeat, diastolic and systolic (mmHg): the wall is at
   /// rest at diastole and the pressure above it pushes the wall out (sim/pulse.h). None: no pulse.
   std::optional<std::array<double, 2>> pulse_mmHg;
+  /// Breathing: the displacement of its anchored part at full inspiration (mm), reached and left
+  /// again over each breathing period; the rest of the solid follows through its volume (model
+  /// volume only). None: it does not breathe.
+  std::optional<std::array<double, 3>> breathing_mm;
 };
 
 struct InstrumentDescription {
@@ -175,9 +179,11 @@ struct ProcedureDescription {
   double cut_depth_mm = 9.0;  ///< how deep the blade goes below the path
 };
 
-/// The body's own motion: the heartbeat that pulses the vessels with a pulse_mmHg.
+/// The body's own motion: the heartbeat that pulses the vessels with a pulse_mmHg, and the
+/// breathing that moves the solids with a breathing_mm.
 struct PhysiologyDescription {
   double heart_rate_bpm = 72.0;
+  double breathing_period_s = 4.0;
 };
 
 struct SceneDescription {

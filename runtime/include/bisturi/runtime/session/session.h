@@ -23,12 +23,14 @@
 // (TissueRateController) settles there at 250-500 Hz.
 // All times come from one injectable devices::Clock (SteadyClock live).
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "bisturi/devices/clock.h"
@@ -160,9 +162,12 @@ struct SessionReport {
   std::uint32_t tissue_threads = 1;
   std::vector<SolidReport> solids;
   std::vector<std::string> devices;  ///< "glove: hid-glove (simulated)"
-  /// The heartbeat in force: its rate and the vessels it pulses (none: no pulse).
+  /// The heartbeat in force: its rate and the vessels it pulses (none: no pulse); the breathing:
+  /// its period and the solids it moves, each with its displacement at full inspiration (mm).
   double heart_rate_bpm = 0.0;
   std::vector<PulseReport> pulsing;
+  double breathing_period_s = 0.0;
+  std::vector<std::pair<std::string, std::array<double, 3>>> breathing;
   /// The hands: the scene names of the haptic devices, in hand order (an event's hand indexes it).
   std::vector<std::string> hands;
 

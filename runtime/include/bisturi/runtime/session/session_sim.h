@@ -247,9 +247,13 @@ class SessionSim {
   /// Per body: its pulse pressure (systolic less diastolic, Pa; 0: it does not pulse).
   std::vector<double> pulse_pressure_Pa_;
   double heart_rate_hz_ = 1.2;
+  /// Per body: its anchors' displacement at full inspiration (m; zero: it does not breathe).
+  std::vector<glm::dvec3> breathing_m_;
+  double breathing_period_s_ = 4.0;
   double pulse_now_Pa_ = 0.0;
-  /// The pulsing bodies' lumen pressure at the step beginning at ticks_ (sim/pulse.h).
-  void apply_heartbeat();
+  /// The pulsing bodies' lumen pressure at the step beginning at ticks_ (sim/pulse.h), and the
+  /// breathing bodies' supports moving to where the step covering `ticks` ends.
+  void apply_physiology(std::uint32_t ticks);
   double probe_radius_m_ = 0.001;
   SessionSimOptions options_;
   sim::SimWorld world_;

@@ -100,6 +100,12 @@ class ElasticVolume {
   /// Holds node i at its rest position (a Dirichlet condition).
   void hold(std::uint32_t node);
   [[nodiscard]] std::size_t held_count() const;
+  /// From the next advance() on, the held nodes move together at `velocity` (a support that
+  /// moves: breathing displaces an organ through its attachment); zero holds them where they
+  /// are. The free nodes follow through the elements.
+  void set_held_velocity(const glm::dvec3& velocity_m_s) { held_velocity_ = velocity_m_s; }
+  /// Where the held nodes are, as a displacement from their rest positions (zero without any).
+  [[nodiscard]] glm::dvec3 held_offset() const;
 
   /// Static equilibrium with the rigid sphere (centre, radius) pressing on `points` (embedded
   /// surface points; the same span on every call, whose contact multipliers carry over as warm
@@ -111,7 +117,8 @@ class ElasticVolume {
   /// the corotated stiffness as its matrix, Kelvin-Voigt damping tau K):
   ///   (M + (h tau + h^2) K + h^2 L) dv = h (f(x) - tau K v + M g + l) - h^2 (K + L) v,
   ///   v += dv,  x += h v
-  /// with L and l the loads' stiffness and force. Held nodes stay at rest.
+  /// with L and l the loads' stiffness and force. Held nodes move at the held velocity (at rest
+  /// without one): their dv is given, and its product with the matrix leaves the right-hand side.
   DynamicResult advance(std::span<const PointLoad> loads, const DynamicOptions& options);
   [[nodiscard]] std::span<const glm::dvec3> velocities() const { return v_; }
   /// Each node's lumped mass (kg): the density times its share of its cells' inside volume.
@@ -142,6 +149,7 @@ class ElasticVolume {
   std::vector<glm::dvec3> v_;
   std::vector<double> mass_;
   std::vector<std::uint8_t> held_;
+  glm::dvec3 held_velocity_{0.0};
   std::vector<double> multipliers_;  ///< per surface point, N
   std::unique_ptr<Solver> solver_;
 };

@@ -50,6 +50,11 @@ class VolumeBody {
   void sync_topology(const SoftBody& body);
 
   [[nodiscard]] const ElasticVolume& volume() const { return volume_; }
+  /// The anchored part (its held cells) moves at `velocity` from the next step on, the rest
+  /// following through the elements (ElasticVolume::set_held_velocity): breathing.
+  void move_support(const glm::dvec3& velocity_m_s) { volume_.set_held_velocity(velocity_m_s); }
+  /// How far the anchored part is from where it was built (m).
+  [[nodiscard]] glm::dvec3 support_offset() const { return volume_.held_offset(); }
   /// Embedded vertex slots (alive vertices of the body's mesh).
   [[nodiscard]] std::size_t embedded_vertices() const;
 
