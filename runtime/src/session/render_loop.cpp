@@ -24,6 +24,7 @@
 #include "bisturi/runtime/session/fault_injection.h"
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/sim/units.h"
+#include "blood_drops.h"
 
 namespace bisturi::runtime {
 
@@ -350,6 +351,21 @@ void run_render_loop(const RenderLoopContext& c) {
         renderer.add_instrument(render::capsule_solid(0.4, 1.0), blade_material, glm::dmat4(1.0)));
     renderer.set_visible(blade_ids.back(), false);
   }
+  // Blood, where a cut may open a pulsing vessel: one solid of drops, moved every frame.
+  std::optional<BloodDrops> blood;
+  render::SolidId blood_id{};
+  std::size_t drawn_drops = 0;
+  const bool may_bleed = std::any_of(scene.solids.begin(), scene.solids.end(),
+                                     [](const SolidDescription& d) { return d.pulse_mmHg; });
+  if (may_bleed && scene.physiology.blood_max_particles > 0) {
+    blood.emplace(static_cast<std::size_t>(scene.physiology.blood_max_particles), 1.2);
+    render::Material wet_blood;
+    wet_blood.colour = {0.36f, 0.01f, 0.02f};
+    wet_blood.specular = 0.6f;
+    wet_blood.shininess = 64.0f;
+    wet_blood.interior_colour = wet_blood.colour;
+    blood_id = renderer.add_solid(blood->mesh(), wet_blood);
+  }
   render_ready.store(true);
   const render::PoseClock::time_point origin = render::PoseClock::now();  // ~ the haptic start
 
@@ -408,6 +424,11 @@ void run_render_loop(const RenderLoopContext& c) {
       if (st.topology->version != meshes[b].version) meshes[b].rebuild(*st.topology);
       meshes[b].set_positions(st.positions_mm);
       renderer.update_solid(ids[b], meshes[b].mesh);
+    }
+    if (blood && (!s.blood_mm.empty() || drawn_drops > 0)) {
+      blood->place(s.blood_mm);
+      renderer.update_solid(blood_id, blood->mesh());
+      drawn_drops = s.blood_mm.size();
     }
     // Each probe's shaft rises from its tip along the hand; a blade shows while it cuts.
     for (std::size_t h = 0; h < std::min(s.instruments.size(), probe_ids.size()); ++h) {

@@ -47,7 +47,17 @@ class SceneReader {
           *t, "simulation", "stale_margin_ticks", scene.simulation.stale_margin_ticks, 1, 1000));
     }
     if (const toml::table* t = table_at(root, "", "physiology")) {
-      only_keys(*t, "physiology", {"heart_rate_bpm", "breathing_period_s"});
+      only_keys(*t, "physiology",
+                {"heart_rate_bpm", "breathing_period_s", "blood_density_kg_per_m3",
+                 "blood_viscosity", "blood_max_particles"});
+      PhysiologyDescription& ph = scene.physiology;
+      ph.blood_density_kg_per_m3 =
+          positive(*t, "physiology", "blood_density_kg_per_m3", ph.blood_density_kg_per_m3);
+      ph.blood_viscosity = number(*t, "physiology", "blood_viscosity", ph.blood_viscosity);
+      if (!(ph.blood_viscosity >= 0.0 && ph.blood_viscosity <= 1.0))
+        fail(t->get("blood_viscosity"), *t, "physiology.blood_viscosity", "must be in [0, 1]");
+      ph.blood_max_particles = static_cast<int>(
+          integer(*t, "physiology", "blood_max_particles", ph.blood_max_particles, 0, 100000));
       scene.physiology.breathing_period_s =
           positive(*t, "physiology", "breathing_period_s", scene.physiology.breathing_period_s);
       if (scene.physiology.breathing_period_s < 1.0 || scene.physiology.breathing_period_s > 60.0) {

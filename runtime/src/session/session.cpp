@@ -609,6 +609,17 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   report.overruns = overruns.load();
   report.realtime_priority = realtime.load();
   report.final_state_hash = sim.state_hash();
+  {
+    const sim::BloodCounts& c = sim.blood().counts();
+    report.bleeding = {c.emitted,
+                       c.in_flight,
+                       c.pooled,
+                       c.drained,
+                       sim.blood().emitted_ml(),
+                       sim.blood_most_particles()};
+    for (const double step : sim.blood_step_ms())
+      report.blood_step_ms.record(step);
+  }
   for (const auto& guard : guards) {
     report.clamped_forces += guard->clamp_count();
     report.rate_limited_forces += guard->rate_limit_count();

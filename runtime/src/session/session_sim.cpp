@@ -3,7 +3,9 @@
 #include "bisturi/runtime/session/session_sim.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <stdexcept>
 #include <utility>
@@ -135,6 +137,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
     contact_modulus_Pa_.push_back(0.0);  // a membrane's
     pulse_pressure_Pa_.push_back(
         d.pulse_mmHg ? ((*d.pulse_mmHg)[1] - (*d.pulse_mmHg)[0]) * sim::kPascalPerMmHg : 0.0);
+    diastolic_Pa_.push_back(d.pulse_mmHg ? (*d.pulse_mmHg)[0] * sim::kPascalPerMmHg : 0.0);
     breathing_m_.push_back(
         d.breathing_mm ? sim::scene_to_sim(glm::dvec3((*d.breathing_mm)[0], (*d.breathing_mm)[1],
                                                       (*d.breathing_mm)[2]))
@@ -157,6 +160,27 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   // Everything the first step would build lazily (solver structure, BVHs, scratch) is built now,
   // before the haptic clock starts: tick 1 costs what tick 2 costs.
   world_.prepare();
+  // The blood runs on every solid and on a tray 2 mm below the lowest (the table's drapes), and
+  // drains off the field: the solids' box across, widened by its size each way.
+  sim::BloodOptions blood;
+  blood.density_kg_per_m3 = scene.physiology.blood_density_kg_per_m3;
+  blood.viscosity = scene.physiology.blood_viscosity;
+  blood.max_particles = static_cast<std::size_t>(scene.physiology.blood_max_particles);
+  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+  for (std::size_t b = 0; b < world_.body_count(); ++b) {
+    const sim::SoftBody& body = world_.body(static_cast<std::uint32_t>(b));
+    blood_surfaces_.push_back({&body, &world_.bvh(static_cast<std::uint32_t>(b))});
+    for (const glm::dvec3& p : body.positions()) {
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    }
+  }
+  if (lo.x <= hi.x) {
+    blood.floor_z_m = lo.z - 0.002;
+    blood.field_min_m = lo - (hi - lo);
+    blood.field_max_m = hi + (hi - lo);
+  }
+  blood_ = sim::Blood(blood);
   out_.other_hands.resize(hands.size() - 1);
   for (std::size_t i = 0; i < hands.size(); ++i) {
     Hand h;
@@ -286,6 +310,7 @@ const TickOutput& SessionSim::tick(std::span<const devices::HapticState> states,
     finger_contacts(hands_[i], out_.hand(i), tips_m_[i], states[i].finger_joint_angles_rad);
     update_scalpel(i, states[i], tips_m_[i]);
   }
+  bleed(ticks);
   for (std::size_t i = 0; i < hands_.size(); ++i) {
     HandOutput& out = out_.hand(i);
     out.grasping = hands_[i].grasp_body >= 0;
@@ -318,6 +343,59 @@ void SessionSim::apply_physiology(std::uint32_t ticks) {
     pulse_now_Pa_ = pulse_pressure_Pa_[b] * beat;
     sim::apply_lumen_pressure(world_.body(static_cast<std::uint32_t>(b)), pulse_now_Pa_);
   }
+}
+
+void SessionSim::open_vessel(std::int32_t body, const std::vector<glm::dvec3>& points_m) {
+  if (body < 0 || pulse_pressure_Pa_[static_cast<std::size_t>(body)] <= 0.0 || points_m.empty())
+    return;
+  // The incision gapes about half a millimetre: its area is its length times that. Blood leaves
+  // along the wall's outward normal at up to eight points along it.
+  constexpr double kGap_m = 0.0005;
+  constexpr std::size_t kMostSources = 8;
+  Opening opening;
+  opening.body = body;
+  double length = 0.0;
+  for (std::size_t i = 1; i < points_m.size(); ++i)
+    length += glm::length(points_m[i] - points_m[i - 1]);
+  opening.area_m2 = std::max(length, 0.001) * kGap_m;
+  const auto b = static_cast<std::uint32_t>(body);
+  const std::size_t stride = std::max<std::size_t>(1, points_m.size() / kMostSources);
+  for (std::size_t i = 0; i < points_m.size(); i += stride) {
+    const sim::SurfacePoint q = world_.bvh(b).closest_point(world_.body(b), points_m[i], 0.01);
+    if (!q.found) continue;
+    opening.sources.push_back({q.point_m, q.normal});
+  }
+  if (!opening.sources.empty()) openings_.push_back(std::move(opening));
+}
+
+void SessionSim::bleed(std::uint32_t ticks) {
+  if (openings_.empty()) return;
+  blood_due_s_ += static_cast<double>(ticks) / haptic_hz_;
+  if (blood_due_s_ < kBloodStep_s) return;
+  const auto begin = std::chrono::steady_clock::now();  // the cost only: never the state
+  const double t_s = static_cast<double>(ticks_) / haptic_hz_;
+  const double beat = sim::cardiac_waveform(t_s * heart_rate_hz_);
+  const double density = blood_.options().density_kg_per_m3;
+  blood_flow_m3_s_ = 0.0;
+  for (const Opening& o : openings_) {
+    const auto b = static_cast<std::size_t>(o.body);
+    // A grasper holding the vessel clamps it: no flow past its jaws.
+    const bool clamped = std::any_of(hands_.begin(), hands_.end(),
+                                     [&](const Hand& h) { return h.grasp_body == o.body; });
+    if (clamped) continue;
+    // Through the opening as through an orifice (discharge coefficient 0.6) at the lumen's
+    // pressure now (3 m/s at 100 mmHg), the jet held to 0.5 m/s so it lands in the field.
+    const double pressure_Pa = diastolic_Pa_[b] + pulse_pressure_Pa_[b] * beat;
+    const double speed = std::min(0.6 * std::sqrt(2.0 * pressure_Pa / density), 0.5);
+    const double flow = o.area_m2 * speed;
+    blood_flow_m3_s_ += flow;
+    (void)blood_.emit(o.sources, flow, speed, blood_due_s_);
+  }
+  blood_.step(blood_due_s_, blood_surfaces_);
+  blood_due_s_ = 0.0;
+  blood_most_particles_ = std::max<std::uint64_t>(blood_most_particles_, blood_.positions().size());
+  blood_step_ms_.push_back(
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin).count());
 }
 
 std::size_t SessionSim::close_jaws(Hand& hand, const glm::dvec3& tip_m) {
@@ -398,6 +476,7 @@ void SessionSim::update_scalpel(std::size_t i, const devices::HapticState& state
       const sim::CutResult cut = world_.cut(b, hand.cut_points_m);
       detail = "incision through " + std::to_string(cut.path.size()) + " vertices";
       out_.topology_changed = true;
+      open_vessel(hand.cut_body, hand.cut_points_m);
       for (const std::size_t o : regrasp) {
         (void)close_jaws(hands_[o], tips_m_[o]);
         world_.set_probe(o, {hands_[o].grasp_body, hands_[o].cut_body < 0});
@@ -524,12 +603,21 @@ void SessionSim::command_for(const TickOutput& tick_output, std::size_t hand,
 
 std::uint64_t SessionSim::state_hash() {
   std::uint64_t h = 1469598103934665603ull;
-  for (std::size_t b = 0; b < world_.body_count(); ++b) {
-    std::uint64_t v = world_.body(static_cast<std::uint32_t>(b)).state_hash();
+  const auto mix = [&h](std::uint64_t v) {
     for (int i = 0; i < 8; ++i) {
       h ^= (v & 0xffu);
       h *= 1099511628211ull;
       v >>= 8;
+    }
+  };
+  for (std::size_t b = 0; b < world_.body_count(); ++b)
+    mix(world_.body(static_cast<std::uint32_t>(b)).state_hash());
+  // The blood too, once there is any (a session without it keeps its hash).
+  for (const glm::dvec3& p : blood_.positions()) {
+    for (int k = 0; k < 3; ++k) {
+      std::uint64_t bits = 0;
+      std::memcpy(&bits, &p[k], sizeof bits);
+      mix(bits);
     }
   }
   return h;

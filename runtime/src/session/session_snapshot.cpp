@@ -58,6 +58,10 @@ void SnapshotPublisher::publish(const TickOutput& out,
     for (std::size_t i = 0; i < x.size(); ++i)
       st.positions_mm[i] = sim::sim_to_scene(x[i]);
   }
+  const std::vector<glm::dvec3>& blood = sim_.blood().positions();
+  s.blood_mm.resize(blood.size());
+  for (std::size_t i = 0; i < blood.size(); ++i)
+    s.blood_mm[i] = sim::sim_to_scene(blood[i]);
   s.instruments.resize(sim_.hand_count());
   for (std::size_t h = 0; h < sim_.hand_count(); ++h)
     s.instruments[h] = {sim_.tip_mm(h), sim_.blade_to_mm(h), sim_.grasping(h), sim_.cutting(h)};

@@ -57,6 +57,7 @@ struct Snapshot {
   std::uint64_t tick = 0;
   std::vector<SolidState> solids;
   std::vector<InstrumentState> instruments;  ///< one per hand
+  std::vector<glm::dvec3> blood_mm;          ///< the blood's particles (sim/blood.h)
   std::uint64_t event_count = 0;
   std::array<EventStamp, 16> recent{};  ///< the last events, by index % size
 };

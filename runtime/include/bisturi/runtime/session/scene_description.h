@@ -184,6 +184,11 @@ struct ProcedureDescription {
 struct PhysiologyDescription {
   double heart_rate_bpm = 72.0;
   double breathing_period_s = 4.0;
+  /// Blood from a cut pulsing vessel (sim/blood.h): its density, its viscosity as the XSPH
+  /// velocity smoothing (0-1) at the particles' resolution, and the most particles in the field.
+  double blood_density_kg_per_m3 = 1060.0;
+  double blood_viscosity = 0.1;
+  int blood_max_particles = 800;
 };
 
 struct SceneDescription {

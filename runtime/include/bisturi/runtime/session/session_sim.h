@@ -29,6 +29,7 @@
 #include "bisturi/runtime/session/device_frame.h"
 #include "bisturi/runtime/session/scene_builder.h"
 #include "bisturi/runtime/session/scene_description.h"
+#include "bisturi/sim/blood.h"
 #include "bisturi/sim/grasp.h"
 #include "bisturi/sim/world.h"
 
@@ -176,6 +177,17 @@ class SessionSim {
   [[nodiscard]] std::uint64_t divergence_events() const { return divergence_events_; }
   /// Combined state hash of every body (FNV-1a over their SoftBody::state_hash in order).
   [[nodiscard]] std::uint64_t state_hash();
+  /// Bleeding: blood leaves a pulsing vessel where a cut opened it, at a flow its lumen pressure
+  /// drives through the opening (none while a grasper holds that vessel: clamped), and runs on
+  /// the tissue (sim/blood.h), stepped every kBloodStep_s of simulated time.
+  [[nodiscard]] const sim::Blood& blood() const { return blood_; }
+  /// Wall time of each blood step so far (ms): what bleeding costs the tissue thread.
+  [[nodiscard]] const std::vector<double>& blood_step_ms() const { return blood_step_ms_; }
+  /// The most particles the field held at once.
+  [[nodiscard]] std::uint64_t blood_most_particles() const { return blood_most_particles_; }
+  /// The bleeding openings' flow at the last blood step (m^3/s).
+  [[nodiscard]] double blood_flow_m3_s() const { return blood_flow_m3_s_; }
+  static constexpr double kBloodStep_s = 1.0 / 90.0;
   /// The pulsing bodies' pressure above diastole now (Pa, as of the last step; 0 without any).
   [[nodiscard]] double pulse_pressure_Pa() const { return pulse_now_Pa_; }
   /// Where a hand's tip and blade are (mm), for drawing the instruments.
@@ -251,6 +263,24 @@ class SessionSim {
   std::vector<glm::dvec3> breathing_m_;
   double breathing_period_s_ = 4.0;
   double pulse_now_Pa_ = 0.0;
+  /// An opening of a cut vessel: where blood leaves it.
+  struct Opening {
+    std::int32_t body = -1;
+    std::vector<sim::BloodSource> sources;
+    double area_m2 = 0.0;
+  };
+  std::vector<Opening> openings_;
+  std::vector<double> diastolic_Pa_;  ///< per body
+  sim::Blood blood_;
+  double blood_due_s_ = 0.0;  ///< simulated time since the last blood step
+  std::vector<double> blood_step_ms_;
+  double blood_flow_m3_s_ = 0.0;
+  std::uint64_t blood_most_particles_ = 0;
+  std::vector<sim::BloodSurface> blood_surfaces_;
+  /// A cut through body b along `points_m`: an opening when b pulses.
+  void open_vessel(std::int32_t body, const std::vector<glm::dvec3>& points_m);
+  /// Emits at each opening's flow and steps the blood when kBloodStep_s has passed.
+  void bleed(std::uint32_t ticks);
   /// The pulsing bodies' lumen pressure at the step beginning at ticks_ (sim/pulse.h), and the
   /// breathing bodies' supports moving to where the step covering `ticks` ends.
   void apply_physiology(std::uint32_t ticks);

@@ -1,0 +1,268 @@
+// Blood as position-based fluid particles (see blood.h).
+
+#include "bisturi/sim/blood.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <glm/geometric.hpp>
+#include <glm/gtx/norm.hpp>
+
+namespace bisturi::sim {
+
+namespace {
+
+constexpr double kPi = 3.141592653589793;
+
+/// Mueller, Charypar and Gross 2003: poly6 for densities, the spiky kernel's gradient for
+/// pressure (it does not vanish as particles close in).
+double poly6(double r2, double h) {
+  const double h2 = h * h;
+  if (r2 >= h2) return 0.0;
+  const double d = h2 - r2;
+  return 315.0 / (64.0 * kPi * std::pow(h, 9)) * d * d * d;
+}
+
+glm::dvec3 spiky_gradient(const glm::dvec3& r, double h) {
+  const double len = glm::length(r);
+  if (len >= h || len <= 1e-12) return glm::dvec3(0.0);
+  const double d = h - len;
+  return (-45.0 / (kPi * std::pow(h, 6)) * d * d / len) * r;
+}
+
+std::int64_t cell_of(double x, double h) {
+  return static_cast<std::int64_t>(std::floor(x / h));
+}
+
+std::uint64_t cell_key(std::int64_t x, std::int64_t y, std::int64_t z) {
+  constexpr std::int64_t kBias = 1 << 20;
+  const auto u = [](std::int64_t v) { return static_cast<std::uint64_t>(v + kBias) & 0x1FFFFFu; };
+  return u(x) << 42 | u(y) << 21 | u(z);
+}
+
+}  // namespace
+
+Blood::Blood(const BloodOptions& options) : options_(options) {
+  const double spacing = 2.0 * options_.particle_radius_m;
+  h_ = 2.0 * spacing;
+  particle_volume_m3_ = spacing * spacing * spacing;
+  mass_kg_ = options_.density_kg_per_m3 * particle_volume_m3_;
+  // The rest density the constraint holds is the density a particle has in a cubic lattice at
+  // the rest spacing (the kernel's sum there), so blood at rest packing is at rest.
+  double sum = 0.0;
+  std::vector<glm::dvec3> lattice;
+  for (int i = -2; i <= 2; ++i)
+    for (int j = -2; j <= 2; ++j)
+      for (int k = -2; k <= 2; ++k) {
+        sum += poly6(spacing * spacing * (i * i + j * j + k * k), h_);
+        if (i != 0 || j != 0 || k != 0) lattice.push_back(spacing * glm::dvec3(i, j, k));
+      }
+  rest_density_ = mass_kg_ * sum;
+  // The constraint's softening: a tenth of its gradient's weight at rest packing, so a particle
+  // with few neighbours is not thrown about (Macklin and Mueller's relaxation parameter).
+  double grad_sum = 0.0;
+  for (const glm::dvec3& r : lattice)
+    grad_sum += glm::length2(mass_kg_ / rest_density_ * spiky_gradient(r, h_));
+  relaxation_ = 0.1 * grad_sum;
+}
+
+std::size_t Blood::emit(std::span<const BloodSource> sources, double flow_m3_s, double speed_m_s,
+                        double dt_s) {
+  if (sources.empty() || !(flow_m3_s > 0.0)) return 0;
+  pending_m3_ += flow_m3_s * dt_s;
+  std::size_t made = 0;
+  while (pending_m3_ >= particle_volume_m3_ && x_.size() < options_.max_particles) {
+    pending_m3_ -= particle_volume_m3_;
+    const BloodSource& s = sources[next_source_ % sources.size()];
+    // Spread over the opening by the golden angle, so particles never start on one another.
+    const glm::dvec3 d = glm::normalize(s.direction);
+    const glm::dvec3 a = glm::normalize(
+        glm::cross(d, std::abs(d.z) < 0.9 ? glm::dvec3(0, 0, 1) : glm::dvec3(1, 0, 0)));
+    const glm::dvec3 b = glm::cross(d, a);
+    const double angle = 2.399963229728653 * static_cast<double>(counts_.emitted);
+    const double ring =
+        options_.particle_radius_m * std::sqrt(static_cast<double>(counts_.emitted % 7));
+    x_.push_back(s.point_m + options_.particle_radius_m * d +
+                 ring * (std::cos(angle) * a + std::sin(angle) * b));
+    v_.push_back(speed_m_s * d);
+    pooled_.push_back(0);
+    resting_.push_back(0);
+    touching_.push_back(0);
+    ++next_source_;
+    ++counts_.emitted;
+    ++made;
+  }
+  // Past the limit the flow is not held back for later: it would all come at once.
+  if (x_.size() >= options_.max_particles) pending_m3_ = 0.0;
+  return made;
+}
+
+void Blood::find_neighbours() {
+  const std::size_t n = x_.size();
+  cells_.resize(n);
+  for (std::size_t i = 0; i < n; ++i)
+    cells_[i] = {cell_key(cell_of(p_[i].x, h_), cell_of(p_[i].y, h_), cell_of(p_[i].z, h_)),
+                 static_cast<std::uint32_t>(i)};
+  std::sort(cells_.begin(), cells_.end());
+  neighbour_start_.assign(n + 1, 0);
+  neighbours_.clear();
+  const double h2 = h_ * h_;
+  for (std::size_t i = 0; i < n; ++i) {
+    neighbour_start_[i] = static_cast<std::uint32_t>(neighbours_.size());
+    const std::int64_t cx = cell_of(p_[i].x, h_), cy = cell_of(p_[i].y, h_),
+                       cz = cell_of(p_[i].z, h_);
+    for (std::int64_t dx = -1; dx <= 1; ++dx)
+      for (std::int64_t dy = -1; dy <= 1; ++dy)
+        for (std::int64_t dz = -1; dz <= 1; ++dz) {
+          const std::uint64_t key = cell_key(cx + dx, cy + dy, cz + dz);
+          auto it = std::lower_bound(cells_.begin(), cells_.end(),
+                                     std::pair<std::uint64_t, std::uint32_t>{key, 0});
+          for (; it != cells_.end() && it->first == key; ++it) {
+            if (it->second == i) continue;
+            if (glm::length2(p_[i] - p_[it->second]) < h2) neighbours_.push_back(it->second);
+          }
+        }
+  }
+  neighbour_start_[n] = static_cast<std::uint32_t>(neighbours_.size());
+}
+
+void Blood::solve_density() {
+  const std::size_t n = x_.size();
+  lambda_.resize(n);
+  delta_.resize(n);
+  const double scale = mass_kg_ / rest_density_;
+  const double self = poly6(0.0, h_);
+  for (std::size_t i = 0; i < n; ++i) {
+    double density = mass_kg_ * self;
+    glm::dvec3 grad_i(0.0);
+    double grad_sum = 0.0;
+    for (std::uint32_t k = neighbour_start_[i]; k < neighbour_start_[i + 1]; ++k) {
+      const glm::dvec3 r = p_[i] - p_[neighbours_[k]];
+      density += mass_kg_ * poly6(glm::length2(r), h_);
+      const glm::dvec3 g = scale * spiky_gradient(r, h_);
+      grad_i += g;
+      grad_sum += glm::length2(g);
+    }
+    grad_sum += glm::length2(grad_i);
+    // Only compression is corrected: a free surface (too few neighbours) is not pulled in.
+    const double c = std::max(0.0, density / rest_density_ - 1.0);
+    lambda_[i] = -c / (grad_sum + relaxation_);
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    glm::dvec3 d(0.0);
+    for (std::uint32_t k = neighbour_start_[i]; k < neighbour_start_[i + 1]; ++k) {
+      const std::uint32_t j = neighbours_[k];
+      d += (lambda_[i] + lambda_[j]) * spiky_gradient(p_[i] - p_[j], h_);
+    }
+    delta_[i] = scale * d;
+  }
+  for (std::size_t i = 0; i < n; ++i)
+    if (!pooled_[i]) p_[i] += delta_[i];
+}
+
+void Blood::collide(std::span<const BloodSurface> surfaces, double dt_s) {
+  const double r = options_.particle_radius_m;
+  constexpr double kMaxDepth_m = 0.006;  // deeper: the far side of a thin part, not this one
+  for (std::size_t i = 0; i < x_.size(); ++i) {
+    touching_[i] = 0;
+    for (const BloodSurface& s : surfaces) {
+      const auto [lo, hi] = s.bvh->bounds();
+      if (glm::any(glm::lessThan(p_[i], lo - glm::dvec3(r))) ||
+          glm::any(glm::greaterThan(p_[i], hi + glm::dvec3(r))))
+        continue;
+      const SurfacePoint q = s.bvh->closest_point(*s.body, p_[i], kMaxDepth_m);
+      if (!q.found) continue;
+      const double along = glm::dot(p_[i] - q.point_m, q.normal);  // < 0: inside the tissue
+      if (along >= r) continue;
+      // Out to the surface plus the particle's radius; a pooled particle the tissue moved into
+      // is freed and pushed out the same way.
+      p_[i] += (r - along) * q.normal;
+      touching_[i] = 1;
+      pooled_[i] = 0;
+    }
+    if (p_[i].z < options_.floor_z_m + r) {  // the tray
+      p_[i].z = options_.floor_z_m + r;
+      touching_[i] = 1;
+    }
+  }
+  (void)dt_s;
+}
+
+void Blood::remove_drained() {
+  std::size_t w = 0;
+  for (std::size_t i = 0; i < x_.size(); ++i) {
+    const glm::dvec3& x = x_[i];
+    if (x.x < options_.field_min_m.x || x.y < options_.field_min_m.y ||
+        x.x > options_.field_max_m.x || x.y > options_.field_max_m.y) {
+      ++counts_.drained;
+      continue;
+    }
+    x_[w] = x_[i];
+    v_[w] = v_[i];
+    pooled_[w] = pooled_[i];
+    resting_[w] = resting_[i];
+    touching_[w] = touching_[i];
+    ++w;
+  }
+  x_.resize(w);
+  v_.resize(w);
+  pooled_.resize(w);
+  resting_.resize(w);
+  touching_.resize(w);
+}
+
+void Blood::step(double dt_s, std::span<const BloodSurface> surfaces) {
+  const int substeps = std::max(1, options_.substeps);
+  const double h = dt_s / substeps;
+  for (int s = 0; s < substeps && !x_.empty(); ++s) {
+    const std::size_t n = x_.size();
+    p_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!pooled_[i]) v_[i] += h * options_.gravity_m_s2;
+      p_[i] = pooled_[i] ? x_[i] : x_[i] + h * v_[i];
+    }
+    find_neighbours();
+    for (int it = 0; it < options_.iterations; ++it)
+      solve_density();
+    collide(surfaces, h);
+    for (std::size_t i = 0; i < n; ++i) {
+      v_[i] = pooled_[i] ? glm::dvec3(0.0) : (p_[i] - x_[i]) / h;
+      if (touching_[i]) {
+        // Friction on the surface: the tangential part of the motion slows.
+        v_[i] *= 1.0 - options_.surface_friction;
+      }
+    }
+    // XSPH: each particle's velocity drawn towards its neighbours' (the blood's viscosity).
+    delta_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      glm::dvec3 dv(0.0);
+      double w_sum = 0.0;
+      for (std::uint32_t k = neighbour_start_[i]; k < neighbour_start_[i + 1]; ++k) {
+        const std::uint32_t j = neighbours_[k];
+        const double w = poly6(glm::length2(p_[i] - p_[j]), h_);
+        dv += w * (v_[j] - v_[i]);
+        w_sum += w;
+      }
+      delta_[i] = w_sum > 0.0 ? options_.viscosity * dv / w_sum : glm::dvec3(0.0);
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      if (pooled_[i]) continue;
+      v_[i] += delta_[i];
+      x_[i] = p_[i];
+      // Come to rest on a surface: pooled (still a neighbour of the others, never moved again
+      // unless the tissue pushes it).
+      resting_[i] = touching_[i] && glm::length(v_[i]) < options_.pool_speed_m_s
+                        ? static_cast<std::uint16_t>(resting_[i] + 1)
+                        : 0;
+      if (resting_[i] >= options_.pool_steps) {
+        pooled_[i] = 1;
+        v_[i] = glm::dvec3(0.0);
+      }
+    }
+    remove_drained();
+  }
+  counts_.pooled = static_cast<std::uint64_t>(std::count(pooled_.begin(), pooled_.end(), 1));
+  counts_.in_flight = x_.size() - counts_.pooled;
+}
+
+}  // namespace bisturi::sim
