@@ -25,7 +25,8 @@ asan_default="devices_test devices_spec_test devices_usb_async_test devices_desc
 devices_sample_test devices_example_test trace_test session_devices_test dlfl_operators_test \
 dlfl_figures_test dlfl_random_test mesh_io_test polygon_import_test oriented_builder_test \
 volume_io_test bono_octree_test segmentation_test marching_cubes_test lod_test sim_volume_test \
-sim_volume_body_test"
+sim_volume_body_test sim_blood_test devices_usb_endpoints_test session_two_hands_test \
+session_bleeding_test"
 
 configure() {  # folder, sanitizer flags
   mkdir -p "$here/$1"
@@ -76,13 +77,17 @@ run_live() {  # folder: live default sessions with the threads' faults injected
   cmake --build "$here/$folder" -j"$jobs" --target bisturi || return 1
   failed=0
   # The supervisor's zero past a stuck device write, a hung frame and a hung tissue step, a
-  # stalled trace disk: every thread of a session and each path between them.
-  for faults in "--inject tissue-hang@0.5 --inject device-io-stall@0.9" \
-                "--inject render-hang@0.8 --inject trace-slow-disk@1.0"; do
-    name=$(echo "$faults" | tr -cs 'a-z0-9' '_')
+  # stalled trace disk: every thread of a session and each path between them; then two hands
+  # (the supervisor zeroing both) and a bleeding vessel (the blood stepped on the tissue thread,
+  # drawn by the renderer).
+  for faults in "--duration 3 --inject tissue-hang@0.5 --inject device-io-stall@0.9" \
+                "--duration 3 --inject render-hang@0.8 --inject trace-slow-disk@1.0" \
+                "$here/config/two_hands.toml --duration 3 --inject device-io-stall@1.5" \
+                "$here/config/bleeding.toml --duration 8 --tissue-hz 500"; do
+    name=$(echo "$faults" | sed 's|.*/config/||' | tr -cs 'a-z0-9' '_')
     echo "sanitize: $folder: bisturi run $faults"
     # shellcheck disable=SC2086
-    if ! "$here/$folder/bin/bisturi" run --duration 3 --eye-width 64 --eye-height 64 --no-openxr \
+    if ! "$here/$folder/bin/bisturi" run --eye-width 64 --eye-height 64 --no-openxr \
          --out "$here/$folder/live$name" --record "$here/$folder/live$name.btrace" $faults \
          > "$here/$folder/live$name.log" 2>&1 ||
        grep -q "ThreadSanitizer" "$here/$folder/live$name.log"; then
