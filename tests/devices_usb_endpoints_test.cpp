@@ -55,7 +55,8 @@ TEST(UsbEndpoints, AnInterfaceWithoutWhatTheDriverNeedsIsNotUsed) {
 }
 
 TEST(UsbEndpoints, TheVendorArmDeclaresItsEndpoints) {
-  const DriverInfo* arm = builtin_registry().find_by_name("vendor-arm");
+  const Registry registry = builtin_registry();
+  const DriverInfo* arm = registry.find_by_name("vendor-arm");
   ASSERT_NE(arm, nullptr);
   EXPECT_EQ(arm->usb_interface,
             (UsbInterface{0, arm_protocol::kEndpointIn, arm_protocol::kEndpointOut}));

@@ -26,7 +26,7 @@ devices_sample_test devices_example_test trace_test session_devices_test dlfl_op
 dlfl_figures_test dlfl_random_test mesh_io_test polygon_import_test oriented_builder_test \
 volume_io_test bono_octree_test segmentation_test marching_cubes_test lod_test sim_volume_test \
 sim_volume_body_test sim_blood_test devices_usb_endpoints_test session_two_hands_test \
-session_bleeding_test"
+session_bleeding_test session_device_check_test session_heartbeat_test"
 
 configure() {  # folder, sanitizer flags
   mkdir -p "$here/$1"

@@ -22,15 +22,15 @@ double seconds(devices::Nanoseconds t) {
 /// One hand's device: its link through the guard, what the tick watches on it and what it was
 /// last sent. The supervisor reads the atomics and tries the lock; the rest is the tick's.
 struct HapticLoop::Hand {
-  Hand(std::size_t index, const HapticHandParts& parts, const SessionSim& sim,
-       HandCounters& counters)
-      : index(index),
-        parts(parts),
-        counters(counters),
-        slew(parts.haptic->guard().channels(), sim.haptic_period_ms() * 1e-3),
-        clutch(parts.clutch_buttons),
-        command(sim.command_size(index), 0.0),
-        zeros(sim.command_size(index), 0.0) {}
+  Hand(std::size_t hand_index, const HapticHandParts& hand_parts, const SessionSim& sim,
+       HandCounters& hand_counters)
+      : index(hand_index),
+        parts(hand_parts),
+        counters(hand_counters),
+        slew(hand_parts.haptic->guard().channels(), sim.haptic_period_ms() * 1e-3),
+        clutch(hand_parts.clutch_buttons),
+        command(sim.command_size(hand_index), 0.0),
+        zeros(sim.command_size(hand_index), 0.0) {}
   std::size_t index;
   HapticHandParts parts;
   HandCounters& counters;  ///< the loop's counters().hands[index]
