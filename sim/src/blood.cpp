@@ -15,19 +15,33 @@ namespace {
 constexpr double kPi = 3.141592653589793;
 
 /// Mueller, Charypar and Gross 2003: poly6 for densities, the spiky kernel's gradient for
-/// pressure (it does not vanish as particles close in).
+/// pressure (it does not vanish as particles close in); their constants for a kernel radius h.
+struct Kernels {
+  double h = 0.0, h2 = 0.0, poly6_scale = 0.0, spiky_scale = 0.0;
+  explicit Kernels(double radius)
+      : h(radius),
+        h2(radius * radius),
+        poly6_scale(315.0 / (64.0 * kPi * std::pow(radius, 9))),
+        spiky_scale(-45.0 / (kPi * std::pow(radius, 6))) {}
+  [[nodiscard]] double poly6(double r2) const {
+    if (r2 >= h2) return 0.0;
+    const double d = h2 - r2;
+    return poly6_scale * d * d * d;
+  }
+  [[nodiscard]] glm::dvec3 spiky_gradient(const glm::dvec3& r) const {
+    const double len = glm::length(r);
+    if (len >= h || len <= 1e-12) return glm::dvec3(0.0);
+    const double d = h - len;
+    return (spiky_scale * d * d / len) * r;
+  }
+};
+
 double poly6(double r2, double h) {
-  const double h2 = h * h;
-  if (r2 >= h2) return 0.0;
-  const double d = h2 - r2;
-  return 315.0 / (64.0 * kPi * std::pow(h, 9)) * d * d * d;
+  return Kernels(h).poly6(r2);
 }
 
 glm::dvec3 spiky_gradient(const glm::dvec3& r, double h) {
-  const double len = glm::length(r);
-  if (len >= h || len <= 1e-12) return glm::dvec3(0.0);
-  const double d = h - len;
-  return (-45.0 / (kPi * std::pow(h, 6)) * d * d / len) * r;
+  return Kernels(h).spiky_gradient(r);
 }
 
 std::int64_t cell_of(double x, double h) {
@@ -104,13 +118,16 @@ void Blood::find_neighbours() {
     cells_[i] = {cell_key(cell_of(p_[i].x, h_), cell_of(p_[i].y, h_), cell_of(p_[i].z, h_)),
                  static_cast<std::uint32_t>(i)};
   std::sort(cells_.begin(), cells_.end());
-  neighbour_start_.assign(n + 1, 0);
-  neighbours_.clear();
+  std::vector<std::vector<std::uint32_t>> found(n);
   const double h2 = h_ * h_;
-  for (std::size_t i = 0; i < n; ++i) {
-    neighbour_start_[i] = static_cast<std::uint32_t>(neighbours_.size());
-    const std::int64_t cx = cell_of(p_[i].x, h_), cy = cell_of(p_[i].y, h_),
-                       cz = cell_of(p_[i].z, h_);
+  // Cell by cell: the 27 cells around each are looked up once for all the particles in it.
+  for (std::size_t begin = 0; begin < n;) {
+    std::size_t end = begin;
+    while (end < n && cells_[end].first == cells_[begin].first)
+      ++end;
+    const glm::dvec3& first = p_[cells_[begin].second];
+    const std::int64_t cx = cell_of(first.x, h_), cy = cell_of(first.y, h_),
+                       cz = cell_of(first.z, h_);
     for (std::int64_t dx = -1; dx <= 1; ++dx)
       for (std::int64_t dy = -1; dy <= 1; ++dy)
         for (std::int64_t dz = -1; dz <= 1; ++dz) {
@@ -118,28 +135,41 @@ void Blood::find_neighbours() {
           auto it = std::lower_bound(cells_.begin(), cells_.end(),
                                      std::pair<std::uint64_t, std::uint32_t>{key, 0});
           for (; it != cells_.end() && it->first == key; ++it) {
-            if (it->second == i) continue;
-            if (glm::length2(p_[i] - p_[it->second]) < h2) neighbours_.push_back(it->second);
+            for (std::size_t a = begin; a < end; ++a) {
+              const std::uint32_t i = cells_[a].second;
+              if (it->second != i && glm::length2(p_[i] - p_[it->second]) < h2)
+                found[i].push_back(it->second);
+            }
           }
         }
+    begin = end;
+  }
+  neighbour_start_.assign(n + 1, 0);
+  neighbours_.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    neighbour_start_[i] = static_cast<std::uint32_t>(neighbours_.size());
+    // In index order, whatever the cells' order: the sums come out the same bits every run.
+    std::sort(found[i].begin(), found[i].end());
+    neighbours_.insert(neighbours_.end(), found[i].begin(), found[i].end());
   }
   neighbour_start_[n] = static_cast<std::uint32_t>(neighbours_.size());
 }
 
 void Blood::solve_density() {
+  const Kernels kernels(h_);
   const std::size_t n = x_.size();
   lambda_.resize(n);
   delta_.resize(n);
   const double scale = mass_kg_ / rest_density_;
-  const double self = poly6(0.0, h_);
+  const double self = kernels.poly6(0.0);
   for (std::size_t i = 0; i < n; ++i) {
     double density = mass_kg_ * self;
     glm::dvec3 grad_i(0.0);
     double grad_sum = 0.0;
     for (std::uint32_t k = neighbour_start_[i]; k < neighbour_start_[i + 1]; ++k) {
       const glm::dvec3 r = p_[i] - p_[neighbours_[k]];
-      density += mass_kg_ * poly6(glm::length2(r), h_);
-      const glm::dvec3 g = scale * spiky_gradient(r, h_);
+      density += mass_kg_ * kernels.poly6(glm::length2(r));
+      const glm::dvec3 g = scale * kernels.spiky_gradient(r);
       grad_i += g;
       grad_sum += glm::length2(g);
     }
@@ -152,7 +182,7 @@ void Blood::solve_density() {
     glm::dvec3 d(0.0);
     for (std::uint32_t k = neighbour_start_[i]; k < neighbour_start_[i + 1]; ++k) {
       const std::uint32_t j = neighbours_[k];
-      d += (lambda_[i] + lambda_[j]) * spiky_gradient(p_[i] - p_[j], h_);
+      d += (lambda_[i] + lambda_[j]) * kernels.spiky_gradient(p_[i] - p_[j]);
     }
     delta_[i] = scale * d;
   }
@@ -234,12 +264,13 @@ void Blood::step(double dt_s, std::span<const BloodSurface> surfaces) {
     }
     // XSPH: each particle's velocity drawn towards its neighbours' (the blood's viscosity).
     delta_.resize(n);
+    const Kernels kernels(h_);
     for (std::size_t i = 0; i < n; ++i) {
       glm::dvec3 dv(0.0);
       double w_sum = 0.0;
       for (std::uint32_t k = neighbour_start_[i]; k < neighbour_start_[i + 1]; ++k) {
         const std::uint32_t j = neighbours_[k];
-        const double w = poly6(glm::length2(p_[i] - p_[j]), h_);
+        const double w = kernels.poly6(glm::length2(p_[i] - p_[j]));
         dv += w * (v_[j] - v_[i]);
         w_sum += w;
       }

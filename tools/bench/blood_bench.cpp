@@ -1,0 +1,76 @@
+// Blood (sim/blood.h): one step of 1/90 s for N particles resting and flowing on a rigid slab,
+// against the display period it must fit beside the tissue (the ratio is the share of the
+// period one step takes on one core).
+
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+
+#include "bisturi/scene/oriented_builder.h"
+#include "bisturi/scene/shapes.h"
+#include "bisturi/sim/blood.h"
+#include "bisturi/sim/world.h"
+
+namespace bisturi::sim {
+namespace {
+
+constexpr double kDisplayPeriod_s = 1.0 / 90.0;
+
+/// A rigid 80 x 80 x 4 mm slab of tissue.
+SimWorld slab_world() {
+  WorldOptions options;
+  options.integrator.gravity_m_s2 = glm::dvec3(0.0);
+  SimWorld world(options);
+  SoftBody body(build_oriented_manifold(cube_mesh(Dlfl::Vec3(0.0), 80.0)), Material{});
+  for (auto& p : body.positions())
+    p.z *= 4.0 / 80.0;
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i)
+    body.set_anchored(VertexId(i), true);
+  world.add_body(std::move(body));
+  world.prepare();
+  return world;
+}
+
+void BM_BloodStep(benchmark::State& state) {
+  const auto particles = static_cast<std::size_t>(state.range(0));
+  SimWorld world = slab_world();
+  BloodOptions options;
+  options.max_particles = particles;
+  options.floor_z_m = -0.05;
+  options.field_min_m = glm::dvec3(-0.2);
+  options.field_max_m = glm::dvec3(0.2);
+  Blood blood(options);
+  const BloodSurface surface{&world.body(0), &world.bvh(0)};
+  // Poured from four points 10 mm above the slab until there are as many as asked.
+  std::vector<BloodSource> sources;
+  for (const double x : {0.025, 0.055})
+    for (const double y : {0.025, 0.055})
+      sources.push_back({{x, y, 0.014}, {0.0, 0.0, -1.0}});
+  while (blood.positions().size() < particles) {
+    (void)blood.emit(sources, 50e-6, 0.2, kDisplayPeriod_s);
+    blood.step(kDisplayPeriod_s, {&surface, 1});
+  }
+  for (auto _ : state) {
+    const auto begin = std::chrono::steady_clock::now();
+    blood.step(kDisplayPeriod_s, {&surface, 1});
+    state.SetIterationTime(
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count());
+  }
+  state.counters["particles"] = static_cast<double>(blood.positions().size());
+  state.counters["pooled"] = static_cast<double>(blood.counts().pooled);
+  state.counters["share_of_display_period"] =
+      benchmark::Counter(static_cast<double>(state.iterations()) * kDisplayPeriod_s,
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+BENCHMARK(BM_BloodStep)
+    ->Arg(500)
+    ->Arg(1000)
+    ->Arg(2000)
+    ->Arg(5000)
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace bisturi::sim
+
+BENCHMARK_MAIN();
