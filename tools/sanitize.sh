@@ -84,7 +84,7 @@ run_live() {  # folder: live default sessions with the threads' faults injected
                 "--duration 3 --inject render-hang@0.8 --inject trace-slow-disk@1.0" \
                 "$here/config/two_hands.toml --duration 3 --inject device-io-stall@1.5" \
                 "$here/config/bleeding.toml --duration 8 --tissue-hz 500"; do
-    name=$(echo "$faults" | sed 's|.*/config/||' | tr -cs 'a-z0-9' '_')
+    name=_$(echo "$faults" | sed 's|.*/config/||' | tr -cs 'a-z0-9' '_')
     echo "sanitize: $folder: bisturi run $faults"
     # shellcheck disable=SC2086
     if ! "$here/$folder/bin/bisturi" run --eye-width 64 --eye-height 64 --no-openxr \
