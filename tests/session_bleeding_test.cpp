@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "arm_hand_setup.h"
 #include "bisturi/devices/simulated.h"
 #include "bisturi/runtime/session/procedure.h"
 #include "bisturi/runtime/session/scene_builder.h"
@@ -23,17 +24,6 @@ namespace {
 
 constexpr std::size_t kLeft = 0, kRight = 1, kVessel = 1;  // the glove is the left hand here
 constexpr std::uint64_t kGrasp = 1u << 0, kCut = 1u << 1;
-
-HandSetup arm_hand() {
-  HandSetup h;
-  devices::ForceChannel c;
-  c.components = 3;
-  c.max_force_N = 3.0;
-  h.channels = {c};
-  h.channel_roles = {{devices::ChannelUse::Vector, 0}};
-  h.button_uses = {devices::ButtonUse::Grasp, devices::ButtonUse::Cut};
-  return h;
-}
 
 /// The instrument at p_mm, its blade (the pose's +z) pointing along `blade`, buttons held.
 devices::HapticState hand_at(const glm::dvec3& p_mm, std::uint64_t buttons = 0,
@@ -52,7 +42,8 @@ devices::HapticState hand_at(const glm::dvec3& p_mm, std::uint64_t buttons = 0,
 /// hands: the scripted glove (button 0 cuts, its fingers grasp) and an arm (grasp, cut).
 struct Field {
   SceneDescription scene = read_scene_file(BISTURI_SOURCE_DIR "/config/bleeding.toml");
-  SessionSim sim{scene, build_solids(scene), std::vector<HandSetup>{HandSetup{}, arm_hand()}};
+  SessionSim sim{scene, build_solids(scene),
+                 std::vector<HandSetup>{HandSetup{}, testing::arm_hand_setup(3.0)}};
   std::array<devices::HapticState, 2> hands{hand_at({20.0, -20.0, 90.0}),
                                             hand_at({100.0, -20.0, 90.0})};
   bool accounted = true;
@@ -126,7 +117,9 @@ TEST(Bleeding, ACutVesselBleedsUntilAGrasperClampsIt) {
     for (std::uint32_t b = 0; b < f.sim.body_count(); ++b) {
       const sim::SurfacePoint q =
           f.sim.world().bvh(b).closest_point(f.sim.world().body(b), p, 0.006);
-      if (q.found) EXPECT_GE(glm::dot(p - q.point_m, q.normal), -1e-9);
+      if (q.found) {
+        EXPECT_GE(glm::dot(p - q.point_m, q.normal), -1e-9);
+      }
     }
   }
   // Released, it bleeds again.
@@ -138,7 +131,7 @@ TEST(Bleeding, ACutVesselBleedsUntilAGrasperClampsIt) {
 TEST(Bleeding, AnOrganCutDoesNotBleed) {
   // The default scene's scripted cut goes across the organ, which has no pulse: no blood.
   const SceneDescription scene = default_scene();
-  SessionSim sim(scene, build_solids(scene), std::vector<HandSetup>{arm_hand()});
+  SessionSim sim(scene, build_solids(scene), std::vector<HandSetup>{testing::arm_hand_setup(3.0)});
   const glm::dvec3 top(32.25, 32.25, 60.25);
   for (int i = 0; i <= 200; ++i)
     (void)sim.tick(hand_at(top + glm::dvec3(-8.0, 0.0, 10.0 - 13.0 * i / 200.0)));

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "arm_hand_setup.h"
 #include "bisturi/runtime/session/scene_builder.h"
 #include "bisturi/runtime/session/session_sim.h"
 #include "bisturi/scene/dlfl_validate.h"
@@ -24,19 +25,6 @@ using testing::kOrganTop_mm;
 
 constexpr std::size_t kLeft = 0, kRight = 1;
 constexpr std::uint32_t kGraspButton = 1u << 0, kCutButton = 1u << 1;
-
-/// An arm-like hand: one 3-axis channel, its first button grasps and its second cuts.
-HandSetup arm_hand() {
-  HandSetup h;
-  devices::ForceChannel c;
-  c.components = 3;
-  c.max_force_N = 2.0;
-  h.channels = {c};
-  h.channel_roles = {{devices::ChannelUse::Vector, 0}};
-  h.button_uses = {devices::ButtonUse::Grasp, devices::ButtonUse::Cut};
-  h.max_force_N = 2.0;
-  return h;
-}
 
 devices::HapticState hand_at(const glm::dvec3& tip_mm, std::uint32_t buttons = 0) {
   devices::HapticState s;
@@ -100,7 +88,7 @@ struct TwoHands {
   std::array<devices::HapticState, 2> states;
   TwoHands()
       : sim(two_arm_scene(), build_solids(two_arm_scene()),
-            std::vector<HandSetup>{arm_hand(), arm_hand()}) {}
+            std::vector<HandSetup>{testing::arm_hand_setup(2.0), testing::arm_hand_setup(2.0)}) {}
   const TickOutput& run(std::size_t ticks) {
     const TickOutput* out = nullptr;
     for (std::size_t i = 0; i < ticks; ++i)

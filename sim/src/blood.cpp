@@ -36,14 +36,6 @@ struct Kernels {
   }
 };
 
-double poly6(double r2, double h) {
-  return Kernels(h).poly6(r2);
-}
-
-glm::dvec3 spiky_gradient(const glm::dvec3& r, double h) {
-  return Kernels(h).spiky_gradient(r);
-}
-
 std::int64_t cell_of(double x, double h) {
   return static_cast<std::int64_t>(std::floor(x / h));
 }
@@ -59,6 +51,7 @@ std::uint64_t cell_key(std::int64_t x, std::int64_t y, std::int64_t z) {
 Blood::Blood(const BloodOptions& options) : options_(options) {
   const double spacing = 2.0 * options_.particle_radius_m;
   h_ = 2.0 * spacing;
+  const Kernels kernels(h_);
   particle_volume_m3_ = spacing * spacing * spacing;
   mass_kg_ = options_.density_kg_per_m3 * particle_volume_m3_;
   // The rest density the constraint holds is the density a particle has in a cubic lattice at
@@ -68,7 +61,7 @@ Blood::Blood(const BloodOptions& options) : options_(options) {
   for (int i = -2; i <= 2; ++i)
     for (int j = -2; j <= 2; ++j)
       for (int k = -2; k <= 2; ++k) {
-        sum += poly6(spacing * spacing * (i * i + j * j + k * k), h_);
+        sum += kernels.poly6(spacing * spacing * (i * i + j * j + k * k));
         if (i != 0 || j != 0 || k != 0) lattice.push_back(spacing * glm::dvec3(i, j, k));
       }
   rest_density_ = mass_kg_ * sum;
@@ -76,7 +69,7 @@ Blood::Blood(const BloodOptions& options) : options_(options) {
   // with few neighbours is not thrown about (Macklin and Mueller's relaxation parameter).
   double grad_sum = 0.0;
   for (const glm::dvec3& r : lattice)
-    grad_sum += glm::length2(mass_kg_ / rest_density_ * spiky_gradient(r, h_));
+    grad_sum += glm::length2(mass_kg_ / rest_density_ * kernels.spiky_gradient(r));
   relaxation_ = 0.1 * grad_sum;
 }
 
@@ -118,7 +111,10 @@ void Blood::find_neighbours() {
     cells_[i] = {cell_key(cell_of(p_[i].x, h_), cell_of(p_[i].y, h_), cell_of(p_[i].z, h_)),
                  static_cast<std::uint32_t>(i)};
   std::sort(cells_.begin(), cells_.end());
-  std::vector<std::vector<std::uint32_t>> found(n);
+  // Each particle's list keeps its capacity from step to step.
+  if (found_.size() < n) found_.resize(n);
+  for (std::size_t i = 0; i < n; ++i)
+    found_[i].clear();
   const double h2 = h_ * h_;
   // Cell by cell: the 27 cells around each are looked up once for all the particles in it.
   for (std::size_t begin = 0; begin < n;) {
@@ -138,7 +134,7 @@ void Blood::find_neighbours() {
             for (std::size_t a = begin; a < end; ++a) {
               const std::uint32_t i = cells_[a].second;
               if (it->second != i && glm::length2(p_[i] - p_[it->second]) < h2)
-                found[i].push_back(it->second);
+                found_[i].push_back(it->second);
             }
           }
         }
@@ -149,8 +145,8 @@ void Blood::find_neighbours() {
   for (std::size_t i = 0; i < n; ++i) {
     neighbour_start_[i] = static_cast<std::uint32_t>(neighbours_.size());
     // In index order, whatever the cells' order: the sums come out the same bits every run.
-    std::sort(found[i].begin(), found[i].end());
-    neighbours_.insert(neighbours_.end(), found[i].begin(), found[i].end());
+    std::sort(found_[i].begin(), found_[i].end());
+    neighbours_.insert(neighbours_.end(), found_[i].begin(), found_[i].end());
   }
   neighbour_start_[n] = static_cast<std::uint32_t>(neighbours_.size());
 }
@@ -190,7 +186,7 @@ void Blood::solve_density() {
     if (!pooled_[i]) p_[i] += delta_[i];
 }
 
-void Blood::collide(std::span<const BloodSurface> surfaces, double dt_s) {
+void Blood::collide(std::span<const BloodSurface> surfaces) {
   const double r = options_.particle_radius_m;
   constexpr double kMaxDepth_m = 0.006;  // deeper: the far side of a thin part, not this one
   for (std::size_t i = 0; i < x_.size(); ++i) {
@@ -215,7 +211,6 @@ void Blood::collide(std::span<const BloodSurface> surfaces, double dt_s) {
       touching_[i] = 1;
     }
   }
-  (void)dt_s;
 }
 
 void Blood::remove_drained() {
@@ -254,7 +249,7 @@ void Blood::step(double dt_s, std::span<const BloodSurface> surfaces) {
     find_neighbours();
     for (int it = 0; it < options_.iterations; ++it)
       solve_density();
-    collide(surfaces, h);
+    collide(surfaces);
     for (std::size_t i = 0; i < n; ++i) {
       v_[i] = pooled_[i] ? glm::dvec3(0.0) : (p_[i] - x_[i]) / h;
       if (touching_[i]) {

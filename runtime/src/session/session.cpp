@@ -382,10 +382,6 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                            device.capabilities().spec, session_devices.haptic_channels(h),
                            session_devices.haptic_buttons(h), choice.hands[h]->max_force_N});
   }
-  sim_options.device_frame = hand_setups.front().device_frame;
-  sim_options.device_spec = hand_setups.front().device_spec;
-  sim_options.channel_roles = hand_setups.front().channel_roles;
-  sim_options.button_uses = hand_setups.front().button_uses;
   SessionSim sim(scene, std::move(solids), hand_setups, sim_options);
   std::vector<std::unique_ptr<devices::ForceGuard>> guards;
   std::vector<std::unique_ptr<devices::GuardedHaptic>> guarded;

@@ -82,7 +82,7 @@ class Blood {
  private:
   void find_neighbours();
   void solve_density();
-  void collide(std::span<const BloodSurface> surfaces, double dt_s);
+  void collide(std::span<const BloodSurface> surfaces);
   void remove_drained();
 
   BloodOptions options_;
@@ -103,6 +103,7 @@ class Blood {
   std::vector<double> lambda_;
   std::vector<glm::dvec3> delta_;
   std::vector<std::pair<std::uint64_t, std::uint32_t>> cells_;  ///< scratch
+  std::vector<std::vector<std::uint32_t>> found_;  ///< scratch: each particle's neighbours
 };
 
 }  // namespace bisturi::sim
