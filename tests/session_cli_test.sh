@@ -67,7 +67,7 @@ TOML
   real-missing)
     # The default scene with real hardware asked for: nothing is plugged in here, so the session
     # refuses to start and names the device it looked for.
-    sed 's/simulated = true/simulated = false/' "$(dirname "$0")/../config/default.toml" \
+    sed 's/simulated = true/simulated = false/' "$(dirname "$0")/../config/liver.toml" \
       > "$work/real.toml"
     "$bisturi" run "$work/real.toml" --duration 1 --no-openxr --out "$work/real" \
       > "$work/real.txt" 2>&1

@@ -1,7 +1,7 @@
-// The body's own motion through the session's simulation. The heartbeat (sim/pulse.h): the default
+// The body's own motion through the session's simulation. The heartbeat (sim/pulse.h): the phantom
 // scene's vessel with a lumen pressure of 80/120 mmHg at 72 beats a minute pulses at that
 // period, by an amount a wall of its stiffness gives, and a probe resting on it feels the beat.
-// Breathing: the default organ's anchored base carried up and back over each breath, the organ
+// Breathing: the phantom organ's anchored base carried up and back over each breath, the organ
 // following through its volume, and a probe held still feeling it come up.
 
 #include <gtest/gtest.h>
@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "bisturi/runtime/session/scene_builder.h"
@@ -36,10 +37,15 @@ TEST(Heartbeat, TheWaveformRisesToSystoleAndClosesItsCycle) {
   }
 }
 
-/// The default scene, its vessel's wall `stiffer` times as stiff, pulsing from 80 mmHg to
+/// The phantom scene (a sphere and a tube, config/phantom.toml).
+SceneDescription phantom_scene() {
+  return read_scene_file(std::string(BISTURI_SOURCE_DIR) + "/config/phantom.toml");
+}
+
+/// The phantom scene, its vessel's wall `stiffer` times as stiff, pulsing from 80 mmHg to
 /// 80 + pulse_mmHg (none at 0).
 SceneDescription pulsing_scene(double pulse_mmHg, double stiffer = 1.0) {
-  SceneDescription scene = default_scene();
+  SceneDescription scene = phantom_scene();
   scene.physiology.heart_rate_bpm = kBeatsPerMinute;
   if (pulse_mmHg > 0.0)
     scene.solids.at(kVessel).pulse_mmHg = std::array<double, 2>{80.0, 80.0 + pulse_mmHg};
@@ -133,7 +139,7 @@ TEST(Heartbeat, TheVesselPulsesAtTheHeartRate) {
 
 TEST(Heartbeat, AProbeRestingOnTheVesselFeelsTheBeat) {
   // The probe comes to the vessel's anterior wall (-y) and rests 1.5 mm into it; the wall ten
-  // times as stiff as the default scene's, whose soft membrane chatters under a resting probe.
+  // times as stiff as the phantom scene's, whose soft membrane chatters under a resting probe.
   std::array<double, 2> beat_swing_N{};
   for (const bool pulse : {false, true}) {
     const SceneDescription scene = pulsing_scene(pulse ? 40.0 : 0.0, 10.0);
@@ -179,7 +185,7 @@ struct Breath {
   std::uint64_t divergence_events = 0;
 };
 Breath breathe(const glm::dvec3& breathing_mm, double seconds, double press_mm) {
-  SceneDescription scene = default_scene();
+  SceneDescription scene = phantom_scene();
   scene.physiology.breathing_period_s = 2.0;
   if (breathing_mm != glm::dvec3(0.0))
     scene.solids.at(kOrgan).breathing_mm = {breathing_mm.x, breathing_mm.y, breathing_mm.z};

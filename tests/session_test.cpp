@@ -41,14 +41,16 @@ std::string error_of(const std::string& toml) {
 }
 
 TEST(SceneFile, DefaultSceneIsTheShippedFileAndParses) {
-  std::ifstream in(std::string(BISTURI_SOURCE_DIR) + "/config/default.toml");
+  std::ifstream in(std::string(BISTURI_SOURCE_DIR) + "/config/liver.toml");
   std::stringstream text;
   text << in.rdbuf();
   EXPECT_EQ(text.str(), std::string(default_scene_toml()));
   const SceneDescription scene = default_scene();
-  EXPECT_EQ(scene.name, "default");
+  EXPECT_EQ(scene.name, "liver");
   ASSERT_EQ(scene.solids.size(), 2u);
-  EXPECT_EQ(scene.solids[0].source, SolidDescription::Source::Phantom);
+  EXPECT_EQ(scene.solids[0].source, SolidDescription::Source::Volume);
+  EXPECT_EQ(scene.solids[0].model, SolidDescription::Model::Volume);
+  EXPECT_EQ(scene.solids[1].source, SolidDescription::Source::Phantom);
   EXPECT_EQ(scene.solids[1].anchors.size(), 2u);
   ASSERT_EQ(scene.devices.size(), 2u);
   EXPECT_EQ(scene.devices[1].role, DeviceDescription::Role::HeadTracker);
@@ -336,8 +338,8 @@ TEST(FaultInjection, ParsesAFaultAndItsTimeAndRefusesTheRest) {
   EXPECT_EQ(f.kind, FaultKind::TissueHang);
   EXPECT_DOUBLE_EQ(f.at_s, 2.5);
   EXPECT_EQ(parse_fault("trace-slow-disk@0").kind, FaultKind::TraceSlowDisk);
-  for (const char* bad : {"tissue-hang", "tissue-hang@", "tissue-hang@-1", "tissue-hang@2s",
-                          "melt@1", "@1"}) {
+  for (const char* bad :
+       {"tissue-hang", "tissue-hang@", "tissue-hang@-1", "tissue-hang@2s", "melt@1", "@1"}) {
     try {
       (void)parse_fault(bad);
       ADD_FAILURE() << bad << " was taken";

@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <limits>
+#include <map>
+#include <queue>
 #include <set>
 
 #include <glm/geometric.hpp>
@@ -71,6 +74,48 @@ struct Step {
   CornerId diagonal_from;  // valid: split this face from here to diagonal_to
   CornerId diagonal_to;
 };
+
+/// The cheapest path along edges from `from` to `to` (excluding `from`), each edge costing its
+/// length plus twice its far end's distance from the blade's segment a-b, through unvisited
+/// vertices within `radius` of b and never along the boundary; empty when there is none. It
+/// carries the path across a mesh whose long triangles give no neighbour nearer the blade (a
+/// decimated tube's strips run along its axis, so a cut around it finds no closer vertex).
+std::vector<VertexId> detour(const Dlfl& mesh, const std::vector<glm::dvec3>& x, VertexId from,
+                             VertexId to, const std::set<std::uint32_t>& visited,
+                             const glm::dvec3& a, const glm::dvec3& b, double radius) {
+  std::map<std::uint32_t, double> cost{{from.idx, 0.0}};
+  std::map<std::uint32_t, std::uint32_t> came_from;
+  using Entry = std::pair<double, std::uint32_t>;
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<>> open;
+  open.push({0.0, from.idx});
+  while (!open.empty()) {
+    const auto [c_u, u] = open.top();
+    open.pop();
+    if (u == to.idx) break;
+    if (c_u > cost[u]) continue;
+    for (CornerId c : vertex_corners(mesh, VertexId(u))) {
+      if (mesh.is_bounding(mesh.face(c)) || mesh.is_point_sphere(c)) continue;
+      for (const CornerId side : {c, mesh.prev(c)}) {
+        if (mesh.is_bounding(mesh.face(mesh.partner(side)))) continue;
+        const VertexId w = side == c ? mesh.vertex(mesh.next(c)) : mesh.vertex(mesh.prev(c));
+        if (visited.count(w.idx) != 0 || glm::length(x[w.idx] - b) > radius) continue;
+        const double c_w =
+            c_u + glm::length(x[w.idx] - x[u]) + 2.0 * point_segment_distance(x[w.idx], a, b);
+        const auto known = cost.find(w.idx);
+        if (known != cost.end() && known->second <= c_w) continue;
+        cost[w.idx] = c_w;
+        came_from[w.idx] = u;
+        open.push({c_w, w.idx});
+      }
+    }
+  }
+  std::vector<VertexId> path;
+  if (came_from.count(to.idx) == 0) return path;
+  for (std::uint32_t v = to.idx; v != from.idx; v = came_from[v])
+    path.push_back(VertexId(v));
+  std::reverse(path.begin(), path.end());
+  return path;
+}
 
 }  // namespace
 
@@ -141,7 +186,32 @@ CutResult cut_surface(SoftBody& body, std::span<const glm::dvec3> points,
           }
         }
       }
-      if (!best.to.valid()) break;  // no vertex comes closer: this segment is done
+      if (!best.to.valid()) {
+        // No neighbour comes closer: go round to the vertex nearest b when it is nearer than u.
+        const VertexId nearest = target.valid() ? target : nearest_vertex(body, b);
+        if (!nearest.valid() || nearest == u || visited.count(nearest.idx) != 0 ||
+            !(glm::length(x[nearest.idx] - b) < du)) {
+          break;  // this segment is done
+        }
+        double longest_edge = 0.0;
+        for (CornerId c : vertex_corners(mesh, u))
+          longest_edge =
+              std::max(longest_edge, glm::length(x[mesh.vertex(mesh.next(c)).idx] - x[u.idx]));
+        const std::vector<VertexId> around =
+            detour(mesh, x, u, nearest, visited, a, b, 2.0 * (du + longest_edge));
+        if (around.empty()) break;
+        for (const VertexId w : around) {
+          steps.push_back(Step{w, CornerId{}, CornerId{}});
+          path.push_back(w);
+          visited.insert(w.idx);
+          if (on_boundary(mesh, w)) {
+            reached_boundary = true;
+            break;
+          }
+        }
+        if (reached_boundary) break;
+        continue;
+      }
       if (best.diagonal_from.valid()) used_faces.insert(mesh.face(best.diagonal_from).idx);
       steps.push_back(best);
       path.push_back(best.to);

@@ -42,7 +42,7 @@ void add_run_command(CLI::App& app, RunOptions& options, int (*&run)(const RunOp
       "run",
       "run a headset session (the default scene without SCENE): haptics at the scene's rate, "
       "stereo frames at the headset's, written with report.json and plots into --out");
-  cmd->add_option("SCENE", options.scene, "scene file (TOML, see config/default.toml)")
+  cmd->add_option("SCENE", options.scene, "scene file (TOML, see config/liver.toml)")
       ->check(CLI::ExistingFile);
   cmd->add_option("--duration", options.duration_s, "seconds (default: the scene's duration_s)")
       ->check(CLI::Range(0.05, 3600.0));
@@ -288,9 +288,19 @@ int run_run(const RunOptions& options) {
   for (const auto& [solid, mm] : r.breathing)
     breathing.push_back({{"solid", solid}, {"breathing_mm", mm}});
   nlohmann::json solids = nlohmann::json::array();
-  for (const runtime::SolidReport& s : r.solids)
-    solids.push_back(
-        {{"name", s.name}, {"vertices", s.vertices}, {"faces", s.faces}, {"build_ms", s.build_ms}});
+  for (const runtime::SolidReport& s : r.solids) {
+    nlohmann::json solid = {{"name", s.name},
+                            {"vertices", s.vertices},
+                            {"faces", s.faces},
+                            {"build_ms", s.build_ms},
+                            {"model", s.model}};
+    if (s.model == "volume") {
+      solid["volume_cells"] = s.volume_cells;
+      solid["volume_nodes"] = s.volume_nodes;
+      solid["volume_build_ms"] = s.volume_build_ms;
+    }
+    solids.push_back(std::move(solid));
+  }
   nlohmann::json injected = nlohmann::json::array();
   for (const runtime::FaultOutcome& f : r.injected)
     injected.push_back(

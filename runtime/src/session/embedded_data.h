@@ -1,7 +1,7 @@
 #pragma once
 // Files embedded in the program at build time, so that the default scene needs no file on disk:
 // config/data/liver.nrrd as "data/liver.nrrd" (its name relative to config/, as
-// config/default.toml names it).
+// config/liver.toml names it).
 
 #include <cstddef>
 #include <optional>

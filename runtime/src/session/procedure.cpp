@@ -171,7 +171,9 @@ devices::DeviceScript default_script(const Targets& t, devices::Nanoseconds dura
   key(0.12, palpate + 4.0 * pn, open);                 // approach
   key(0.20, palpate - d.palpate_depth_mm * pn, open);  // palpate: press in
   key(0.26, palpate + 4.0 * pn, open);                 // and let go
-  key(0.36, grasp + 10.0 * gn, open);                  // to the vessel
+  key(0.30, palpate + 30.0 * pn, open);  // back out, and round to the front of the vessel
+  key(0.33, grasp + 30.0 * gn, open);
+  key(0.36, grasp + 10.0 * gn, open);
   key(0.42, grasp - 1.0 * gn, open);
   key(0.46, grasp - 1.0 * gn, closed);        // grasp
   key(0.56, grasp + d.pull_mm * gn, closed);  // pull

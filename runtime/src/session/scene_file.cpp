@@ -321,10 +321,10 @@ class SceneReader {
 
   SolidDescription read_solid(const toml::table& t, const std::string& path) const {
     only_keys(t, path,
-              {"name",    "mesh",       "volume",      "phantom", "dims",       "spacing_mm",
-               "a_mm",    "b_mm",       "iso",         "label",   "downsample", "decimate",
-               "smooth",  "offset_mm",  "material",    "anchors", "simulate",   "model",
-               "cell_mm", "pulse_mmHg", "breathing_mm"});
+              {"name",    "mesh",      "volume",     "phantom",     "dims",       "spacing_mm",
+               "a_mm",    "b_mm",      "iso",        "label",       "downsample", "decimate",
+               "smooth",  "offset_mm", "material",   "anchors",     "simulate",   "model",
+               "cell_mm", "supported", "pulse_mmHg", "breathing_mm"});
     SolidDescription s;
     s.name = string_or(t, path, "name", path);
     const int sources = (t.contains("mesh") ? 1 : 0) + (t.contains("volume") ? 1 : 0) +
@@ -388,6 +388,10 @@ class SceneReader {
     s.cell_mm = positive(t, path, "cell_mm", s.cell_mm);
     if (t.contains("cell_mm") && s.model != SolidDescription::Model::Volume) {
       fail(t.get("cell_mm"), t, path + ".cell_mm", "only for model = \"volume\"");
+    }
+    s.supported = boolean(t, path, "supported", s.supported);
+    if (t.contains("supported") && s.model != SolidDescription::Model::Volume) {
+      fail(t.get("supported"), t, path + ".supported", "only for model = \"volume\"");
     }
     if (t.contains("pulse_mmHg")) {
       const std::array<double, 2> p = numbers<2>(t, path, "pulse_mmHg", {0.0, 0.0});
@@ -550,7 +554,7 @@ std::string_view default_scene_toml() {
 }
 
 SceneDescription default_scene() {
-  return parse_scene(default_scene_toml(), "default scene (config/default.toml)");
+  return parse_scene(default_scene_toml(), "default scene (config/liver.toml)");
 }
 
 }  // namespace bisturi::runtime

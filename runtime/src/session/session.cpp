@@ -40,6 +40,7 @@
 #include "bisturi/scene/polygon_export.h"
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/sim/units.h"
+#include "bisturi/sim/volume/volume_body.h"
 #include "fault_injector.h"
 #include "haptic_loop.h"
 #include "haptic_thread.h"
@@ -383,6 +384,15 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                            session_devices.haptic_buttons(h), choice.hands[h]->max_force_N});
   }
   SessionSim sim(scene, std::move(solids), hand_setups, sim_options);
+  for (std::uint32_t b = 0; b < report.solids.size(); ++b) {
+    if (const sim::VolumeBody* volume = sim.world().volume(b)) {
+      SolidReport& s = report.solids[b];
+      s.model = "volume";
+      s.volume_cells = volume->volume().lattice().cells.size();
+      s.volume_nodes = volume->volume().lattice().rest.size();
+      s.volume_build_ms = sim.volume_build_ms(b);
+    }
+  }
   std::vector<std::unique_ptr<devices::ForceGuard>> guards;
   std::vector<std::unique_ptr<devices::GuardedHaptic>> guarded;
   for (std::size_t h = 0; h < session_devices.hand_count(); ++h) {

@@ -135,6 +135,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
     names_.push_back(d.name);
     const std::uint32_t index = world_.add_body(std::move(body));
     contact_modulus_Pa_.push_back(0.0);  // a membrane's
+    volume_build_ms_.push_back(0.0);
     pulse_pressure_Pa_.push_back(
         d.pulse_mmHg ? ((*d.pulse_mmHg)[1] - (*d.pulse_mmHg)[0]) * sim::kPascalPerMmHg : 0.0);
     diastolic_Pa_.push_back(d.pulse_mmHg ? (*d.pulse_mmHg)[0] * sim::kPascalPerMmHg : 0.0);
@@ -145,10 +146,15 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
     if (d.model == SolidDescription::Model::Volume && d.simulate) {
       sim::VolumeOptions volume;
       volume.cell_m = d.cell_mm * sim::kMetresPerMillimetre;
+      volume.weight_supported = d.supported;
       volume.material = {d.material.youngs_modulus_kPa, d.material.poisson_ratio,
                          d.material.density_kg_per_m3, d.material.retardation_time_s};
       try {
+        const auto begin = std::chrono::steady_clock::now();
         world_.set_volume(index, volume);
+        volume_build_ms_.back() =
+            std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin)
+                .count();
       } catch (const sim::SimInputError& e) {
         throw sim::SimInputError("solid '" + d.name + "': " + e.what());
       }
@@ -450,44 +456,59 @@ void SessionSim::update_scalpel(std::size_t i, const devices::HapticState& state
   const bool button = (state.buttons & hand.cut_buttons) != 0;
   if (button && !hand.button) {
     hand.cut_body = nearest_body(tip_m);
-    hand.cut_points_m.clear();
+    hand.cut_points_m.assign(world_.body_count(), {});
     add_event(SessionEventKind::CutStarted, i, hand.cut_body, "");
   }
   if (button && hand.cut_body >= 0) {
-    const auto b = static_cast<std::uint32_t>(hand.cut_body);
-    sim::ScalpelSweep sweep;
-    if (sweep.sample(world_.body(b), world_.bvh(b), tip_m, sim::scene_to_sim(hand.blade_to_mm)))
-      hand.cut_points_m.push_back(sweep.points().back());
+    // Every body the blade crosses is cut: a blade through an organ's face and the vessel lying
+    // on it opens both.
+    for (std::uint32_t b = 0; b < world_.body_count(); ++b) {
+      if (world_.body(b).frozen()) continue;
+      sim::ScalpelSweep sweep;
+      if (sweep.sample(world_.body(b), world_.bvh(b), tip_m, sim::scene_to_sim(hand.blade_to_mm)))
+        hand.cut_points_m[b].push_back(sweep.points().back());
+    }
   }
   if (!button && hand.button && hand.cut_body >= 0) {
-    const auto b = static_cast<std::uint32_t>(hand.cut_body);
-    std::string detail;
-    try {
-      // The held vertices may be renumbered by the cut: a hand holding the body lets go and,
-      // when it is another hand, takes hold again where its jaws are once the cut is made (the
-      // tissue stays under its tension).
-      std::vector<std::size_t> regrasp;
-      for (std::size_t o = 0; o < hands_.size(); ++o) {
-        if (hands_[o].grasp_body != hand.cut_body) continue;
-        hands_[o].grasp.release(world_.body(b));
-        hands_[o].grasp_body = -1;
-        if (o != i) regrasp.push_back(o);
-      }
-      const sim::CutResult cut = world_.cut(b, hand.cut_points_m);
-      detail = "incision through " + std::to_string(cut.path.size()) + " vertices";
-      out_.topology_changed = true;
-      open_vessel(hand.cut_body, hand.cut_points_m);
-      for (const std::size_t o : regrasp) {
-        (void)close_jaws(hands_[o], tips_m_[o]);
-        world_.set_probe(o, {hands_[o].grasp_body, hands_[o].cut_body < 0});
-      }
-    } catch (const sim::CutError& e) {
-      detail = std::string("no cut: ") + e.what();
+    // The body the sweep began on first (its Cut event says why when it was not cut), then the
+    // others the blade went through.
+    cut_along_sweep(i, static_cast<std::uint32_t>(hand.cut_body));
+    for (std::uint32_t b = 0; b < world_.body_count(); ++b) {
+      if (static_cast<std::int32_t>(b) != hand.cut_body && hand.cut_points_m[b].size() >= 2)
+        cut_along_sweep(i, b);
     }
-    add_event(SessionEventKind::Cut, i, hand.cut_body, std::move(detail));
     hand.cut_body = -1;
   }
   hand.button = button;
+}
+
+void SessionSim::cut_along_sweep(std::size_t i, std::uint32_t b) {
+  const std::vector<glm::dvec3>& points = hands_[i].cut_points_m[b];
+  const auto body = static_cast<std::int32_t>(b);
+  std::string detail;
+  try {
+    // The held vertices may be renumbered by the cut: a hand holding the body lets go and, when
+    // it is another hand, takes hold again where its jaws are once the cut is made (the tissue
+    // stays under its tension).
+    std::vector<std::size_t> regrasp;
+    for (std::size_t o = 0; o < hands_.size(); ++o) {
+      if (hands_[o].grasp_body != body) continue;
+      hands_[o].grasp.release(world_.body(b));
+      hands_[o].grasp_body = -1;
+      if (o != i) regrasp.push_back(o);
+    }
+    const sim::CutResult cut = world_.cut(b, points);
+    detail = "incision through " + std::to_string(cut.path.size()) + " vertices";
+    out_.topology_changed = true;
+    open_vessel(body, points);
+    for (const std::size_t o : regrasp) {
+      (void)close_jaws(hands_[o], tips_m_[o]);
+      world_.set_probe(o, {hands_[o].grasp_body, hands_[o].cut_body < 0});
+    }
+  } catch (const sim::CutError& e) {
+    detail = std::string("no cut: ") + e.what();
+  }
+  add_event(SessionEventKind::Cut, i, body, std::move(detail));
 }
 
 void SessionSim::finger_contacts(Hand& hand, HandOutput& out, const glm::dvec3& tip_m,

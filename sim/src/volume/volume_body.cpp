@@ -18,8 +18,8 @@ ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options) {
     throw SimInputError("a volume needs a closed surface: the solid has open boundaries");
   }
   if (!(options.cell_m > 0.0) || !std::isfinite(options.cell_m)) {
-    throw SimInputError("volume cell size must be positive, got " +
-                        std::to_string(options.cell_m) + " m");
+    throw SimInputError("volume cell size must be positive, got " + std::to_string(options.cell_m) +
+                        " m");
   }
   // The surface at rest, its alive vertices numbered compactly.
   const Dlfl& mesh = body.mesh();
@@ -104,8 +104,8 @@ void VolumeBody::gather_loads(const SoftBody& body) {
     loaded_[i] = 0;
   for (const SoftBody::ContactTerm& c : body.contacts()) {
     if (!embedded_[c.vertex]) continue;
-    loads_.push_back(
-        {embedding_[c.vertex], glm::dvec3(0.0), c.stiffness_N_per_m * glm::outerProduct(c.normal, c.normal)});
+    loads_.push_back({embedding_[c.vertex], glm::dvec3(0.0),
+                      c.stiffness_N_per_m * glm::outerProduct(c.normal, c.normal)});
   }
   if (body.kinematic_count() == 0) return;
   const auto nodes = volume_.positions();
@@ -148,7 +148,7 @@ StepStats VolumeBody::step(SoftBody& body, const IntegratorOptions& options,
     const int substeps = 1 << attempt;
     DynamicOptions dynamic;
     dynamic.dt_s = options.dt_s / substeps;
-    dynamic.gravity_m_s2 = options.gravity_m_s2;
+    dynamic.gravity_m_s2 = options_.weight_supported ? glm::dvec3(0.0) : options.gravity_m_s2;
     dynamic.cg_tolerance = options_.cg_tolerance;
     dynamic.max_cg = options_.max_cg;
     StepStats trial = stats;

@@ -81,6 +81,9 @@ struct SolidDescription {
   /// (sim/volume/volume_body.h) with cells of cell_mm, elastic from the material's modulus.
   enum class Model { Surface, Volume } model = Model::Surface;
   double cell_mm = 8.0;
+  /// The solid's weight is carried by the tissues around it, as in the scan it came from (an
+  /// organ in situ is in equilibrium with them): no gravity on its volume (model volume only).
+  bool supported = false;
   /// A vessel's lumen pressure over the heartbeat, diastolic and systolic (mmHg): the wall is at
   /// rest at diastole and the pressure above it pushes the wall out (sim/pulse.h). None: no pulse.
   std::optional<std::array<double, 2>> pulse_mmHg;
@@ -223,7 +226,7 @@ SceneDescription parse_scene(std::string_view toml_text, const std::string& name
 SceneDescription default_scene();
 
 /// The embedded default scene as TOML text (what `bisturi run --print-default-scene` shows and
-/// what config/default.toml holds).
+/// what config/liver.toml holds).
 std::string_view default_scene_toml();
 
 }  // namespace bisturi::runtime

@@ -109,6 +109,10 @@ struct SolidReport {
   std::size_t vertices = 0;
   std::size_t faces = 0;
   double build_ms = 0.0;
+  std::string model = "surface";  ///< "surface" (a spring membrane) or "volume"
+  std::size_t volume_cells = 0;   ///< a volume's hexahedra, and their nodes
+  std::size_t volume_nodes = 0;
+  double volume_build_ms = 0.0;  ///< the volume's lattice, elements and embedding
 };
 
 /// A vessel that pulses with the heartbeat: its lumen pressure over the beat.

@@ -187,6 +187,8 @@ class SessionSim {
   [[nodiscard]] std::uint64_t blood_most_particles() const { return blood_most_particles_; }
   /// The bleeding openings' flow at the last blood step (m^3/s).
   [[nodiscard]] double blood_flow_m3_s() const { return blood_flow_m3_s_; }
+  /// How long building body b's volume took (ms; 0 for a membrane).
+  [[nodiscard]] double volume_build_ms(std::size_t b) const { return volume_build_ms_[b]; }
   static constexpr double kBloodStep_s = 1.0 / 90.0;
   /// The pulsing bodies' pressure above diastole now (Pa, as of the last step; 0 without any).
   [[nodiscard]] double pulse_pressure_Pa() const { return pulse_now_Pa_; }
@@ -227,8 +229,9 @@ class SessionSim {
     sim::Grasp grasp;
     std::int32_t grasp_body = -1;
     bool hand_closed = false;
-    std::vector<glm::dvec3> cut_points_m;
-    std::int32_t cut_body = -1;
+    /// Per body: where the blade crossed its surface during this sweep.
+    std::vector<std::vector<glm::dvec3>> cut_points_m;
+    std::int32_t cut_body = -1;  ///< the body the sweep began on; -1: not cutting
     bool button = false;
     bool contact = false;
     std::uint64_t last_contact_tick = 0;
@@ -248,6 +251,9 @@ class SessionSim {
   std::size_t close_jaws(Hand& hand, const glm::dvec3& tip_m);
   /// The hand's scalpel: a cut button held sweeps the blade, its release cuts.
   void update_scalpel(std::size_t hand, const devices::HapticState& state, const glm::dvec3& tip_m);
+  /// Cuts body b along the hand's sweep (a Cut event either way); hands holding it let go, and
+  /// another hand takes hold again where its jaws are.
+  void cut_along_sweep(std::size_t hand, std::uint32_t b);
   void finger_contacts(Hand& hand, HandOutput& out, const glm::dvec3& tip_m,
                        const std::vector<double>& joints_rad);
   /// How deep p lies inside the tissue behind its closest surface point (0: outside, or the
@@ -256,6 +262,7 @@ class SessionSim {
 
   /// Per body: the contact modulus E / (1 - nu^2) of a volume (Pa), 0 for a membrane.
   std::vector<double> contact_modulus_Pa_;
+  std::vector<double> volume_build_ms_;  ///< per body
   /// Per body: its pulse pressure (systolic less diastolic, Pa; 0: it does not pulse).
   std::vector<double> pulse_pressure_Pa_;
   double heart_rate_hz_ = 1.2;

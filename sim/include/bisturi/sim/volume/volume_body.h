@@ -31,6 +31,9 @@ struct VolumeOptions {
   /// The step's solve: relative residual (warm started from the last step's velocity change).
   double cg_tolerance = 1e-3;
   int max_cg = 100;
+  /// The body's weight is carried by what surrounds it (a scanned organ is at rest in its scan
+  /// under its supports): its steps take no gravity.
+  bool weight_supported = false;
 };
 
 class VolumeBody {
