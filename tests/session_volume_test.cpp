@@ -46,18 +46,44 @@ TEST(SceneFile, ModelVolumeTakesACellSizeAndNeedsAnElasticMaterial) {
       parse_scene(solid_with("model = 'volume'\ncell_mm = 6.0", "preset = 'kidney'"), "scene.toml");
   EXPECT_EQ(scene.solids[0].model, SolidDescription::Model::Volume);
   EXPECT_DOUBLE_EQ(scene.solids[0].cell_mm, 6.0);
+  // Without `model`: a volume when the material has a modulus, a membrane for springs by hand.
   EXPECT_EQ(parse_scene(solid_with("", "preset = 'liver'"), "scene.toml").solids[0].model,
+            SolidDescription::Model::Volume);
+  EXPECT_EQ(parse_scene(solid_with("", "stiffness_N_per_m = 400.0"), "scene.toml").solids[0].model,
             SolidDescription::Model::Surface);
   EXPECT_NE(error(solid_with("model = 'volume'", "stiffness_N_per_m = 400.0"))
                 .find("a volume takes its elasticity from the material"),
             std::string::npos);
   EXPECT_NE(error(solid_with("model = 'tetrahedra'", "preset = 'liver'")).find("not one of"),
             std::string::npos);
-  EXPECT_NE(error(solid_with("cell_mm = 5.0", "preset = 'liver'")).find("only for model"),
+  EXPECT_NE(error(solid_with("cell_mm = 5.0", "stiffness_N_per_m = 400.0")).find("only for model"),
+            std::string::npos);
+  EXPECT_NE(error(solid_with("model = 'surface'\ncell_mm = 5.0", "preset = 'liver'"))
+                .find("only for model"),
             std::string::npos);
   EXPECT_NE(
       error(solid_with("model = 'volume'\ncell_mm = -1.0", "preset = 'liver'")).find("cell_mm"),
       std::string::npos);
+}
+
+TEST(SceneFile, AClosedSolidWithAModulusIsAVolumeAndAnOpenOneAMembrane) {
+  // Neither names a model: the sphere becomes a volume; the tube, open at its ends, cannot hold
+  // one and stays a membrane (given model = "volume", it is an error).
+  const std::string tube =
+      "[[solids]]\nname = 'tube'\nphantom = 'tube'\ndims = [24, 24, 40]\n"
+      "spacing_mm = 1.0\na_mm = 6.0\n[solids.material]\npreset = 'vessel-wall'\n";
+  const SceneDescription scene =
+      parse_scene(solid_with("", "preset = 'liver'") + tube, "scene.toml");
+  SessionSim sim(scene, build_solids(scene), std::vector<devices::ForceChannel>{});
+  EXPECT_NE(sim.world().volume(0), nullptr);
+  EXPECT_EQ(sim.world().volume(1), nullptr);
+  const SceneDescription asked = parse_scene(
+      solid_with("", "preset = 'liver'") +
+          "[[solids]]\nname = 'tube'\nphantom = 'tube'\ndims = [24, 24, 40]\nspacing_mm = 1.0\n"
+          "a_mm = 6.0\nmodel = 'volume'\n[solids.material]\npreset = 'vessel-wall'\n",
+      "scene.toml");
+  EXPECT_THROW(SessionSim(asked, build_solids(asked), std::vector<devices::ForceChannel>{}),
+               std::exception);
 }
 
 TEST(LiverScene, TheVolumeLiverFollowsTheScriptedProcedure) {
@@ -146,7 +172,8 @@ TEST(SceneFile, SupportedIsForVolumesOnly) {
                           "scene.toml")
                   .solids[0]
                   .supported);
-  EXPECT_NE(error(solid_with("supported = true", "preset = 'liver'")).find("only for model"),
+  EXPECT_NE(error(solid_with("model = 'surface'\nsupported = true", "preset = 'liver'"))
+                .find("only for model"),
             std::string::npos);
 }
 

@@ -382,6 +382,12 @@ class SceneReader {
     s.offset_mm = numbers<3>(t, path, "offset_mm", s.offset_mm);
     s.simulate = boolean(t, path, "simulate", s.simulate);
     if (const toml::table* m = table_at(t, path, "material")) read_material(*m, path, s.material);
+    // Solids are volumes unless their material is springs set by hand (or they do not move):
+    // a membrane is for shells, a vessel's wall (docs/sim/tissue.md).
+    s.model_given = t.contains("model");
+    s.model = s.material.elastic && !s.material.stiffness_override && s.simulate
+                  ? SolidDescription::Model::Volume
+                  : SolidDescription::Model::Surface;
     s.model = choice(t, path, "model", s.model,
                      {{"surface", SolidDescription::Model::Surface},
                       {"volume", SolidDescription::Model::Volume}});

@@ -143,7 +143,9 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
         d.breathing_mm ? sim::scene_to_sim(glm::dvec3((*d.breathing_mm)[0], (*d.breathing_mm)[1],
                                                       (*d.breathing_mm)[2]))
                        : glm::dvec3(0.0));
-    if (d.model == SolidDescription::Model::Volume && d.simulate) {
+    // A volume by default only, not asked for, stays a membrane when its surface is open.
+    const bool open_by_default = !d.model_given && !world_.body(index).closed();
+    if (d.model == SolidDescription::Model::Volume && d.simulate && !open_by_default) {
       sim::VolumeOptions volume;
       volume.cell_m = d.cell_mm * sim::kMetresPerMillimetre;
       volume.weight_supported = d.supported;

@@ -79,7 +79,10 @@ struct SolidDescription {
   bool simulate = true;  ///< false: rigid, drawn and touched but not deformed
   /// How the tissue moves: a spring membrane on its surface, or a hexahedral volume under it
   /// (sim/volume/volume_body.h) with cells of cell_mm, elastic from the material's modulus.
+  /// Without `model` in the file: a volume when the material gives a modulus and the solid is
+  /// simulated (model_given false), and then a membrane after all if its surface turns out open.
   enum class Model { Surface, Volume } model = Model::Surface;
+  bool model_given = false;
   double cell_mm = 8.0;
   /// The solid's weight is carried by the tissues around it, as in the scan it came from (an
   /// organ in situ is in equilibrium with them): no gravity on its volume (model volume only).
