@@ -230,10 +230,17 @@ Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid
   // The head: in front of the scene (anterior), above it, swaying a little from side to side.
   const glm::dvec3 centre = (glm::min(first.lo, second.lo) + glm::max(first.hi, second.hi)) * 0.5;
   const double size = glm::length(glm::max(first.hi, second.hi) - glm::min(first.lo, second.lo));
+  // Near enough that the solids' bounding sphere spans four fifths of the narrowest half field of
+  // view (the solids themselves less): the field fills a working share of each eye.
+  double half_fov_deg = 45.0;
+  if (const SceneDescription* scene = solids.front().scene)
+    half_fov_deg = *std::min_element(scene->headset.fov_deg.begin(), scene->headset.fov_deg.end());
+  const double distance = 0.5 * size / std::sin(glm::radians(0.8 * half_fov_deg));
+  const glm::dvec3 away = glm::normalize(glm::dvec3(0.0, -1.6, 0.9));
   for (int i = 0; i <= 8; ++i) {
     const double f = i / 8.0;
-    const glm::dvec3 eye =
-        centre + glm::dvec3(0.15 * size * std::sin(f * 6.283185307179586), -1.6 * size, 0.9 * size);
+    const glm::dvec3 eye = centre + distance * away +
+                           glm::dvec3(0.08 * distance * std::sin(f * 6.283185307179586), 0.0, 0.0);
     const render::HeadPose look = render::look_at(eye, centre, {0.0, 0.0, 1.0});
     devices::MotionKey k;
     k.t = at(f);
