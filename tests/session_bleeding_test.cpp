@@ -8,7 +8,12 @@
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtx/quaternion.hpp>
 
+#include <algorithm>
+#include <array>
+#include <fstream>
+#include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "arm_hand_setup.h"
@@ -41,7 +46,9 @@ devices::HapticState hand_at(const glm::dvec3& p_mm, std::uint64_t buttons = 0,
 /// config/bleeding.toml (its vessel pulsing, the procedure's cut across the vessel) with two
 /// hands: the scripted glove (button 0 cuts, its fingers grasp) and an arm (grasp, cut).
 struct Field {
-  SceneDescription scene = read_scene_file(BISTURI_SOURCE_DIR "/config/bleeding.toml");
+  explicit Field(SceneDescription s = read_scene_file(BISTURI_SOURCE_DIR "/config/bleeding.toml"))
+      : scene(std::move(s)) {}
+  SceneDescription scene;
   SessionSim sim{scene, build_solids(scene),
                  std::vector<HandSetup>{HandSetup{}, testing::arm_hand_setup(3.0)}};
   std::array<devices::HapticState, 2> hands{hand_at({20.0, -20.0, 90.0}),
@@ -68,10 +75,9 @@ struct Field {
 
 constexpr double kProcedure_s = 6.0;
 
-TEST(Bleeding, ACutVesselBleedsUntilAGrasperClampsIt) {
-  Field f;
-  // The glove follows the scene's procedure to just after its cut across the vessel (at 0.905
-  // of it), the arm held away.
+/// The glove follows the scene's procedure to just after its cut across the vessel (at 0.905
+/// of it), the arm held away.
+void cut_the_vessel(Field& f) {
   const Procedure procedure =
       make_procedure("default", build_solids(f.scene),
                      std::chrono::milliseconds(static_cast<int>(kProcedure_s * 1000.0)),
@@ -85,6 +91,11 @@ TEST(Bleeding, ACutVesselBleedsUntilAGrasperClampsIt) {
     glove.buttons = procedure.glove.buttons_at(t);
     f.run(1);
   }
+}
+
+TEST(Bleeding, ACutVesselBleedsUntilAGrasperClampsIt) {
+  Field f;
+  cut_the_vessel(f);
   const SessionEvent* cut = nullptr;
   for (const SessionEvent& e : f.sim.events())
     if (e.kind == SessionEventKind::Cut) cut = &e;
@@ -128,9 +139,64 @@ TEST(Bleeding, ACutVesselBleedsUntilAGrasperClampsIt) {
   EXPECT_GT(f.sim.blood().counts().emitted, clamped_at);
 }
 
+TEST(Bleeding, AnArterySpurtsWithTheBeatAndAVeinOozesSteadily) {
+  // The bleeding scene's vessel as it is (80/120 mmHg) and as a vein (a steady 10 mmHg): the
+  // flow through the same cut over the next 1.5 s.
+  std::ifstream file(BISTURI_SOURCE_DIR "/config/bleeding.toml");
+  std::stringstream text;
+  text << file.rdbuf();
+  std::string vein = text.str();
+  const std::string pulse = "pulse_mmHg = [80.0, 120.0]";
+  ASSERT_NE(vein.find(pulse), std::string::npos);
+  vein.replace(vein.find(pulse), pulse.size(), "pressure_mmHg = 10.0");
+  std::array<double, 2> least{1e9, 1e9}, most{0.0, 0.0}, mean{0.0, 0.0};
+  for (const bool is_vein : {false, true}) {
+    Field f(is_vein ? parse_scene(vein, "vein.toml", BISTURI_SOURCE_DIR "/config")
+                    : read_scene_file(BISTURI_SOURCE_DIR "/config/bleeding.toml"));
+    cut_the_vessel(f);
+    const std::size_t k = is_vein ? 1 : 0;
+    for (int blood_step = 0; blood_step < 135; ++blood_step) {
+      f.run(11);  // about one blood step (1/90 s)
+      least[k] = std::min(least[k], f.sim.blood_flow_m3_s());
+      most[k] = std::max(most[k], f.sim.blood_flow_m3_s());
+      mean[k] += f.sim.blood_flow_m3_s() / 135.0;
+    }
+  }
+  for (const std::size_t k : {0u, 1u})
+    RecordProperty(k == 0 ? "artery_ml_per_s" : "vein_ml_per_s",
+                   std::to_string(least[k] * 1e6) + " to " + std::to_string(most[k] * 1e6));
+  EXPECT_GT(least[0], 0.0);
+  EXPECT_GT(most[0], 1.1 * least[0]) << "the artery's flow follows the beat";
+  EXPECT_GT(least[1], 0.0);
+  EXPECT_DOUBLE_EQ(most[1], least[1]) << "the vein's is steady";
+  EXPECT_LT(mean[1], 0.5 * mean[0]) << "and slower";
+}
+
+TEST(SceneFile, AVeinHasAPressureAndNoPulse) {
+  const auto vessel = [](const std::string& keys) {
+    return "[[solids]]\nname = 'vein'\nphantom = 'tube'\n" + keys +
+           "\n[solids.material]\nstiffness_N_per_m = 900.0\n";
+  };
+  const SceneDescription vein = parse_scene(vessel("pressure_mmHg = 8.0"), "scene.toml");
+  ASSERT_TRUE(vein.solids[0].pulse_mmHg.has_value());
+  EXPECT_EQ(*vein.solids[0].pulse_mmHg, (std::array<double, 2>{8.0, 8.0}));
+  const auto error = [&](const std::string& keys) {
+    try {
+      (void)parse_scene(vessel(keys), "scene.toml");
+    } catch (const std::exception& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(error("pressure_mmHg = 8.0\npulse_mmHg = [80.0, 120.0]").find("not both"),
+            std::string::npos);
+  EXPECT_NE(error("pressure_mmHg = 0.0").find("pressure_mmHg"), std::string::npos);
+  EXPECT_NE(error("pressure_mmHg = 8.0\nsimulate = false").find("no lumen"), std::string::npos);
+}
+
 TEST(Bleeding, AnOrganCutDoesNotBleed) {
-  // The default scene's scripted cut goes across the organ, which has no pulse: no blood.
-  const SceneDescription scene = default_scene();
+  // The phantom scene's scripted cut goes across the organ, which has no lumen: no blood.
+  const SceneDescription scene = read_scene_file(BISTURI_SOURCE_DIR "/config/phantom.toml");
   SessionSim sim(scene, build_solids(scene), std::vector<HandSetup>{testing::arm_hand_setup(3.0)});
   const glm::dvec3 top(32.25, 32.25, 60.25);
   for (int i = 0; i <= 200; ++i)
@@ -139,6 +205,11 @@ TEST(Bleeding, AnOrganCutDoesNotBleed) {
     (void)sim.tick(hand_at(top + glm::dvec3(-8.0 + 16.0 * i / 300.0, 0.0, -3.0), kCut));
   for (int i = 0; i < 300; ++i)
     (void)sim.tick(hand_at(top + glm::dvec3(0.0, 0.0, 30.0)));
+  bool cut = false;
+  for (const SessionEvent& e : sim.events())
+    cut = cut ||
+          (e.kind == SessionEventKind::Cut && e.body == 0 && e.detail.rfind("incision", 0) == 0);
+  EXPECT_TRUE(cut);
   EXPECT_EQ(sim.blood().counts().emitted, 0u);
 }
 

@@ -321,10 +321,10 @@ class SceneReader {
 
   SolidDescription read_solid(const toml::table& t, const std::string& path) const {
     only_keys(t, path,
-              {"name",    "mesh",      "volume",     "phantom",     "dims",       "spacing_mm",
-               "a_mm",    "b_mm",      "iso",        "label",       "downsample", "decimate",
-               "smooth",  "offset_mm", "material",   "anchors",     "simulate",   "model",
-               "cell_mm", "supported", "pulse_mmHg", "breathing_mm"});
+              {"name",    "mesh",      "volume",     "phantom",       "dims",        "spacing_mm",
+               "a_mm",    "b_mm",      "iso",        "label",         "downsample",  "decimate",
+               "smooth",  "offset_mm", "material",   "anchors",       "simulate",    "model",
+               "cell_mm", "supported", "pulse_mmHg", "pressure_mmHg", "breathing_mm"});
     SolidDescription s;
     s.name = string_or(t, path, "name", path);
     const int sources = (t.contains("mesh") ? 1 : 0) + (t.contains("volume") ? 1 : 0) +
@@ -408,6 +408,17 @@ class SceneReader {
       if (!s.simulate)
         fail(t.get("pulse_mmHg"), t, path + ".pulse_mmHg", "a rigid solid cannot pulse");
       s.pulse_mmHg = p;
+    }
+    if (t.contains("pressure_mmHg")) {  // a vein's steady pressure: no pulse, only a flow if cut
+      if (t.contains("pulse_mmHg"))
+        fail(t.get("pressure_mmHg"), t, path + ".pressure_mmHg",
+             "give either pulse_mmHg (an artery) or pressure_mmHg (a vein), not both");
+      const double p = number(t, path, "pressure_mmHg", 0.0);
+      if (!(p > 0.0 && p <= 400.0))
+        fail(t.get("pressure_mmHg"), t, path + ".pressure_mmHg", "expected 0 < mmHg <= 400");
+      if (!s.simulate)
+        fail(t.get("pressure_mmHg"), t, path + ".pressure_mmHg", "a rigid solid has no lumen");
+      s.pulse_mmHg = std::array<double, 2>{p, p};
     }
     if (s.model == SolidDescription::Model::Volume && !s.material.elastic) {
       fail(t.get("model"), t, path + ".model",

@@ -88,7 +88,8 @@ struct SolidDescription {
   /// organ in situ is in equilibrium with them): no gravity on its volume (model volume only).
   bool supported = false;
   /// A vessel's lumen pressure over the heartbeat, diastolic and systolic (mmHg): the wall is at
-  /// rest at diastole and the pressure above it pushes the wall out (sim/pulse.h). None: no pulse.
+  /// rest at diastole and the pressure above it pushes the wall out (sim/pulse.h). Both equal: a
+  /// vein's steady pressure (the scene's pressure_mmHg), which moves no wall. None: no lumen.
   std::optional<std::array<double, 2>> pulse_mmHg;
   /// Breathing: the displacement of its anchored part at full inspiration (mm), reached and left
   /// again over each breathing period; the rest of the solid follows through its volume (model
