@@ -140,7 +140,6 @@ TEST(HidDescriptor, MalformedDescriptorsGiveProtocolErrors) {
       {{0x85, 0x00}, 0, "report id 0"},
       {{0x15, 0x0A, 0x25, 0x05, 0x75, 0x08, 0x95, 0x01, 0x81, 0x02}, 8, "below minimum"},
       {{0x0C}, 0, "reserved item type"},
-      {{0x75, 0x08, 0x95, 0x01, 0x81, 0x02, 0x85, 0x01}, 6, "after items"},
       {{0x19, 0x01, 0x75, 0x08, 0x95, 0x01, 0x81, 0x00}, 6, "without maximum"},
       // Where Linux's parser stops too (hid-core.c): delimiters nested or unbalanced, a Push
       // stack deeper than its four.
@@ -170,7 +169,29 @@ TEST(HidDescriptor, MalformedDescriptorsGiveProtocolErrors) {
       << wide.warnings[1];
   ASSERT_EQ(wide.reports.size(), 1u);
   EXPECT_EQ(wide.reports[0].bits, 72u);  // 64 + 0 + 8
-  ASSERT_EQ(wide.fields.size(), 1u);     // only the 8-bit one is read
+  // As Linux reads them (the kernel's HID selftests have both): fields before the first Report
+  // ID stay report 0, without an ID byte; a usage range past 12288 usages is cut there.
+  const auto mixed = hid::parse_report_descriptor(
+      bd::Bytes{0x75, 0x08, 0x95, 0x01, 0x81, 0x02, 0x85, 0x01, 0x81, 0x02}, "mixed");
+  ASSERT_EQ(mixed.reports.size(), 2u);
+  EXPECT_EQ(mixed.reports[0].id, 0u);
+  EXPECT_FALSE(mixed.reports[0].with_id);
+  EXPECT_EQ(mixed.reports[1].id, 1u);
+  EXPECT_TRUE(mixed.reports[1].with_id);
+  ASSERT_EQ(mixed.warnings.size(), 1u);
+  EXPECT_NE(mixed.warnings[0].find("byte 6: Report ID: report id 1 after main items"),
+            std::string::npos)
+      << mixed.warnings[0];
+  const auto huge = hid::parse_report_descriptor(
+      bd::Bytes{0x05, 0x88, 0x19, 0x00, 0x2A, 0xFF, 0xFF, 0x75, 0x08, 0x95, 0x02, 0x81, 0x00},
+      "ranged");
+  ASSERT_EQ(huge.fields.size(), 1u);
+  EXPECT_EQ(huge.fields[0].usages.size(), 12288u);
+  ASSERT_EQ(huge.warnings.size(), 1u);
+  EXPECT_NE(huge.warnings[0].find("usage range of 65536 usages: the first 12288 kept"),
+            std::string::npos)
+      << huge.warnings[0];
+  ASSERT_EQ(wide.fields.size(), 1u);  // only the 8-bit one is read
   EXPECT_EQ(wide.fields[0].bit_offset, 64u);
   // Every truncation of the real descriptor either parses or gives a ProtocolError.
   const auto full = bd::SimulatedGlove::report_descriptor();

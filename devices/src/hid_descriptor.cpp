@@ -217,7 +217,9 @@ class Parser {
       case 8:
         if (data == 0 || data > 0xFF) fail("report id " + std::to_string(data) + " (1-255)");
         if (!out_.fields.empty() && !out_.uses_report_ids) {
-          fail("report id after items that had none");
+          // Linux reads it: the fields before stay report 0, without an ID byte.
+          warn("report id " + std::to_string(data) +
+               " after main items that had none: those stay report 0, without an ID byte");
         }
         out_.uses_report_ids = true;
         g_.report_id = static_cast<std::uint8_t>(data);
@@ -402,8 +404,18 @@ class Parser {
                              ? l_.usage_max
                              : usage(g_.usage_page, static_cast<std::uint16_t>(l_.usage_max));
       if (hi < lo) fail("usage maximum below minimum");
-      const std::uint64_t span = std::uint64_t{hi} - lo + 1;
-      if (field.usages.size() + span > kMaxUsages) fail("usage range too large");
+      std::uint64_t span = std::uint64_t{hi} - lo + 1;
+      if (field.usages.size() >= kMaxUsages)
+        fail("no usage left for its range (Linux keeps 12288)");
+      if (field.usages.size() + span > kMaxUsages) {
+        // As Linux does ("ignoring exceeding usage max"): the range is cut where the item's
+        // usages reach its limit.
+        const std::uint64_t kept = kMaxUsages - field.usages.size();
+        warn("usage range of " + std::to_string(span) + " usages: the first " +
+             std::to_string(kept) + " kept (Linux keeps 12288 per main item)");
+        span = kept;
+        hi = static_cast<std::uint32_t>(lo + span - 1);
+      }
       for (std::uint64_t u = lo; u <= hi; ++u)
         field.usages.push_back(static_cast<std::uint32_t>(u));
     }
