@@ -151,10 +151,10 @@ TEST(SceneFile, ProcedureTableSetsTheTargets) {
             std::string::npos);
 }
 
-TEST(SceneFile, SimulationTableTurnsTheSweepOn) {
-  EXPECT_FALSE(default_scene().simulation.continuous_collision);
-  EXPECT_TRUE(parse_scene("[simulation]\ncontinuous_collision = true", "scene.toml")
-                  .simulation.continuous_collision);
+TEST(SceneFile, TheSweepIsOnUnlessTheSimulationTableTurnsItOff) {
+  EXPECT_TRUE(default_scene().simulation.continuous_collision);
+  EXPECT_FALSE(parse_scene("[simulation]\ncontinuous_collision = false", "scene.toml")
+                   .simulation.continuous_collision);
   EXPECT_THROW((void)parse_scene("[simulation]\ncontinuous_collision = 1", "scene.toml"),
                std::exception);
 }

@@ -87,7 +87,11 @@ SurfacePoint first_entry(const glm::dvec3& from, const glm::dvec3& to,
 
 bool HapticProxy::steady_contact(const SurfacePoint& best, std::int32_t body,
                                  const glm::dvec3& motion) const {
-  if (!contact_ || body != contact_body_ || glm::dot(best.normal, contact_normal_) <= 0.5)
+  // The closest facet must face the contact's side: on a small dented tube a facet under the
+  // probe tilts well past 60 degrees from the patch's normal, and taking the sweep there (its
+  // entry patch tilted the other way) made a resting probe chatter. A facet facing away is the
+  // far side of a thin wall: the sweep is taken.
+  if (!contact_ || body != contact_body_ || glm::dot(best.normal, contact_normal_) <= 0.0)
     return false;
   // The closest point must stay near last tick's footprint (the proxy's foot on the surface):
   // within the device's slide since, the probe radius and last tick's depth (a deep press on

@@ -163,10 +163,8 @@ struct SimulationDescription {
   /// frozen surface).
   int stale_margin_ticks = 4;
   /// The probe's path within a tick is swept (sim::HapticOptions::continuous), so a fast
-  /// gesture cannot pass through a thin or curved surface. Off by default: with a membrane in
-  /// the scene (the default scene's vessel) its deep entries still make that membrane roll back
-  /// now and then (docs/sim/collision.md).
-  bool continuous_collision = false;
+  /// gesture cannot pass through a thin or curved surface (docs/sim/collision.md).
+  bool continuous_collision = true;
 };
 
 /// Targets of the scripted procedure (approach, palpate, grasp, cut) in scene millimetres, so a
