@@ -304,8 +304,12 @@ TEST(LiverScene, TheLiverIsBuiltAndTheProcedureFollowsTheScene) {
     nearest = std::min(nearest, glm::length(liver.positions()[v] - palpate));
   EXPECT_LT(nearest, 12.0);
 
-  // During the cut the blade (15 mm from the tip along the cut's normal) passes from one side of
-  // the vessel to the other and through its extent.
+  // During the cut the blade (the scalpel's length from the tip along the cut's normal) passes
+  // from one side of the vessel to the other and through its extent.
+  double blade_mm = 0.0;
+  for (const InstrumentDescription& in : scene.instruments)
+    if (in.kind == InstrumentDescription::Kind::Scalpel) blade_mm = in.length_mm;
+  ASSERT_GT(blade_mm, 0.0);
   glm::dvec3 vlo(1e9), vhi(-1e9);
   for (std::size_t v = 0; v < solids[1].mesh.vertex_capacity(); ++v) {
     vlo = glm::min(vlo, solids[1].mesh.positions()[v]);
@@ -322,7 +326,7 @@ TEST(LiverScene, TheLiverIsBuiltAndTheProcedureFollowsTheScene) {
     const glm::dvec3 tip = mm_of(p.glove.pose_at(t));
     left = left || tip.x < vlo.x;
     right = right || tip.x > vhi.x;
-    for (double along = 0.0; along <= 15.0; along += 0.5) {
+    for (double along = 0.0; along <= blade_mm; along += 0.5) {
       const glm::dvec3 b = tip + along * cn;
       through = through || (b.x > vlo.x && b.x < vhi.x && b.y > vlo.y && b.y < vhi.y &&
                             b.z > vlo.z && b.z < vhi.z);

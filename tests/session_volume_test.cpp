@@ -155,12 +155,11 @@ TEST(LiverScene, ACutRoundTheArteryFollowsTheBlade) {
       read_scene_file(std::string(BISTURI_SOURCE_DIR) + "/config/liver.toml");
   SessionSim sim(scene, build_solids(scene), std::vector<devices::ForceChannel>{});
   sim::SoftBody& artery = sim.world().body(1);
-  // Its back wall at z 135 mm, from one side round to the other (axis x 135.3, y 15.9, 6 mm).
+  // Its back wall at z 135 mm, from one side round to the other (axis x 135.3, y 0.9, 6 mm).
   std::vector<glm::dvec3> blade;
   for (int i = 0; i <= 60; ++i) {
     const double a = 3.141592653589793 * (1.0 - i / 60.0);
-    blade.push_back(
-        sim::scene_to_sim({135.3 + 6.0 * std::cos(a), 15.9 + 6.0 * std::sin(a), 135.0}));
+    blade.push_back(sim::scene_to_sim({135.3 + 6.0 * std::cos(a), 0.9 + 6.0 * std::sin(a), 135.0}));
   }
   const sim::CutResult cut = sim::cut_surface(artery, blade);
   EXPECT_GE(cut.path.size(), 5u);
