@@ -115,7 +115,7 @@ struct Rig {
       : scene(scene_in), clock(Nanoseconds{0}), registry(devices::builtin_registry()) {
     // The twins behind virtual transports, the real drivers on the host side (as SessionDevices
     // opens simulated devices).
-    arm_twin = std::make_unique<devices::SimulatedArm>(procedure.glove, "ARM-0001", 1000.0);
+    arm_twin = std::make_unique<devices::SimulatedArm>(procedure.first_hand, "ARM-0001", 1000.0);
     head_twin = std::make_unique<devices::SimulatedHeadTracker>(procedure.head);
     devices::VirtualPair arm_pair = devices::make_virtual_pair(arm_twin->descriptor());
     arm_twin->attach(std::move(arm_pair.device));
@@ -201,11 +201,11 @@ inline Procedure pressing_arm(const DeviceFrame& frame) {
     // the frame's own force rotation (the same R^T).
     return frame.force_to_device(scene_mm);
   };
-  p.glove.motion.push_back(
+  p.first_hand.motion.push_back(
       {Nanoseconds{0}, at_mm(device_point(kOrganTop_mm + glm::dvec3(0, 0, 12))), {}});
-  p.glove.motion.push_back(
+  p.first_hand.motion.push_back(
       {milliseconds(300), at_mm(device_point(kOrganTop_mm + glm::dvec3(0, 0, 4))), {}});
-  p.glove.motion.push_back(
+  p.first_hand.motion.push_back(
       {milliseconds(700), at_mm(device_point(kOrganTop_mm - glm::dvec3(0, 0, 5))), {}});
   p.head.motion.push_back({Nanoseconds{0}, devices::Pose{}, {}});
   return p;

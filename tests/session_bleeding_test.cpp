@@ -86,9 +86,10 @@ void cut_the_vessel(Field& f) {
   for (int k = 1; k <= cut_done; ++k) {
     const devices::Nanoseconds t = std::chrono::milliseconds(k);
     devices::HapticState& glove = f.hands[kLeft];
-    glove.end_effector_poses.assign(1, procedure.glove.pose_at(t));
-    glove.finger_joint_angles_rad = procedure.glove.joints_at(t, devices::SimulatedGlove::kJoints);
-    glove.buttons = procedure.glove.buttons_at(t);
+    glove.end_effector_poses.assign(1, procedure.first_hand.pose_at(t));
+    glove.finger_joint_angles_rad =
+        procedure.first_hand.joints_at(t, devices::SimulatedGlove::kJoints);
+    glove.buttons = procedure.first_hand.buttons_at(t);
     f.run(1);
   }
 }

@@ -256,12 +256,13 @@ TOML
     # would there (the scripted procedure goes through the inverse transform), so the session is
     # the unturned one's: contacts, a grasp and its release, every channel's peak force within
     # 10 % (a finger's contact follows the twin's quantised poses), and it replays exactly. Both
-    # step the tissue at a fixed 500 Hz: where the rate controller changes the rate is up to the
-    # machine's load, and a finger pressing the vessel's membrane feels the difference (peaks of
-    # 1.73 to 2.11 N on the middle finger in twelve sessions, either way turned). The scene is the
-    # phantom one ($4): in the liver scene the middle finger grazes the pulsing artery as the hand
-    # opens, and that touch differs between the two runs (peaks of 1.65 to 1.77 N straight
-    # against 0.93 to 0.99 N turned; not yet understood).
+    # step the tissue inside the haptic tick, so each tick's force comes from its own step
+    # whatever the machine's load: on the tissue thread, which step a tick uses depends on the
+    # load, and the middle finger pressing the vessel's membrane feels it (peaks of 1.73 to
+    # 2.11 N in twelve sessions at 500 Hz; 2.35 N straight against 1.71 N turned once in a loaded
+    # full suite). The scene is the phantom one ($4): in the liver scene the middle finger grazes
+    # the pulsing artery as the hand opens, and that touch differed between the two runs at
+    # 500 Hz on the tissue thread (1.65 to 1.77 N straight against 0.93 to 0.99 N turned).
     cp "$4" "$work/straight.toml" || fail "no scene $4"
     cp "$4" "$work/turned.toml"
     sed -i 's|^max_force_N = 3.0|max_force_N = 3.0\ndevice_to_scene_rotation_deg = [0.0, 0.0, 90.0]\ndevice_to_scene_translation_mm = [100.0, -20.0, 5.0]|' "$work/turned.toml"
@@ -270,7 +271,7 @@ TOML
       scene="$work/$name.toml"
       rm -rf "$work/$name"
       "$bisturi" run "$scene" --duration 5 --eye-width 64 --eye-height 64 --no-openxr \
-        --tissue-hz 500 --out "$work/$name" --record "$work/$name.btrace" > "$work/$name.txt" 2>&1 ||
+        --tissue-in-haptic-thread --out "$work/$name" --record "$work/$name.btrace" > "$work/$name.txt" 2>&1 ||
         { cat "$work/$name.txt"; fail "bisturi run ($name) exited with $?"; }
       "$bisturi" trace forces "$work/$name.btrace" --json | tr -d ' \n' |
         grep -o '"max_N":[0-9.e-]*' | cut -d: -f2 > "$work/$name.peak"

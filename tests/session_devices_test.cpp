@@ -165,7 +165,7 @@ role = "head-tracker"
 )",
                                              "scene.toml");
   Procedure procedure;
-  procedure.glove.motion.push_back({devices::Nanoseconds{0}, devices::Pose{}, {}});
+  procedure.first_hand.motion.push_back({devices::Nanoseconds{0}, devices::Pose{}, {}});
   procedure.head.motion.push_back({devices::Nanoseconds{0}, devices::Pose{}, {}});
   devices::VirtualClock clock(devices::Nanoseconds{0});
   const devices::Registry registry = devices::builtin_registry();
@@ -200,7 +200,7 @@ role = "head-tracker"
   Procedure procedure;
   devices::MotionKey closed;
   closed.joints_rad = {0.4, 0.7};
-  procedure.glove.motion.push_back(closed);
+  procedure.first_hand.motion.push_back(closed);
   procedure.head.motion.push_back({devices::Nanoseconds{0}, devices::Pose{}, {}});
   devices::VirtualClock clock(devices::Nanoseconds{0});
   devices::Registry registry = devices::builtin_registry();
@@ -220,7 +220,7 @@ role = "head-tracker"
 
 TEST(SessionDevices, ChannelRolesComeFromTheDriversLayout) {
   Procedure procedure;
-  procedure.glove.motion.push_back({devices::Nanoseconds{0}, devices::Pose{}, {}});
+  procedure.first_hand.motion.push_back({devices::Nanoseconds{0}, devices::Pose{}, {}});
   devices::VirtualClock clock(devices::Nanoseconds{0});
   const devices::Registry registry = devices::builtin_registry();
   const auto roles_of = [&](const std::string& driver) {

@@ -247,7 +247,9 @@ TEST(HapticLoop, ATickStuckInTheDevicesWriteIsZeroedPastIt) {
   // Once the write returns, the tick finishes the job: the guard latched, a zero sent, and the
   // arm holds zero (the guard engages again only from a small command, then ramps in).
   EXPECT_NE(rig.guard->state(), devices::GuardState::Engaged);
-  EXPECT_EQ(rig.loop->counters().hands[0].supervisor_zeros, 1u);
+  // At least one supervisor zero: in a loaded full suite it counted two once (the supervisor's
+  // first look may come before the stuck tick has begun), which zeros no less.
+  EXPECT_GE(rig.loop->counters().hands[0].supervisor_zeros, 1u);
   (void)rig.loop->tick(rig.clock.now() + milliseconds(1));
   EXPECT_EQ(rig.applied(), glm::dvec3(0.0));
 }

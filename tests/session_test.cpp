@@ -294,7 +294,7 @@ TEST(LiverScene, TheLiverIsBuiltAndTheProcedureFollowsTheScene) {
   const auto duration = devices::Nanoseconds(10'000'000'000);
   const Procedure p = make_procedure("default", solids, duration, devices::SimulatedGlove::kJoints);
   const ProcedureDescription& d = *scene.procedure;
-  const glm::dvec3 start = mm_of(p.glove.pose_at(devices::Nanoseconds(0)));
+  const glm::dvec3 start = mm_of(p.first_hand.pose_at(devices::Nanoseconds(0)));
   const glm::dvec3 palpate(d.palpate_mm[0], d.palpate_mm[1], d.palpate_mm[2]);
   const glm::dvec3 pn(d.palpate_normal[0], d.palpate_normal[1], d.palpate_normal[2]);
   EXPECT_LT(glm::length(start - (palpate + 30.0 * pn)), 1e-6);
@@ -322,8 +322,8 @@ TEST(LiverScene, TheLiverIsBuiltAndTheProcedureFollowsTheScene) {
   ASSERT_NE(cut, nullptr);
   bool left = false, right = false, through = false;
   for (auto t = cut->begin; t <= cut->end; t += devices::Nanoseconds(5'000'000)) {
-    if (p.glove.buttons_at(t) == 0) continue;  // the blade is live while the button is held
-    const glm::dvec3 tip = mm_of(p.glove.pose_at(t));
+    if (p.first_hand.buttons_at(t) == 0) continue;  // the blade is live while the button is held
+    const glm::dvec3 tip = mm_of(p.first_hand.pose_at(t));
     left = left || tip.x < vlo.x;
     right = right || tip.x > vhi.x;
     for (double along = 0.0; along <= blade_mm; along += 0.5) {

@@ -70,9 +70,9 @@ std::vector<devices::HapticState> procedure_states(
   for (std::size_t k = 0; k < ticks; ++k) {
     const Nanoseconds t(static_cast<std::int64_t>(k) * 1'000'000);
     states[k].sample_time = t;
-    states[k].end_effector_poses = {p.glove.pose_at(t)};
-    states[k].finger_joint_angles_rad = p.glove.joints_at(t, devices::SimulatedGlove::kJoints);
-    states[k].buttons = p.glove.buttons_at(t);
+    states[k].end_effector_poses = {p.first_hand.pose_at(t)};
+    states[k].finger_joint_angles_rad = p.first_hand.joints_at(t, devices::SimulatedGlove::kJoints);
+    states[k].buttons = p.first_hand.buttons_at(t);
   }
   return states;
 }

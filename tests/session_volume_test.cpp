@@ -112,9 +112,9 @@ TEST(LiverScene, TheVolumeLiverFollowsTheScriptedProcedure) {
     const Nanoseconds t(k * 2'000'000);
     devices::HapticState state;
     state.sample_time = t;
-    state.end_effector_poses = {p.glove.pose_at(t)};
-    state.finger_joint_angles_rad = p.glove.joints_at(t, devices::SimulatedGlove::kJoints);
-    state.buttons = p.glove.buttons_at(t);
+    state.end_effector_poses = {p.first_hand.pose_at(t)};
+    state.finger_joint_angles_rad = p.first_hand.joints_at(t, devices::SimulatedGlove::kJoints);
+    state.buttons = p.first_hand.buttons_at(t);
     const TickOutput& out = sim.tick(state, ticks_per_step);
     const sim::StepStats& liver = sim.world().last_stats(0);
     liver_rollbacks += liver.rolled_back ? 1 : 0;

@@ -99,7 +99,7 @@ DeviceCheckResult check_device(const DeviceCheckOptions& options,
   const DeviceFrame frame = device_frame_of(*choice.haptic);
   Procedure procedure = make_procedure("default", solids, duration,
                                        devices::SimulatedGlove::kJoints, driver->layout.buttons);
-  procedure.glove = frame.script_to_device(std::move(procedure.glove));
+  procedure.first_hand = frame.script_to_device(std::move(procedure.first_hand));
 
   devices::VirtualClock clock(Nanoseconds{0});
   SessionDevices session_devices(scene, procedure, registry, clock, nullptr);

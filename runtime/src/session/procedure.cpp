@@ -142,13 +142,13 @@ devices::DeviceScript hold_script(const std::vector<BuiltSolid>& solids,
 }
 
 devices::DeviceScript default_script(const Targets& t, devices::Nanoseconds duration,
-                                     std::size_t glove_joints,
+                                     std::size_t hand_joints,
                                      const std::vector<devices::ButtonUse>& buttons) {
   const ProcedureDescription& d = t.d;
   const glm::dvec3 palpate = vec(d.palpate_mm), pn = vec(d.palpate_normal);
   const glm::dvec3 grasp = vec(d.grasp_mm), gn = vec(d.grasp_normal);
   const glm::dvec3 cut_a = vec(d.cut_from_mm), cut_b = vec(d.cut_to_mm), cn = vec(d.cut_normal);
-  devices::DeviceScript glove;
+  devices::DeviceScript hand;
   const double total = static_cast<double>(duration.count());
   const auto at = [total](double fraction) {
     return devices::Nanoseconds{static_cast<std::int64_t>(std::llround(fraction * total))};
@@ -163,8 +163,8 @@ devices::DeviceScript default_script(const Targets& t, devices::Nanoseconds dura
     k.t = at(fraction);
     k.pose.position_m = to_metres(tip_mm);
     if (cutting) k.pose.orientation = {blade.w, blade.x, blade.y, blade.z};
-    k.joints_rad.assign(glove_joints, joints_rad);
-    glove.motion.push_back(k);
+    k.joints_rad.assign(hand_joints, joints_rad);
+    hand.motion.push_back(k);
   };
   const double open = 0.1, closed = 1.1;
   key(0.00, palpate + 30.0 * pn, open);
@@ -187,14 +187,14 @@ devices::DeviceScript default_script(const Targets& t, devices::Nanoseconds dura
   const int cut_button = button_for(buttons, devices::ButtonUse::Cut, buttons.empty() ? 0 : -1);
   const int grasp_button = button_for(buttons, devices::ButtonUse::Grasp, -1);
   if (grasp_button >= 0) {  // held while the hand is closed
-    glove.presses.push_back({at(0.46), static_cast<std::uint32_t>(grasp_button), true});
-    glove.presses.push_back({at(0.63), static_cast<std::uint32_t>(grasp_button), false});
+    hand.presses.push_back({at(0.46), static_cast<std::uint32_t>(grasp_button), true});
+    hand.presses.push_back({at(0.63), static_cast<std::uint32_t>(grasp_button), false});
   }
   if (cut_button >= 0) {
-    glove.presses.push_back({at(0.785), static_cast<std::uint32_t>(cut_button), true});
-    glove.presses.push_back({at(0.905), static_cast<std::uint32_t>(cut_button), false});
+    hand.presses.push_back({at(0.785), static_cast<std::uint32_t>(cut_button), true});
+    hand.presses.push_back({at(0.905), static_cast<std::uint32_t>(cut_button), false});
   }
-  return glove;
+  return hand;
 }
 
 }  // namespace
@@ -211,10 +211,10 @@ devices::DeviceScript make_hand_script(const std::string& script,
 }
 
 Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid>& solids,
-                         devices::Nanoseconds duration, std::size_t glove_joints,
+                         devices::Nanoseconds duration, std::size_t hand_joints,
                          const std::vector<devices::ButtonUse>& buttons) {
   Procedure p;
-  p.glove = make_hand_script(script, solids, duration, glove_joints, buttons);
+  p.first_hand = make_hand_script(script, solids, duration, hand_joints, buttons);
   const Targets t = targets_of(solids);
   const Box& first = t.first;
   const Box& second = t.second;

@@ -146,7 +146,7 @@ void add_loop_counters(const HapticLoop& loop, SessionReport& report) {
 
 std::string session_trace_config(const std::string& scene_toml,
                                  const std::filesystem::path& base_dir, double haptic_hz,
-                                 std::uint16_t glove_device, std::uint32_t tissue_lag_ticks,
+                                 std::uint16_t haptic_device, std::uint32_t tissue_lag_ticks,
                                  std::uint32_t tissue_ticks_per_step,
                                  std::uint32_t tissue_threads) {
   devices::ForceGuardConfig guard;
@@ -155,7 +155,7 @@ std::string session_trace_config(const std::string& scene_toml,
   j["session"] = {{"scene_toml", scene_toml},
                   {"base_dir", base_dir.string()},
                   {"haptic_hz", haptic_hz},
-                  {"glove_device", glove_device},
+                  {"glove_device", haptic_device},  // the trace format's name
                   {"tissue_lag_ticks", tissue_lag_ticks},
                   {"tissue_ticks_per_step", tissue_ticks_per_step},
                   {"tissue_threads", tissue_threads},
@@ -334,7 +334,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   Procedure procedure =
       make_procedure(script_of(*choice.haptic), solids, duration, devices::SimulatedGlove::kJoints,
                      hand_buttons(*choice.haptic));
-  procedure.glove = device_frame_of(*choice.haptic).script_to_device(std::move(procedure.glove));
+  procedure.first_hand =
+      device_frame_of(*choice.haptic).script_to_device(std::move(procedure.first_hand));
   for (std::size_t h = 1; h < choice.hands.size(); ++h) {
     const DeviceDescription& d = *choice.hands[h];
     procedure.other_hands.push_back(device_frame_of(d).script_to_device(make_hand_script(

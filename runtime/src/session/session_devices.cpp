@@ -141,9 +141,9 @@ SessionDevices::SessionDevices(const SceneDescription& scene, const Procedure& p
       Hand& hand = hands_[i];
       const std::size_t twins_before = twins_.size();
       const devices::DeviceScript& script =
-          i == 0 ? procedure.glove
+          i == 0 ? procedure.first_hand
                  : (i - 1 < procedure.other_hands.size() ? procedure.other_hands[i - 1]
-                                                         : procedure.glove);
+                                                         : procedure.first_hand);
       hand.device = open_one(*choice_.hands[i], script, registry, clock, writer, &hand.trace_index,
                              &hand.write_bounded);
       if (twins_.size() > twins_before) hand.twin = twins_.back().get();

@@ -74,9 +74,9 @@ HandSetup hand_of(const SceneDescription& scene, std::vector<devices::ForceChann
 }  // namespace
 
 SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> solids,
-                       std::vector<devices::ForceChannel> glove_channels,
+                       std::vector<devices::ForceChannel> channels,
                        const SessionSimOptions& options)
-    : SessionSim(scene, std::move(solids), {hand_of(scene, std::move(glove_channels), options)},
+    : SessionSim(scene, std::move(solids), {hand_of(scene, std::move(channels), options)},
                  options) {}
 
 SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> solids,

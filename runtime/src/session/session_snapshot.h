@@ -73,7 +73,7 @@ class SnapshotPublisher {
   /// published count); its capacity bounds how many are kept.
   SnapshotPublisher(SessionSim& sim, const Snapshot& initial, TripleBuffer<Snapshot>& snapshots,
                     std::vector<devices::Nanoseconds>& event_times);
-  /// After a step: `out` its output, `state` the glove state it ran on.
+  /// After a step: `out` its output, `state` the haptic state it ran on.
   /// `states`: the hands' device states the step ran on (the first's sample time stamps events).
   void publish(const TickOutput& out, std::span<const devices::HapticState> states);
   /// Events the simulation has made so far (any thread).

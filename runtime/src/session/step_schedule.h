@@ -1,6 +1,6 @@
 #pragma once
 // Multi-rate lockstep between the 1 kHz haptic ticks and the soft-tissue steps. A step covers
-// `ticks_per_step` ticks (its time step is that many haptic periods) and runs on the glove state
+// `ticks_per_step` ticks (its time step is that many haptic periods) and runs on the haptic state
 // of its last tick, the hand-over tick. A step handed over at tick p with n ticks per step is due
 // at tick p + base_lag + n - 1: a longer step gets as much more time as it covers. With one tick
 // per step this is the plain lockstep (tick k sends step k - base_lag).
@@ -25,7 +25,7 @@ class StepSchedule {
  public:
   StepSchedule(std::uint32_t base_lag, std::uint32_t ticks_per_step);
 
-  /// Tick k (1-based; call once per tick, in order): true when it hands its glove state over as
+  /// Tick k (1-based; call once per tick, in order): true when it hands its haptic state over as
   /// the next step, whose length (ticks) is then handed_over_ticks().
   bool hands_over(std::uint64_t k);
   [[nodiscard]] std::uint32_t handed_over_ticks() const { return handed_over_ticks_; }

@@ -46,7 +46,7 @@ class TissueThread {
   TissueThread(const TissueThread&) = delete;
   TissueThread& operator=(const TissueThread&) = delete;
 
-  /// Haptic thread: hands over the next step's glove state; the step covers `ticks` haptic
+  /// Haptic thread: hands over the next step's haptic state; the step covers `ticks` haptic
   /// periods. Never throws: Behind when the simulation is a whole ring (capacity steps) behind
   /// (the state is not queued), Failed once a step has thrown (finish() rethrows it).
   enum class Push : std::uint8_t { Queued, Behind, Failed };

@@ -1,12 +1,12 @@
 #pragma once
-// The scripted procedure that drives the simulated glove and head tracker of a scene whose
+// The scripted procedure that drives the simulated haptic devices and head tracker of a scene whose
 // devices use script = "default": approach the organ, palpate it, grasp a vessel's wall and pull
 // it, release, then cut along a path. The timeline is laid out over the session's duration (so a
 // one-second run goes through every phase). The targets are the scene's [procedure] table
 // (ProcedureDescription: points on the organ and on the vessel, the cut's path, with outward
 // normals the instrument comes in along); a scene without one gets the top of the first solid,
 // the anterior (-y) wall of the second and a 24 mm cut across the first's top, from the built
-// solids' bounds. During the cut the glove's pose turns so that the scalpel's blade (the pose's
+// solids' bounds. During the cut the hand's pose turns so that the scalpel's blade (the pose's
 // +z) points out along the cut's normal. The head looks at the solids from in front and above.
 // Device poses are SI metres in the scene's world frame.
 
@@ -27,7 +27,7 @@ struct ProcedurePhase {
 };
 
 struct Procedure {
-  devices::DeviceScript glove;  ///< the first hand's
+  devices::DeviceScript first_hand;  ///< the first haptic device's script
   /// The other hands' scripts, in order (a hand past them follows the first's).
   std::vector<devices::DeviceScript> other_hands;
   devices::DeviceScript head;
@@ -39,7 +39,7 @@ struct Procedure {
 /// cuts): the script presses the cut button for the incision and holds a grasp button, where
 /// there is one, while the hand closes. Throws SceneFileError for an unknown script name.
 Procedure make_procedure(const std::string& script, const std::vector<BuiltSolid>& solids,
-                         devices::Nanoseconds duration, std::size_t glove_joints,
+                         devices::Nanoseconds duration, std::size_t hand_joints,
                          const std::vector<devices::ButtonUse>& buttons = {});
 
 /// One hand's script over the same timeline:

@@ -2,13 +2,13 @@
 // The headset session (the seed's figure 33 as threads):
 //  - haptic thread, at the scene's haptic rate: simulated twins send their reports (they stand in
 //    for hardware that sends on its own), the drivers read them over the virtual transport, or
-//    over hidapi/libusb for real devices (SessionDevices) -> on a hand-over tick the glove state
+//    over hidapi/libusb for real devices (SessionDevices) -> on a hand-over tick the haptic state
 //    goes to the tissue thread as the next step (StepSchedule: every tick, or every n-th when
 //    the tissue steps at a fraction of the haptic rate) -> the command of the step due
 //    (`tissue_lag_ticks` ticks back, plus n - 1), its proxy force corrected for the tip's motion
-//    since (SessionSim::command_for) -> GuardedHaptic (force guard) -> the glove's driver -> the
-//    trace; the head pose goes to the renderer through a TripleBuffer;
-//  - tissue thread (TissueThread): SessionSim::tick on every handed-over glove state in order
+//    since (SessionSim::command_for) -> GuardedHaptic (force guard) -> the haptic device's driver
+//    -> the trace; the head pose goes to the renderer through a TripleBuffer;
+//  - tissue thread (TissueThread): SessionSim::tick on every handed-over haptic state in order
 //    (instruments, collision, proxy, soft-tissue step over n periods), then a snapshot
 //    (positions per solid, topology, instrument poses, events) into a TripleBuffer;
 //  - render thread, at the headset's rate: takes the newest snapshot and head pose ->
@@ -81,7 +81,7 @@ struct SessionOptions {
   bool tissue_thread = true;
   std::uint32_t tissue_lag_ticks = 3;
   /// Haptic ticks one tissue step covers at the start (its time step is that many periods; the
-  /// step runs on the glove state of its last tick). See step_schedule.h.
+  /// step runs on the haptic state of its last tick). See step_schedule.h.
   std::uint32_t tissue_ticks_per_step = 1;
   /// Let the session double the ticks per step (up to max_tissue_ticks_per_step) when the steps
   /// take longer than 3/4 of the time they cover, and halve it again when there is room; each
@@ -277,10 +277,11 @@ std::uint32_t auto_tissue_threads(std::size_t simulated_vertices, unsigned cores
 SessionReport run_session(const SceneDescription& scene, const SessionOptions& options);
 
 /// The configuration a session writes into its trace (JSON): the force guard's settings and the
-/// scene's TOML text, so a replay rebuilds the same session from the trace alone.
+/// scene's TOML text, so a replay rebuilds the same session from the trace alone. The first
+/// haptic device's trace index goes under the key "glove_device", the trace format's name for it.
 std::string session_trace_config(const std::string& scene_toml,
                                  const std::filesystem::path& base_dir, double haptic_hz,
-                                 std::uint16_t glove_device, std::uint32_t tissue_lag_ticks,
+                                 std::uint16_t haptic_device, std::uint32_t tissue_lag_ticks,
                                  std::uint32_t tissue_ticks_per_step = 1,
                                  std::uint32_t tissue_threads = 1);
 

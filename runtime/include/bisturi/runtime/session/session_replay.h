@@ -1,9 +1,10 @@
 #pragma once
 // Replays a recorded session in virtual time: the trace's configuration holds the scene (its TOML
 // text) and the force guard's settings, so the replay rebuilds the same solids and runs the same
-// SessionSim on the glove states the recorded reports give, tick by tick (a tick is a force
-// command record, or a "tick" note while the glove was lost), each tick's command coming from the
-// step the live session used (as its StepSchedule says, with the ticks per step changing where a
+// SessionSim on the haptic states the recorded reports give, tick by tick (a tick is a force
+// command record, or a "tick" note while the haptic device was lost), each tick's command coming
+// from the step the live session used (as its StepSchedule says, with the ticks per step changing
+// where a
 // {"tissue_rate": ...} note says, or as a late-tick note says). It checks that
 //  - every force command the session computed equals the recorded one, bit for bit;
 //  - the final state hash of the soft bodies equals the one the session stored in its closing

@@ -1,12 +1,12 @@
 #pragma once
 // The simulation side of one haptic tick, shared by the live session and its replay so both run
-// exactly the same code on the same inputs: glove state in -> instruments (probe, grasper,
+// exactly the same code on the same inputs: haptic state in -> instruments (probe, grasper,
 // scalpel) -> SimWorld step (collision, proxy force, soft tissue) -> the force command for the
-// glove's actuators. Nothing here reads a clock: the step length is the scene's fixed haptic
+// haptic device's channels. Nothing here reads a clock: the step length is the scene's fixed haptic
 // period, so a replay in virtual time reaches bit-identical forces and state.
 //
-// How the glove drives the instruments (device poses are SI metres in the scene's world frame, so
-// the one unit seam is sim::scene_to_sim / sim_to_scene):
+// How a haptic device drives the instruments (device poses are SI metres in the scene's world
+// frame, so the one unit seam is sim::scene_to_sim / sim_to_scene):
 //  - the end effector's position is the probe tip (the haptic point of the god-object proxy);
 //  - closing the hand (mean finger joint angle above grasp_close_rad) closes the grasper's jaws
 //    at the tip, opening it (below grasp_open_rad) releases;
@@ -122,17 +122,16 @@ struct HandSetup {
 
 class SessionSim {
  public:
-  /// Takes the built solids (moved into soft bodies) and the glove's force channel layout: one
-  /// hand, its device the options' (its limit the scene's first haptic device's max_force_N).
+  /// Takes the built solids (moved into soft bodies) and the haptic device's force channel layout:
+  /// one hand, its device the options' (its limit the scene's first haptic device's max_force_N).
   SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> solids,
-             std::vector<devices::ForceChannel> glove_channels,
-             const SessionSimOptions& options = {});
+             std::vector<devices::ForceChannel> channels, const SessionSimOptions& options = {});
   /// One hand per setup (at least one), acting on the same tissue in the same steps.
   SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> solids,
              std::vector<HandSetup> hands, const SessionSimOptions& options = {});
 
-  /// One simulation step with the glove in `state`, covering `ticks` haptic periods (its time
-  /// step; the tissue may step at a fraction of the haptic rate, see step_schedule.h).
+  /// One simulation step with the haptic device in `state`, covering `ticks` haptic periods (its
+  /// time step; the tissue may step at a fraction of the haptic rate, see step_schedule.h).
   const TickOutput& tick(const devices::HapticState& state, std::uint32_t ticks = 1);
   /// The same with hand i's device in states[i] (one state per hand).
   const TickOutput& tick(std::span<const devices::HapticState> states, std::uint32_t ticks = 1);
@@ -156,7 +155,7 @@ class SessionSim {
   /// command_for for hand `hand`'s device.
   void command_for(const TickOutput& step, std::size_t hand, const glm::dvec3& tip_now_m,
                    std::vector<double>& command_N) const;
-  /// The probe tip (metres) of a glove state: its first end effector's position.
+  /// The probe tip (metres) of a haptic state: its first end effector's position.
   static glm::dvec3 tip_of(const devices::HapticState& state);
   /// Number of force components of a hand's command.
   [[nodiscard]] std::size_t command_size(std::size_t hand = 0) const {
