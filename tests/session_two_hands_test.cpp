@@ -40,7 +40,7 @@ glm::dvec3 on_top(double x_mm, double inside_mm) {
   return centre + (28.0 - inside_mm) * n;
 }
 
-/// The default scene's organ (a solid: hexahedra under its surface, the liver preset) with two
+/// The phantom scene's organ (a solid: hexahedra under its surface, the liver preset) with two
 /// arms.
 SceneDescription two_arm_scene() {
   return parse_scene(R"(

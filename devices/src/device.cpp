@@ -2,6 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "bisturi/devices/transport.h"
 
 namespace bisturi::devices {
 
@@ -108,6 +112,13 @@ HapticDevice* as_haptic(Device* device) {
 }
 Tracker* as_tracker(Device* device) {
   return dynamic_cast<Tracker*>(device);
+}
+
+void HapticDevice::expect_force_values(std::span<const double> forces_N, std::size_t count) const {
+  if (forces_N.size() != count) {
+    throw std::invalid_argument(describe(descriptor()) + ": expected " + std::to_string(count) +
+                                " force values, got " + std::to_string(forces_N.size()));
+  }
 }
 
 }  // namespace bisturi::devices

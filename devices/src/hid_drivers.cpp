@@ -50,11 +50,7 @@ class HidGlove final : public HapticDevice {
   }
 
   void send_forces(std::span<const double> forces_N) override {
-    if (forces_N.size() != zeros_.size()) {
-      throw std::invalid_argument(describe(descriptor_) + ": expected " +
-                                  std::to_string(zeros_.size()) + " force values, got " +
-                                  std::to_string(forces_N.size()));
-    }
+    expect_force_values(forces_N, zeros_.size());
     mapping_.encode_forces(forces_N, reports_);
     for (const auto& report : reports_)
       transport().write(report);

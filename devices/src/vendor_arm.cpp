@@ -138,10 +138,7 @@ class VendorArm final : public HapticDevice {
   }
 
   void send_forces(std::span<const double> forces_N) override {
-    if (forces_N.size() != 3) {
-      throw std::invalid_argument(describe(descriptor_) + ": expected 3 force values, got " +
-                                  std::to_string(forces_N.size()));
-    }
+    expect_force_values(forces_N, 3);
     transport().write(force_packet(forces_N, sequence_++));
   }
 

@@ -60,10 +60,7 @@ class SamplePinch final : public HapticDevice {
   }
 
   void send_forces(std::span<const double> forces_N) override {
-    if (forces_N.size() != 2) {
-      throw std::invalid_argument(describe(descriptor_) + ": expected 2 force values, got " +
-                                  std::to_string(forces_N.size()));
-    }
+    expect_force_values(forces_N, 2);
     transport().write(force_packet(forces_N, sequence_++));
   }
 

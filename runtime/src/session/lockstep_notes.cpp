@@ -70,7 +70,10 @@ std::optional<DroppedStep> parse_dropped_step_note(std::string_view text) {
 
 std::string hand_note(std::string_view what, std::size_t hand) {
   std::string text(what);
-  if (hand > 0) text += " " + std::to_string(hand);
+  if (hand > 0) {
+    text += ' ';
+    text += std::to_string(hand);
+  }
   return text;
 }
 

@@ -150,6 +150,9 @@ class HapticDevice : public Device {
 
  protected:
   using Device::Device;
+  // send_forces' length check: throws std::invalid_argument, naming the device, unless
+  // forces_N holds `count` values.
+  void expect_force_values(std::span<const double> forces_N, std::size_t count) const;
 };
 
 class Tracker : public Device {
