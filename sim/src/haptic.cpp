@@ -180,7 +180,7 @@ HapticOutput HapticProxy::update(const glm::dvec3& device, std::span<const Touch
       body.add_force(v, -force * weights_[i]);
       // Stiffness only (no force): the proxy rides on the surface, so the reaction on the patch
       // weakens as the patch gives way; the solve sees that.
-      body.add_contact(v, n, 0.0, options_.coupling_N_per_m * weights_[i]);
+      body.add_contact(v, n, 0.0, options_.coupling_N_per_m * weights_[i], probe_);
     }
     reacted_body_ = best_body;
     reaction_normal_ = n;

@@ -288,9 +288,9 @@ void SoftBody::release_kinematic(VertexId v) {
 }
 
 void SoftBody::add_contact(VertexId v, const glm::dvec3& normal, double depth_m,
-                           double stiffness_N_per_m) {
+                           double stiffness_N_per_m, std::int32_t probe) {
   force_[v.idx] += (stiffness_N_per_m * depth_m) * normal;
-  contacts_.push_back({v.idx, normal, stiffness_N_per_m});
+  contacts_.push_back({v.idx, normal, stiffness_N_per_m, probe});
   loaded_.push_back(v.idx);
 }
 

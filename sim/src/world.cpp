@@ -15,7 +15,7 @@ SimWorld::SimWorld(const WorldOptions& options)
 
 void SimWorld::ensure_probes(std::size_t count) {
   while (proxies_.size() < count)
-    proxies_.emplace_back(options_.haptic);
+    proxies_.emplace_back(options_.haptic, static_cast<std::int32_t>(proxies_.size()));
   if (probe_states_.size() < count) probe_states_.resize(count);
   if (targets_.size() < count) targets_.resize(count);
 }
@@ -95,8 +95,13 @@ void SimWorld::step(std::span<const glm::dvec3> devices_m, std::span<HapticOutpu
     bvhs_[i].set_refit_tolerance(options_.bvh_refit_tolerance_m);
     if (!(s.free_vertices > 0 && s.awake_vertices == 0)) bvhs_[i].update(bodies_[i]);
   }
-  for (std::size_t p = 0; p < devices_m.size(); ++p)
+  for (std::size_t p = 0; p < devices_m.size(); ++p) {
     out[p] = proxies_[p].settle(targets_[p], out[p], options_.integrator.dt_s);
+    const VolumeBody* touched =
+        out[p].body >= 0 ? volumes_[std::size_t(out[p].body)].get() : nullptr;
+    out[p].compliance_m_per_N = touched ? touched->probe_compliance(p) : 0.0;
+    out[p].patch_velocity_m_s = touched ? touched->probe_patch_velocity(p) : glm::dvec3(0.0);
+  }
   ++steps_;
 }
 

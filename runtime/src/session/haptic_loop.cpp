@@ -165,6 +165,7 @@ void HapticLoop::hand_over(std::uint64_t k) noexcept {
   if (!schedule_.hands_over(k)) return;
   switch (parts_.steps->push(scene_states_, schedule_.handed_over_ticks())) {
     case TissueThread::Push::Queued:
+      hand_over_ticks_[schedule_.steps() % kHandOverRing] = k;
       break;
     case TissueThread::Push::Behind:
       // Never taken: the steps after it keep the tissue's own numbering, so they come due.
@@ -183,6 +184,16 @@ void HapticLoop::hand_over(std::uint64_t k) noexcept {
     counters_.max_ticks_per_step = std::max(counters_.max_ticks_per_step, n);
     note(tissue_rate_note(k, n));
   }
+}
+
+double HapticLoop::since_step_s(std::uint64_t k, std::uint64_t j) const noexcept {
+  // The surface's motion is followed for a few periods at most: a step much older than due is
+  // fading out (stale_gain), and its surface's velocity says little about now.
+  constexpr std::uint64_t kMostTicks = 8;
+  if (j == 0 || schedule_.steps() - j >= kHandOverRing) return 0.0;
+  const std::uint64_t handed = hand_over_ticks_[j % kHandOverRing];
+  const std::uint64_t ticks = k > handed ? std::min(k - handed, kMostTicks) : 0;
+  return static_cast<double>(ticks) * parts_.sim->haptic_period_ms() * 1e-3;
 }
 
 void HapticLoop::send(Hand& hand, devices::Nanoseconds t) noexcept {
@@ -242,7 +253,8 @@ TickStatus HapticLoop::tick(devices::Nanoseconds t) noexcept {
     Hand& hand = *h;
     if (step_output_ != nullptr && !counters_.tissue_failed) {
       parts_.sim->command_for(*step_output_, hand.index,
-                              SessionSim::tip_of(scene_states_[hand.index]), hand.command);
+                              SessionSim::tip_of(scene_states_[hand.index]), hand.command,
+                              since_step_s(k, use.step));
     } else {
       std::fill(hand.command.begin(), hand.command.end(), 0.0);
     }

@@ -12,6 +12,7 @@
 // starts it): both may run on another thread than tick(), and share one lock with it around the
 // device, which the supervisor only tries: it never waits for a tick.
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <functional>
@@ -258,6 +259,13 @@ class HapticLoop {
 
   HapticLoopParts parts_;
   StepSchedule schedule_;
+  /// The tick each of the last kHandOverRing steps was handed over at, by step number: how long
+  /// ago the state a step ran on was read (the surface's motion since, SessionSim::command_for).
+  static constexpr std::size_t kHandOverRing = 64;
+  std::array<std::uint64_t, kHandOverRing> hand_over_ticks_{};
+  /// Seconds from the state step j ran on to tick k (at most a few periods: an older step's
+  /// surface is not followed further).
+  [[nodiscard]] double since_step_s(std::uint64_t k, std::uint64_t j) const noexcept;
   std::vector<std::unique_ptr<Hand>> hands_;
   std::vector<devices::HapticState> scene_states_;  ///< one per hand, in the scene frame
   std::uint64_t fresh_k_ = 0;                       ///< the last tick that used its due step

@@ -109,7 +109,6 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
     }
   }
   coupling_N_per_m_ = world_.options().haptic.coupling_N_per_m;
-  probe_radius_m_ = world_.options().haptic.probe_radius_m;
   haptic_hz_ = scene.rates.haptic_hz;
   heart_rate_hz_ = scene.physiology.heart_rate_bpm / 60.0;
   breathing_period_s_ = scene.physiology.breathing_period_s;
@@ -134,7 +133,6 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
     }
     names_.push_back(d.name);
     const std::uint32_t index = world_.add_body(std::move(body));
-    contact_modulus_Pa_.push_back(0.0);  // a membrane's
     volume_build_ms_.push_back(0.0);
     pulse_pressure_Pa_.push_back(
         d.pulse_mmHg ? ((*d.pulse_mmHg)[1] - (*d.pulse_mmHg)[0]) * sim::kPascalPerMmHg : 0.0);
@@ -160,9 +158,6 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
       } catch (const sim::SimInputError& e) {
         throw sim::SimInputError("solid '" + d.name + "': " + e.what());
       }
-      contact_modulus_Pa_.back() =
-          volume.material.youngs_modulus_kPa * 1e3 /
-          (1.0 - volume.material.poisson_ratio * volume.material.poisson_ratio);
     }
   }
   // Everything the first step would build lazily (solver structure, BVHs, scratch) is built now,
@@ -304,6 +299,7 @@ const TickOutput& SessionSim::tick(std::span<const devices::HapticState> states,
     out.force_N = h.force_N;
     out.contact = h.contact;
     out.contact_stiffness_N_per_m = contact_stiffness(h);
+    out.patch_velocity_m_s = h.patch_velocity_m_s;
     // A new touch (not a flicker at the edge of one: 100 ticks without contact before it).
     if (h.contact && !hand.contact && ticks_ >= hand.last_contact_tick + 100)
       add_event(SessionEventKind::Contact, i, h.body, "");
@@ -576,28 +572,28 @@ double SessionSim::penetration_depth(const sim::SurfacePoint& closest, const glm
 }
 
 double SessionSim::contact_stiffness(const sim::HapticOutput& h) const {
-  if (!h.contact || h.body < 0) return coupling_N_per_m_;
-  const double e_star = contact_modulus_Pa_[static_cast<std::size_t>(h.body)];
-  if (e_star <= 0.0) return coupling_N_per_m_;  // a membrane: the proxy is held where it is
-  // A volume yields under the probe between its steps as a solid does: the tangent stiffness
-  // of a Hertz contact of the probe's radius carrying the step's force, 2 E* a with
-  // a = (3 F R / 4 E*)^(1/3) (Johnson, Contact Mechanics, section 4.2), in series with the
-  // coupling spring.
-  const double radius = probe_radius_m_;
-  const double a = std::cbrt(3.0 * glm::length(h.force_N) * radius / (4.0 * e_star));
-  const double tissue = 2.0 * e_star * a;
-  return tissue * coupling_N_per_m_ / (tissue + coupling_N_per_m_);
+  // Between steps the proxy stays where the step put it while the tip moves on: the coupling
+  // spring in series with the touched volume's compliance under the patch, from the step's
+  // own matrix (the force the next step gives for the tip's motion); against a membrane (no
+  // compliance) the coupling alone.
+  if (!h.contact) return coupling_N_per_m_;
+  return 1.0 / (1.0 / coupling_N_per_m_ + h.compliance_m_per_N);
 }
 
 void SessionSim::command_for(const TickOutput& tick_output, std::size_t hand,
-                             const glm::dvec3& tip_now_m, std::vector<double>& command_N) const {
+                             const glm::dvec3& tip_now_m, std::vector<double>& command_N,
+                             double since_step_s) const {
   const Hand& h = hands_[hand];
   const HandOutput& step = tick_output.hand(hand);
   // In contact the proxy stays where the step put it while the tip moves on: the contact's
-  // stiffness times the tip's motion is added (the coupling spring alone against a membrane,
-  // in series with the tissue's own against a volume). Outside contact there is no force.
+  // stiffness times the tip's motion relative to the surface is added (the coupling spring
+  // alone against a membrane, which stands still between steps, in series with the tissue's
+  // compliance against a volume, which goes on moving). Outside contact there is no force.
   glm::dvec3 force = step.force_N;
-  if (step.contact) force += step.contact_stiffness_N_per_m * (step.tip_m - tip_now_m);
+  if (step.contact) {
+    const glm::dvec3 surface_moved = since_step_s * step.patch_velocity_m_s;
+    force += step.contact_stiffness_N_per_m * (step.tip_m + surface_moved - tip_now_m);
+  }
   const double contact_N = std::min(glm::length(force), h.setup.max_force_N);
   command_N.resize(h.command_size);
   std::size_t k = 0;

@@ -25,6 +25,8 @@ struct ElasticVolume::Solver {
   std::vector<glm::dvec3> product;       ///< (h tau + h^2) K v in a dynamic step
   std::vector<glm::dvec3> held_step;     ///< the held nodes' given dv (zero elsewhere)
   std::vector<glm::dvec3> held_product;  ///< the matrix times held_step
+  std::vector<glm::dvec3> unit_load;     ///< step_compliance's load
+  std::vector<glm::dvec3> give;          ///< and its solution (the warm start of the next)
   /// Element stiffness at unit fill, one per distinct box shape (a graded lattice has few), and
   /// each cell's shape: computed once, not per assembly.
   std::vector<HexStiffness> shapes;
@@ -156,6 +158,31 @@ DynamicResult ElasticVolume::advance(std::span<const PointLoad> loads, const Dyn
     x_[i] += h * v_[i];
   }
   return {cg.iterations, cg.relative_residual};
+}
+
+double ElasticVolume::step_compliance(std::span<const PointLoad> contact,
+                                      const glm::dvec3& direction, double dt_s, double cg_tolerance,
+                                      int max_cg) {
+  Solver& s = *solver_;
+  const std::size_t n = x_.size();
+  double total = 0.0;
+  for (const PointLoad& c : contact)
+    total += glm::dot(direction, c.stiffness_N_per_m * direction);
+  if (!(total > 0.0)) return 0.0;
+  s.unit_load.assign(n, glm::dvec3(0.0));
+  if (s.give.size() != n) s.give.assign(n, glm::dvec3(0.0));
+  for (const PointLoad& c : contact) {
+    const double share = glm::dot(direction, c.stiffness_N_per_m * direction) / total;
+    const auto& cell = lattice_.cells[c.point.cell];
+    for (std::size_t a = 0; a < 8; ++a)
+      s.unit_load[cell[a]] += (share * c.point.weights[a]) * direction;
+  }
+  // The step's matrix as advance() left it: A dv = h f, dx = h dv.
+  s.matrix.solve(s.unit_load, s.give, held_, cg_tolerance, max_cg);
+  double along = 0.0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (!held_[i]) along += glm::dot(s.unit_load[i], s.give[i]);
+  return std::max(0.0, dt_s * dt_s * along);
 }
 
 glm::dvec3 ElasticVolume::held_offset() const {

@@ -13,6 +13,10 @@ namespace bisturi::sim {
 
 namespace {
 
+/// The compliance is one number, u^T A^-1 u: its error is about the square of the solve's
+/// relative residual, so a loose solve gives it to well under a percent.
+constexpr double kComplianceTolerance = 1e-2;
+
 ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options) {
   if (!body.closed()) {
     throw SimInputError("a volume needs a closed surface: the solid has open boundaries");
@@ -102,10 +106,23 @@ void VolumeBody::gather_loads(const SoftBody& body) {
   }
   for (const std::uint32_t i : body.loaded_vertices())
     loaded_[i] = 0;
+  for (std::vector<PointLoad>& probe : probe_loads_)
+    probe.clear();
   for (const SoftBody::ContactTerm& c : body.contacts()) {
     if (!embedded_[c.vertex]) continue;
-    loads_.push_back({embedding_[c.vertex], glm::dvec3(0.0),
-                      c.stiffness_N_per_m * glm::outerProduct(c.normal, c.normal)});
+    const PointLoad load{embedding_[c.vertex], glm::dvec3(0.0),
+                         c.stiffness_N_per_m * glm::outerProduct(c.normal, c.normal)};
+    loads_.push_back(load);
+    if (c.probe < 0) continue;
+    const auto probe = static_cast<std::size_t>(c.probe);
+    if (probe >= probe_loads_.size()) {
+      probe_loads_.resize(probe + 1);
+      probe_normal_.resize(probe + 1);
+      probe_compliance_.resize(probe + 1, 0.0);
+      probe_speed_.resize(probe + 1, 0.0);
+    }
+    probe_loads_[probe].push_back(load);
+    probe_normal_[probe] = c.normal;
   }
   if (body.kinematic_count() == 0) return;
   const auto nodes = volume_.positions();
@@ -115,6 +132,35 @@ void VolumeBody::gather_loads(const SoftBody& body) {
     const double k = target_stiffness_N_per_m_;
     loads_.push_back({embedding_[i], k * (body.kinematic_target(VertexId(i)) - at), glm::dmat3(k)});
   }
+}
+
+double VolumeBody::probe_step_compliance(std::size_t p, double dt_s) {
+  if (probe_loads_[p].empty()) return 0.0;
+  // The step's own response to the tip moving on by d: the probe's reaction grows by k d (k its
+  // coupling), spread over the patch by the coupling's shares, and the patch gives g = -c k d
+  // with c the patch's compliance in the step's matrix, which holds the coupling's stiffness on
+  // each patch vertex; the force after the step grows by k (d + g) = k (1 - k c) d. As a
+  // compliance in series with the coupling: c / (1 - k c).
+  const glm::dvec3& n = probe_normal_[p];
+  double coupling = 0.0;
+  for (const PointLoad& load : probe_loads_[p])
+    coupling += glm::dot(n, load.stiffness_N_per_m * n);
+  const double held =
+      volume_.step_compliance(probe_loads_[p], n, dt_s, kComplianceTolerance, options_.max_cg);
+  const double kept = 1.0 - coupling * held;
+  return kept > 0.0 ? held / kept : 0.0;
+}
+
+double VolumeBody::probe_step_speed(std::size_t p) const {
+  const glm::dvec3& n = probe_normal_[p];
+  double total = 0.0, speed = 0.0;
+  for (const PointLoad& load : probe_loads_[p]) {
+    const double k = glm::dot(n, load.stiffness_N_per_m * n);
+    total += k;
+    speed +=
+        k * glm::dot(n, embedded_position(volume_.lattice(), volume_.velocities(), load.point));
+  }
+  return total > 0.0 ? speed / total : 0.0;
 }
 
 void VolumeBody::write_surface(SoftBody& body) const {
@@ -135,6 +181,8 @@ StepStats VolumeBody::step(SoftBody& body, const IntegratorOptions& options,
   StepStats stats;
   stats.free_vertices = static_cast<std::uint32_t>(embedded_vertices());
   stats.awake_vertices = stats.free_vertices;
+  std::fill(probe_compliance_.begin(), probe_compliance_.end(), 0.0);
+  std::fill(probe_speed_.begin(), probe_speed_.end(), 0.0);
   if (body.frozen()) {
     body.clear_forces();
     return stats;
@@ -172,6 +220,14 @@ StepStats VolumeBody::step(SoftBody& body, const IntegratorOptions& options,
     }
     if (reason.empty()) {
       trial.rolled_back = attempt > 0;
+      // The probes' compliance under their patches, from this step's matrix (a step cut into
+      // substeps has a shorter one: none then).
+      if (substeps == 1) {
+        for (std::size_t p = 0; p < probe_loads_.size(); ++p) {
+          probe_compliance_[p] = probe_step_compliance(p, dynamic.dt_s);
+          probe_speed_[p] = probe_step_speed(p);
+        }
+      }
       write_surface(body);
       body.clear_forces();
       return trial;

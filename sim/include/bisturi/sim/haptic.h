@@ -53,6 +53,13 @@ struct HapticOutput {
   bool contact = false;
   std::int32_t body = -1;  ///< touched body, -1 when none
   double depth_m = 0.0;    ///< how far the device is below the proxy
+  /// How far the touched body gives at the contact patch along its normal per newton over a
+  /// step like the last (m/N), the probe's own coupling excluded: a volume's compliance
+  /// (VolumeBody::probe_compliance), 0 for a membrane (the proxy is held between steps).
+  double compliance_m_per_N = 0.0;
+  /// The touched patch's velocity along its normal at the end of the step (m/s): a volume's,
+  /// which goes on moving between steps; zero for a membrane.
+  glm::dvec3 patch_velocity_m_s{0.0};
 };
 
 /// A body the proxy can touch: the body and its BVH (already refitted for this step).
@@ -64,7 +71,10 @@ struct TouchTarget {
 
 class HapticProxy {
  public:
-  explicit HapticProxy(const HapticOptions& options = {}) : options_(options) {}
+  /// `probe`: this proxy's index among the world's probes, which tags its contacts
+  /// (SoftBody::add_contact).
+  explicit HapticProxy(const HapticOptions& options = {}, std::int32_t probe = 0)
+      : options_(options), probe_(probe) {}
   /// One haptic step of length dt_s with the device at device_m, before the bodies' step: finds
   /// the contact and gives the touched body the reaction. Frozen bodies are not touched.
   HapticOutput update(const glm::dvec3& device_m, std::span<const TouchTarget> targets,
@@ -87,6 +97,7 @@ class HapticProxy {
                                     const glm::dvec3& motion) const;
 
   HapticOptions options_;
+  std::int32_t probe_ = 0;
   glm::dvec3 proxy_{0.0};
   /// The reaction of update() waiting for settle(): its body (-1: none), the patch normal and
   /// the patch's weighted height along it before the step.
@@ -96,8 +107,8 @@ class HapticProxy {
   glm::dvec3 last_force_{0.0};
   bool initialised_ = false;
   bool contact_ = false;
-  std::int32_t contact_body_ = -1;   ///< last tick's touched body
-  glm::dvec3 contact_normal_{0.0};   ///< and its patch normal
+  std::int32_t contact_body_ = -1;  ///< last tick's touched body
+  glm::dvec3 contact_normal_{0.0};  ///< and its patch normal
   double contact_depth_ = 0.0;      ///< and how deep the device was
   glm::dvec3 last_device_{0.0};
   std::vector<std::uint32_t> patch_;  // scratch

@@ -100,11 +100,15 @@ class SoftBody {
   /// A penalty contact on v for the next step only: the force stiffness * depth along the unit
   /// normal, with its stiffness (stiffness * n n^T) handed to the implicit solve, so a stiff
   /// penalty on a light vertex stays stable (an explicit one of the same size would not).
-  void add_contact(VertexId v, const glm::dvec3& normal, double depth_m, double stiffness_N_per_m);
+  /// `probe`: the haptic probe whose proxy this contact couples to (-1: none), so that a volume
+  /// can tell the probe its compliance under the patch (VolumeBody::probe_compliance).
+  void add_contact(VertexId v, const glm::dvec3& normal, double depth_m, double stiffness_N_per_m,
+                   std::int32_t probe = -1);
   struct ContactTerm {
     std::uint32_t vertex = 0;
     glm::dvec3 normal{0.0};
     double stiffness_N_per_m = 0.0;
+    std::int32_t probe = -1;
   };
   [[nodiscard]] const std::vector<ContactTerm>& contacts() const { return contacts_; }
   /// The vertices given a force or a contact since the last clear_forces(), in call order (a

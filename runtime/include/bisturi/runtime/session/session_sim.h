@@ -59,6 +59,9 @@ struct HandOutput {
   /// How the contact force grows per metre the tip moves on into the tissue before the next
   /// step (N/m): what command_for adds for the tip's motion since this step.
   double contact_stiffness_N_per_m = 0.0;
+  /// How the touched surface goes on moving after the step (m/s, along its normal; zero on a
+  /// membrane): command_for counts its motion since the step as the tip's, the other way.
+  glm::dvec3 patch_velocity_m_s{0.0};
   bool grasping = false;  ///< the grasper holds tissue after this step
   bool cutting = false;   ///< the scalpel is sweeping after this step
 };
@@ -139,9 +142,11 @@ class SessionSim {
   [[nodiscard]] std::size_t hand_count() const { return hands_.size(); }
 
   /// The device's command for a step's output with the tip now at tip_now_m (scene frame; the
-  /// step may be a few ticks old when the tissue runs on its own thread): the proxy force
-  /// corrected by the coupling spring for the tip's motion since the step, so the force follows
-  /// the hand at the haptic rate. By channel role: a Vector channel gets that force in the
+  /// step may be a few ticks old when the tissue runs on its own thread, `since_step_s` after
+  /// the state it ran on): the proxy force corrected for the tip's motion since the step
+  /// relative to the touched surface (which goes on at its velocity), by the coupling spring in
+  /// series with the tissue's compliance, so the force follows the hand at the haptic rate.
+  /// By channel role: a Vector channel gets that force in the
   /// device's frame (its magnitude capped, its direction kept); a Finger channel that finger's
   /// own contact, plus the instrument's reaction for the thumb and index that hold it, plus the
   /// grasp while the jaws hold tissue; an Unused channel zero, except a unitless one (a
@@ -154,7 +159,7 @@ class SessionSim {
   }
   /// command_for for hand `hand`'s device.
   void command_for(const TickOutput& step, std::size_t hand, const glm::dvec3& tip_now_m,
-                   std::vector<double>& command_N) const;
+                   std::vector<double>& command_N, double since_step_s = 0.0) const;
   /// The probe tip (metres) of a haptic state: its first end effector's position.
   static glm::dvec3 tip_of(const devices::HapticState& state);
   /// Number of force components of a hand's command.
@@ -259,8 +264,6 @@ class SessionSim {
   /// closest point is not straight ahead along its normal).
   static double penetration_depth(const sim::SurfacePoint& closest, const glm::dvec3& p_m);
 
-  /// Per body: the contact modulus E / (1 - nu^2) of a volume (Pa), 0 for a membrane.
-  std::vector<double> contact_modulus_Pa_;
   std::vector<double> volume_build_ms_;  ///< per body
   /// Per body: its pulse pressure (systolic less diastolic, Pa; 0: it does not pulse).
   std::vector<double> pulse_pressure_Pa_;
@@ -290,7 +293,6 @@ class SessionSim {
   /// The pulsing bodies' lumen pressure at the step beginning at ticks_ (sim/pulse.h), and the
   /// breathing bodies' supports moving to where the step covering `ticks` ends.
   void apply_physiology(std::uint32_t ticks);
-  double probe_radius_m_ = 0.001;
   SessionSimOptions options_;
   sim::SimWorld world_;
   std::vector<std::string> names_;

@@ -120,6 +120,12 @@ class ElasticVolume {
   /// with L and l the loads' stiffness and force. Held nodes move at the held velocity (at rest
   /// without one): their dv is given, and its product with the matrix leaves the right-hand side.
   DynamicResult advance(std::span<const PointLoad> loads, const DynamicOptions& options);
+  /// Right after advance(), whose matrix A it solves with (the loads' stiffness in it): how far
+  /// the embedded points of `contact` move along `direction`, weighted by their stiffness along
+  /// it, per newton spread over them in the same shares, in a step like that one: h^2 u^T A^-1 u
+  /// for the unit load u (m/N). 0 when `contact` has no stiffness along `direction`.
+  double step_compliance(std::span<const PointLoad> contact, const glm::dvec3& direction,
+                         double dt_s, double cg_tolerance, int max_cg);
   [[nodiscard]] std::span<const glm::dvec3> velocities() const { return v_; }
   /// Each node's lumped mass (kg): the density times its share of its cells' inside volume.
   [[nodiscard]] std::span<const double> masses() const { return mass_; }

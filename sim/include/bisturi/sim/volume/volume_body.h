@@ -60,6 +60,18 @@ class VolumeBody {
   [[nodiscard]] glm::dvec3 support_offset() const { return volume_.held_offset(); }
   /// Embedded vertex slots (alive vertices of the body's mesh).
   [[nodiscard]] std::size_t embedded_vertices() const;
+  /// The last step's compliance under haptic probe `probe`'s contact patch along its normal
+  /// (ElasticVolume::step_compliance; m/N): 0 when that probe did not press on this body in
+  /// the step, or the step was rolled back.
+  [[nodiscard]] double probe_compliance(std::size_t probe) const {
+    return probe < probe_compliance_.size() ? probe_compliance_[probe] : 0.0;
+  }
+  /// Probe `probe`'s patch's velocity along its normal after the last step (m/s; the patch's
+  /// points weighted as for the compliance): zero when probe_compliance is.
+  [[nodiscard]] glm::dvec3 probe_patch_velocity(std::size_t probe) const {
+    return probe < probe_speed_.size() ? probe_speed_[probe] * probe_normal_[probe]
+                                       : glm::dvec3(0.0);
+  }
 
  private:
   /// Embeds the alive vertex slots not embedded yet (at their rest positions).
@@ -67,6 +79,11 @@ class VolumeBody {
   /// The body's loads as point loads on the lattice (into loads_).
   void gather_loads(const SoftBody& body);
   void write_surface(SoftBody& body) const;
+  /// Probe p's compliance under its patch in the step just taken (dt_s long), as a spring in
+  /// series with its coupling (probe_compliance()).
+  double probe_step_compliance(std::size_t p, double dt_s);
+  /// Probe p's patch's speed along its normal now (probe_patch_speed()).
+  [[nodiscard]] double probe_step_speed(std::size_t p) const;
 
   ElasticVolume volume_;
   VolumeOptions options_;
@@ -74,7 +91,12 @@ class VolumeBody {
   std::vector<EmbeddedPoint> embedding_;  ///< per vertex slot
   std::vector<std::uint8_t> embedded_;    ///< per vertex slot
   std::vector<PointLoad> loads_;          // scratch
-  std::vector<std::uint8_t> loaded_;      // scratch: per vertex slot
+  /// Per haptic probe: its contact's loads in this step (their stiffness only) and normal.
+  std::vector<std::vector<PointLoad>> probe_loads_;
+  std::vector<glm::dvec3> probe_normal_;
+  std::vector<double> probe_compliance_;
+  std::vector<double> probe_speed_;
+  std::vector<std::uint8_t> loaded_;  // scratch: per vertex slot
   std::vector<glm::dvec3> saved_x_, saved_v_;
 };
 
