@@ -121,20 +121,21 @@ BENCHMARK(BM_VolumeStep)
 // for k = 1, 2, 4, 8, 16 (the device held over a millisecond's steps). Counters per k: the RMS
 // force (force_k_mN) and the RMS difference from the k = 16 run against that run's RMS force
 // (diff_k).
+/// The organ stepped by its volume of 6 mm cells at steps of dt.
+std::unique_ptr<SimWorld> probed_world(double dt) {
+  WorldOptions options;
+  options.integrator.dt_s = dt;
+  auto world = std::make_unique<SimWorld>(options);
+  world->add_body(anchored_sphere());
+  world->set_volume(0, liver_cells(6.0));
+  world->prepare();
+  return world;
+}
+
 void BM_VolumeForceConvergence(benchmark::State& state) {
   const double lower = double(state.range(0)) * 1e-6;
   bench::force_convergence(
-      state,
-      [](double dt) {
-        WorldOptions options;
-        options.integrator.dt_s = dt;
-        auto world = std::make_unique<SimWorld>(options);
-        world->add_body(anchored_sphere());
-        world->set_volume(0, liver_cells(6.0));
-        world->prepare();
-        return world;
-      },
-      [&](int ms) { return bench::probe_tip(organ(), ms, lower); }, 1600);
+      state, probed_world, [&](int ms) { return bench::probe_tip(organ(), ms, lower); }, 1600);
 }
 BENCHMARK(BM_VolumeForceConvergence)->Arg(0)->Arg(2000)->Iterations(1)->Unit(benchmark::kSecond);
 
@@ -152,15 +153,6 @@ BENCHMARK(BM_VolumeForceConvergence)->Arg(0)->Arg(2000)->Iterations(1)->Unit(ben
 // (um; 2000 keeps the probe in firm contact).
 void BM_VolumeBetweenSteps(benchmark::State& state) {
   const double lower = double(state.range(0)) * 1e-6;
-  const auto make_world = [](double dt) {
-    WorldOptions options;
-    options.integrator.dt_s = dt;
-    auto world = std::make_unique<SimWorld>(options);
-    world->add_body(anchored_sphere());
-    world->set_volume(0, liver_cells(6.0));
-    world->prepare();
-    return world;
-  };
   const ElasticMaterial liver = tissue_preset("liver").material;
   const double e_star =
       liver.youngs_modulus_kPa * 1e3 / (1.0 - liver.poisson_ratio * liver.poisson_ratio);
@@ -168,9 +160,9 @@ void BM_VolumeBetweenSteps(benchmark::State& state) {
   const char* names[kWays] = {"compliance", "compliance_moving", "hertz", "coupling",
                               "hold",       "stepped_1ms"};
   for (auto _ : state) {
-    auto reference = make_world(1e-3 / 16.0);
-    auto coarse = make_world(2e-3);
-    auto every_tick = make_world(1e-3);
+    auto reference = probed_world(1e-3 / 16.0);
+    auto coarse = probed_world(2e-3);
+    auto every_tick = probed_world(1e-3);
     const double coupling = coarse->options().haptic.coupling_N_per_m;
     const double radius = coarse->options().haptic.probe_radius_m;
     double reference2 = 0.0, reference_rough2 = 0.0, diff2[kWays] = {}, rough2[kWays] = {};
