@@ -115,12 +115,41 @@ void Blood::find_neighbours() {
   if (found_.size() < n) found_.resize(n);
   for (std::size_t i = 0; i < n; ++i)
     found_[i].clear();
+  // The particles in flight first, then the pooled ones they found.
+  active_.resize(n);
+  for (std::size_t i = 0; i < n; ++i)
+    active_[i] = pooled_[i] ? 0 : 1;
+  list_neighbours(1);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (active_[i] != 1) continue;
+    for (const std::uint32_t j : found_[i])
+      if (active_[j] == 0) active_[j] = 2;
+  }
+  list_neighbours(2);
+  neighbour_start_.assign(n + 1, 0);
+  neighbours_.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    neighbour_start_[i] = static_cast<std::uint32_t>(neighbours_.size());
+    // In index order, whatever the cells' order: the sums come out the same bits every run.
+    std::sort(found_[i].begin(), found_[i].end());
+    neighbours_.insert(neighbours_.end(), found_[i].begin(), found_[i].end());
+  }
+  neighbour_start_[n] = static_cast<std::uint32_t>(neighbours_.size());
+}
+
+void Blood::list_neighbours(std::uint8_t pass) {
+  const std::size_t n = cells_.size();
   const double h2 = h_ * h_;
-  // Cell by cell: the 27 cells around each are looked up once for all the particles in it.
+  // Cell by cell: the 27 cells around each are looked up once for all its particles in the pass.
   for (std::size_t begin = 0; begin < n;) {
     std::size_t end = begin;
-    while (end < n && cells_[end].first == cells_[begin].first)
-      ++end;
+    bool any = false;
+    for (; end < n && cells_[end].first == cells_[begin].first; ++end)
+      any = any || active_[cells_[end].second] == pass;
+    if (!any) {
+      begin = end;
+      continue;
+    }
     const glm::dvec3& first = p_[cells_[begin].second];
     const std::int64_t cx = cell_of(first.x, h_), cy = cell_of(first.y, h_),
                        cz = cell_of(first.z, h_);
@@ -133,22 +162,14 @@ void Blood::find_neighbours() {
           for (; it != cells_.end() && it->first == key; ++it) {
             for (std::size_t a = begin; a < end; ++a) {
               const std::uint32_t i = cells_[a].second;
-              if (it->second != i && glm::length2(p_[i] - p_[it->second]) < h2)
+              if (active_[i] == pass && it->second != i &&
+                  glm::length2(p_[i] - p_[it->second]) < h2)
                 found_[i].push_back(it->second);
             }
           }
         }
     begin = end;
   }
-  neighbour_start_.assign(n + 1, 0);
-  neighbours_.clear();
-  for (std::size_t i = 0; i < n; ++i) {
-    neighbour_start_[i] = static_cast<std::uint32_t>(neighbours_.size());
-    // In index order, whatever the cells' order: the sums come out the same bits every run.
-    std::sort(found_[i].begin(), found_[i].end());
-    neighbours_.insert(neighbours_.end(), found_[i].begin(), found_[i].end());
-  }
-  neighbour_start_[n] = static_cast<std::uint32_t>(neighbours_.size());
 }
 
 void Blood::solve_density() {
@@ -159,6 +180,8 @@ void Blood::solve_density() {
   const double scale = mass_kg_ / rest_density_;
   const double self = kernels.poly6(0.0);
   for (std::size_t i = 0; i < n; ++i) {
+    lambda_[i] = 0.0;
+    if (!active_[i]) continue;  // no particle in flight near it reads its lambda
     double density = mass_kg_ * self;
     glm::dvec3 grad_i(0.0);
     double grad_sum = 0.0;
@@ -174,7 +197,9 @@ void Blood::solve_density() {
     const double c = std::max(0.0, density / rest_density_ - 1.0);
     lambda_[i] = -c / (grad_sum + relaxation_);
   }
+  // Only particles in flight move: their neighbours are all active, with their lambdas.
   for (std::size_t i = 0; i < n; ++i) {
+    if (pooled_[i]) continue;
     glm::dvec3 d(0.0);
     for (std::uint32_t k = neighbour_start_[i]; k < neighbour_start_[i + 1]; ++k) {
       const std::uint32_t j = neighbours_[k];
@@ -261,6 +286,7 @@ void Blood::step(double dt_s, std::span<const BloodSurface> surfaces) {
     delta_.resize(n);
     const Kernels kernels(h_);
     for (std::size_t i = 0; i < n; ++i) {
+      if (pooled_[i]) continue;  // at rest: its velocity stays zero
       glm::dvec3 dv(0.0);
       double w_sum = 0.0;
       for (std::uint32_t k = neighbour_start_[i]; k < neighbour_start_[i + 1]; ++k) {

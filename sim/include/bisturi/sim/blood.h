@@ -80,7 +80,12 @@ class Blood {
   [[nodiscard]] const BloodOptions& options() const { return options_; }
 
  private:
+  /// The neighbour lists the step needs: those of the particles in flight and of the pooled
+  /// particles next to them (the others' lists stay empty: a pool that nothing flows over does
+  /// not change, and costs nothing).
   void find_neighbours();
+  /// Lists the neighbours of the particles whose active_ is `pass`.
+  void list_neighbours(std::uint8_t pass);
   void solve_density();
   void collide(std::span<const BloodSurface> surfaces);
   void remove_drained();
@@ -104,6 +109,9 @@ class Blood {
   std::vector<glm::dvec3> delta_;
   std::vector<std::pair<std::uint64_t, std::uint32_t>> cells_;  ///< scratch
   std::vector<std::vector<std::uint32_t>> found_;  ///< scratch: each particle's neighbours
+  /// Per particle, this substep: 0 idle (pooled, nothing in flight near it), 1 in flight, 2
+  /// pooled next to one in flight (its density constraint pushes on that one).
+  std::vector<std::uint8_t> active_;
 };
 
 }  // namespace bisturi::sim
