@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <glm/common.hpp>
 #include <glm/geometric.hpp>
 
 #include <algorithm>
@@ -20,6 +21,7 @@
 #include "bisturi/scene/dlfl_validate.h"
 #include "bisturi/sim/cutting.h"
 #include "bisturi/sim/units.h"
+#include "bisturi/sim/volume/hex_lattice.h"
 
 namespace bisturi::runtime {
 namespace {
@@ -164,6 +166,47 @@ TEST(LiverScene, ACutRoundTheArteryFollowsTheBlade) {
   const sim::CutResult cut = sim::cut_surface(artery, blade);
   EXPECT_GE(cut.path.size(), 5u);
   EXPECT_TRUE(validate(artery.mesh()).ok());
+}
+
+TEST(SceneFile, RefineSplitsTheVolumesCellsInABox) {
+  // The phantom sphere's middle, from a build without the refinement.
+  const SceneDescription plain =
+      parse_scene(solid_with("model = 'volume'\ncell_mm = 8.0", "preset = 'liver'"), "scene.toml");
+  const std::vector<BuiltSolid> built = build_solids(plain);
+  glm::dvec3 lo(1e9), hi(-1e9);
+  for (const glm::dvec3& p : built[0].mesh.positions()) {
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  const glm::dvec3 middle = 0.5 * (lo + hi);
+  const std::string refine = "model = 'volume'\ncell_mm = 8.0\n[solids.refine]\ncentre_mm = [" +
+                             std::to_string(middle.x) + ", " + std::to_string(middle.y) + ", " +
+                             std::to_string(middle.z) + "]\n";
+  const SceneDescription scene = parse_scene(
+      solid_with(refine + "factor = 4\nhalf_width_mm = 6.0", "preset = 'liver'"), "scene.toml");
+  ASSERT_TRUE(scene.solids[0].refine.has_value());
+  EXPECT_EQ(scene.solids[0].refine->factor, 4);
+  EXPECT_DOUBLE_EQ(scene.solids[0].refine->half_width_mm, 6.0);
+  SessionSim sim(scene, build_solids(scene), std::vector<devices::ForceChannel>{});
+  SessionSim coarse(plain, build_solids(plain), std::vector<devices::ForceChannel>{});
+  const sim::HexLattice& lattice = sim.world().volume(0)->volume().lattice();
+  EXPECT_FALSE(lattice.hanging.empty());
+  EXPECT_GT(lattice.cells.size(), coarse.world().volume(0)->volume().lattice().cells.size());
+  EXPECT_NEAR(sim.world().volume(0)->volume().finest_cell_m(), 0.002, 1e-9);
+  // Twice the cell by default; the factor 2 to 4; for volumes only; a centre it must have.
+  EXPECT_DOUBLE_EQ(parse_scene(solid_with(refine, "preset = 'liver'"), "scene.toml")
+                       .solids[0]
+                       .refine->half_width_mm,
+                   16.0);
+  EXPECT_NE(error(solid_with(refine + "factor = 5", "preset = 'liver'")).find("factor"),
+            std::string::npos);
+  EXPECT_NE(error(solid_with("model = 'surface'\n[solids.refine]\ncentre_mm = [0.0, 0.0, 0.0]",
+                             "preset = 'liver'"))
+                .find("only for model"),
+            std::string::npos);
+  EXPECT_NE(error(solid_with("model = 'volume'\n[solids.refine]\nfactor = 2", "preset = 'liver'"))
+                .find("needs centre_mm"),
+            std::string::npos);
 }
 
 TEST(SceneFile, SupportedIsForVolumesOnly) {

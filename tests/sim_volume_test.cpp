@@ -222,6 +222,91 @@ struct PressedBlock {
   std::vector<EmbeddedPoint> points;
 };
 
+TEST(TwoLevelLattice, FillsASphereHangsItsFineNodesOnTheCoarseAndEmbedsEveryVertex) {
+  const Surface s = uv_sphere(0.01, glm::dvec3(0.001, -0.002, 0.003));
+  // 3 mm cells, split in 27 within 4 mm of the top.
+  const glm::dvec3 top(0.001, -0.002, 0.013);
+  const HexLattice lattice = build_two_level_lattice(
+      s.vertices, s.triangles, 0.003, 3, top - glm::dvec3(0.004), top + glm::dvec3(0.004));
+  std::size_t fine = 0, coarse = 0;
+  double volume = 0.0;
+  for (std::size_t c = 0; c < lattice.cells.size(); ++c) {
+    (lattice.span(c) == 1 ? fine : coarse) += 1;
+    const glm::dvec3 h = lattice.cell_sides(c);
+    volume += lattice.fill[c] * h.x * h.y * h.z;
+  }
+  EXPECT_GT(fine, 100u);
+  EXPECT_GT(coarse, 50u);
+  const double exact = 4.0 / 3.0 * std::numbers::pi * 1e-6;
+  EXPECT_NEAR(volume / exact, 1.0, 0.03);
+  ASSERT_FALSE(lattice.hanging.empty());
+  std::vector<std::uint8_t> hangs(lattice.rest.size(), 0);
+  for (const HangingNode& h : lattice.hanging)
+    hangs[h.node] = 1;
+  for (const HangingNode& h : lattice.hanging) {
+    EXPECT_TRUE(h.masters_count == 2 || h.masters_count == 4) << h.node;
+    glm::dvec3 at(0.0);
+    double sum = 0.0;
+    for (std::uint32_t m = 0; m < h.masters_count; ++m) {
+      EXPECT_FALSE(hangs[h.masters[m]]) << "a master hangs itself";
+      at += h.weights[m] * lattice.rest[h.masters[m]];
+      sum += h.weights[m];
+    }
+    EXPECT_NEAR(sum, 1.0, 1e-12);
+    EXPECT_LT(glm::length(at - lattice.rest[h.node]), 1e-12) << "node " << h.node;
+  }
+  const std::vector<EmbeddedPoint> points = embed_points(lattice, s.vertices);
+  for (std::size_t p = 0; p < points.size(); ++p)
+    EXPECT_LT(glm::length(embedded_position(lattice, lattice.rest, points[p]) - s.vertices[p]),
+              1e-12)
+        << "vertex " << p;
+}
+
+TEST(TwoLevelLattice, PressedWhereItIsFineItGivesTheFineLatticesForce) {
+  // PressedBlock's block and probe, 1 mm deep, on three lattices: uniform 2.5 mm cells (729),
+  // uniform 1.25 mm (4913), and 2.5 mm split in 8 about the probe (1593). The split one's
+  // force is the fine one's where the coarse one's is not, and its hanging nodes stay on the
+  // coarse faces.
+  const Surface s = box(glm::dvec3(0.0), glm::dvec3(0.02), 24);
+  ElasticMaterial m;
+  m.youngs_modulus_kPa = 4.0;
+  m.poisson_ratio = 0.45;
+  const glm::dvec3 probe(0.01, 0.01, 0.02);
+  const auto press = [&](HexLattice lattice, std::vector<glm::dvec3>* nodes) {
+    ElasticVolume volume(std::move(lattice), m);
+    const std::vector<EmbeddedPoint> points = embed_points(volume.lattice(), s.vertices);
+    for (std::uint32_t i = 0; i < volume.positions().size(); ++i)
+      if (volume.lattice().rest[i].z <= 0.0) volume.hold(i);
+    PressOptions po;
+    po.penetration_tolerance_m = 1e-6;
+    const PressResult r =
+        volume.press_sphere(points, probe + glm::dvec3(0.0, 0.0, 0.005 - 0.001), 0.005, po);
+    EXPECT_TRUE(r.converged) << "after " << r.newton_iterations << " Newton steps";
+    if (nodes) nodes->assign(volume.positions().begin(), volume.positions().end());
+    return r.probe_force_N.z;
+  };
+  const glm::dvec3 none(-1.0);
+  const double coarse =
+      press(build_two_level_lattice(s.vertices, s.triangles, 0.0025, 1, none, none), nullptr);
+  const double fine =
+      press(build_two_level_lattice(s.vertices, s.triangles, 0.00125, 1, none, none), nullptr);
+  const HexLattice two = build_two_level_lattice(s.vertices, s.triangles, 0.0025, 2,
+                                                 probe - glm::dvec3(0.006, 0.006, 0.006),
+                                                 probe + glm::dvec3(0.006, 0.006, 0.001));
+  const std::vector<HangingNode> hanging = two.hanging;
+  std::vector<glm::dvec3> nodes;
+  const double refined = press(two, &nodes);
+  EXPECT_LT(std::abs(refined - fine), 0.1 * std::abs(coarse - fine))
+      << "coarse " << coarse << " N, fine " << fine << " N, refined " << refined << " N";
+  ASSERT_FALSE(hanging.empty());
+  for (const HangingNode& h : hanging) {
+    glm::dvec3 at(0.0);
+    for (std::uint32_t k = 0; k < h.masters_count; ++k)
+      at += h.weights[k] * nodes[h.masters[k]];
+    EXPECT_LT(glm::length(at - nodes[h.node]), 1e-12) << "node " << h.node;
+  }
+}
+
 TEST(ElasticVolume, ThePressingForceGrowsWithDepthAndIsLinearInTheModulus) {
   PressedBlock soft(4.0), stiff(8.0);
   EXPECT_GT(soft.volume->held_count(), 0u);

@@ -321,10 +321,10 @@ class SceneReader {
 
   SolidDescription read_solid(const toml::table& t, const std::string& path) const {
     only_keys(t, path,
-              {"name",    "mesh",      "volume",     "phantom",       "dims",        "spacing_mm",
-               "a_mm",    "b_mm",      "iso",        "label",         "downsample",  "decimate",
-               "smooth",  "offset_mm", "material",   "anchors",       "simulate",    "model",
-               "cell_mm", "supported", "pulse_mmHg", "pressure_mmHg", "breathing_mm"});
+              {"name",    "mesh",      "volume",    "phantom",    "dims",          "spacing_mm",
+               "a_mm",    "b_mm",      "iso",       "label",      "downsample",    "decimate",
+               "smooth",  "offset_mm", "material",  "anchors",    "simulate",      "model",
+               "cell_mm", "refine",    "supported", "pulse_mmHg", "pressure_mmHg", "breathing_mm"});
     SolidDescription s;
     s.name = string_or(t, path, "name", path);
     const int sources = (t.contains("mesh") ? 1 : 0) + (t.contains("volume") ? 1 : 0) +
@@ -394,6 +394,18 @@ class SceneReader {
     s.cell_mm = positive(t, path, "cell_mm", s.cell_mm);
     if (t.contains("cell_mm") && s.model != SolidDescription::Model::Volume) {
       fail(t.get("cell_mm"), t, path + ".cell_mm", "only for model = \"volume\"");
+    }
+    if (const toml::table* r = table_at(t, path, "refine")) {
+      const std::string at = path + ".refine";
+      if (s.model != SolidDescription::Model::Volume)
+        fail(t.get("refine"), t, at, "only for model = \"volume\"");
+      only_keys(*r, at, {"centre_mm", "half_width_mm", "factor"});
+      SolidDescription::Refinement refine;
+      refine.centre_mm = numbers<3>(*r, at, "centre_mm", refine.centre_mm);
+      if (!r->contains("centre_mm")) fail(t.get("refine"), t, at, "needs centre_mm");
+      refine.half_width_mm = positive(*r, at, "half_width_mm", 2.0 * s.cell_mm);
+      refine.factor = static_cast<int>(integer(*r, at, "factor", refine.factor, 2, 4));
+      s.refine = refine;
     }
     s.supported = boolean(t, path, "supported", s.supported);
     if (t.contains("supported") && s.model != SolidDescription::Model::Volume) {

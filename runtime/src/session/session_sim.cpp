@@ -147,6 +147,12 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
       sim::VolumeOptions volume;
       volume.cell_m = d.cell_mm * sim::kMetresPerMillimetre;
       volume.weight_supported = d.supported;
+      if (d.refine) {
+        volume.refine_factor = static_cast<std::uint32_t>(d.refine->factor);
+        volume.refine_centre_m = sim::scene_to_sim(
+            glm::dvec3(d.refine->centre_mm[0], d.refine->centre_mm[1], d.refine->centre_mm[2]));
+        volume.refine_half_width_m = d.refine->half_width_mm * sim::kMetresPerMillimetre;
+      }
       volume.material = {d.material.youngs_modulus_kPa, d.material.poisson_ratio,
                          d.material.density_kg_per_m3, d.material.retardation_time_s};
       try {

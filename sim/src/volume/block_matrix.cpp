@@ -100,31 +100,84 @@ void BlockMatrix::multiply(std::span<const glm::dvec3> x, std::span<glm::dvec3> 
                 y.data());
 }
 
+void BlockMatrix::expand(std::span<glm::dvec3> x, std::span<const HangingNode> hanging) {
+  for (const HangingNode& h : hanging) {
+    glm::dvec3 sum(0.0);
+    for (std::uint32_t m = 0; m < h.masters_count; ++m)
+      sum += h.weights[m] * x[h.masters[m]];
+    x[h.node] = sum;
+  }
+}
+
+void BlockMatrix::restrict_to_masters(std::span<glm::dvec3> v,
+                                      std::span<const HangingNode> hanging) {
+  for (const HangingNode& h : hanging) {
+    for (std::uint32_t m = 0; m < h.masters_count; ++m)
+      v[h.masters[m]] += h.weights[m] * v[h.node];
+    v[h.node] = glm::dvec3(0.0);
+  }
+}
+
 BlockMatrix::SolveStats BlockMatrix::solve(std::span<const glm::dvec3> b, std::span<glm::dvec3> x,
-                                           std::span<const std::uint8_t> fixed, double tolerance,
-                                           int max_iterations) {
+                                           std::span<const std::uint8_t> fixed_nodes,
+                                           double tolerance, int max_iterations,
+                                           std::span<const HangingNode> hanging) {
   const std::size_t n = nodes();
+  // Hanging nodes are no unknowns: held at zero in y, as fixed ones are.
+  std::span<const std::uint8_t> fixed = fixed_nodes;
+  if (!hanging.empty()) {
+    held_or_hanging_.assign(fixed_nodes.begin(), fixed_nodes.end());
+    for (const HangingNode& h : hanging)
+      held_or_hanging_[h.node] = 1;
+    fixed = held_or_hanging_;
+  }
   const auto dot = [&](const std::vector<glm::dvec3>& u, const std::vector<glm::dvec3>& v) {
     double s = 0.0;
     for (std::size_t i = 0; i < n; ++i)
       s += glm::dot(u[i], v[i]);
     return s;
   };
+  // q = P^T A P p, zero on the fixed nodes (p's hanging entries are zero on the way in).
+  const auto apply = [&](std::vector<glm::dvec3>& p, std::vector<glm::dvec3>& q) {
+    expand(p, hanging);
+    multiply(p, q);
+    restrict_to_masters(q, hanging);
+    for (const HangingNode& h : hanging)
+      p[h.node] = glm::dvec3(0.0);
+    for (std::size_t i = 0; i < n; ++i)
+      if (fixed[i]) q[i] = glm::dvec3(0.0);
+  };
+  for (std::size_t i = 0; i < n; ++i)
+    inv_diag_[i] = glm::dmat3(block(diagonal_[i]));
+  // The preconditioner's blocks: a master's own, plus its hanging nodes' by their weights
+  // squared (the cross terms left out: it only has to be close and positive definite).
+  for (const HangingNode& h : hanging) {
+    const glm::dmat3 d(block(diagonal_[h.node]));
+    for (std::uint32_t m = 0; m < h.masters_count; ++m)
+      inv_diag_[h.masters[m]] += (h.weights[m] * h.weights[m]) * d;
+  }
   for (std::size_t i = 0; i < n; ++i) {
-    const glm::dmat3 d(block(diagonal_[i]));
+    const glm::dmat3 d = inv_diag_[i];
     inv_diag_[i] =
         fixed[i] || std::abs(glm::determinant(d)) < 1e-300 ? glm::dmat3(0.0) : glm::inverse(d);
     if (fixed[i]) x[i] = glm::dvec3(0.0);
   }
-  multiply(x, r_);
+  // r = P^T b - P^T A P x.
+  p_.assign(x.begin(), x.end());
+  apply(p_, r_);
+  q_.assign(b.begin(), b.end());
+  restrict_to_masters(q_, hanging);
   double b_norm = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
-    r_[i] = fixed[i] ? glm::dvec3(0.0) : b[i] - r_[i];
-    if (!fixed[i]) b_norm += glm::dot(b[i], b[i]);
+    r_[i] = fixed[i] ? glm::dvec3(0.0) : q_[i] - r_[i];
+    if (!fixed[i]) b_norm += glm::dot(q_[i], q_[i]);
   }
   b_norm = std::sqrt(b_norm);
   SolveStats stats;
-  if (b_norm == 0.0) return stats;
+  if (b_norm == 0.0) {
+    expand(x, hanging);
+    return stats;
+  }
   for (std::size_t i = 0; i < n; ++i)
     p_[i] = z_[i] = inv_diag_[i] * r_[i];
   double rz = dot(r_, z_);
@@ -132,10 +185,11 @@ BlockMatrix::SolveStats BlockMatrix::solve(std::span<const glm::dvec3> b, std::s
     const double r_norm = std::sqrt(dot(r_, r_));
     stats.iterations = it;
     stats.relative_residual = r_norm / b_norm;
-    if (r_norm <= tolerance * b_norm) return stats;
-    multiply(p_, q_);
-    for (std::size_t i = 0; i < n; ++i)
-      if (fixed[i]) q_[i] = glm::dvec3(0.0);
+    if (r_norm <= tolerance * b_norm) {
+      expand(x, hanging);
+      return stats;
+    }
+    apply(p_, q_);
     const double pq = dot(p_, q_);
     if (!(pq > 0.0)) break;  // not positive definite along p: stop with what there is
     const double alpha = rz / pq;
@@ -152,6 +206,7 @@ BlockMatrix::SolveStats BlockMatrix::solve(std::span<const glm::dvec3> b, std::s
   }
   stats.iterations = max_iterations;
   stats.relative_residual = std::sqrt(dot(r_, r_)) / b_norm;
+  expand(x, hanging);
   return stats;
 }
 

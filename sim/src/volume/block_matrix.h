@@ -13,6 +13,8 @@
 #include <glm/mat3x3.hpp>
 #include <glm/vec3.hpp>
 
+#include "bisturi/sim/volume/hex_lattice.h"
+
 namespace bisturi::sim {
 
 class BlockMatrix {
@@ -47,9 +49,16 @@ class BlockMatrix {
     double relative_residual = 0.0;
   };
   /// Solves A x = b over the nodes not fixed (x starts from its given value; fixed entries of
-  /// x are set to zero) until |r| <= tolerance |b| or max_iterations.
+  /// x are set to zero) until |r| <= tolerance |b| or max_iterations. With hanging nodes, over
+  /// the free nodes only: x = P y for the y solving P^T A P y = P^T b, P giving each hanging
+  /// node its masters' weighted sum (x comes back whole, its hanging entries so given).
   SolveStats solve(std::span<const glm::dvec3> b, std::span<glm::dvec3> x,
-                   std::span<const std::uint8_t> fixed, double tolerance, int max_iterations);
+                   std::span<const std::uint8_t> fixed, double tolerance, int max_iterations,
+                   std::span<const HangingNode> hanging = {});
+  /// x's hanging entries set to their masters' weighted sum (P y).
+  static void expand(std::span<glm::dvec3> x, std::span<const HangingNode> hanging);
+  /// Each hanging entry of v moved onto its masters by its weights, and zeroed (P^T v).
+  static void restrict_to_masters(std::span<glm::dvec3> v, std::span<const HangingNode> hanging);
 
  private:
   std::vector<std::uint32_t> row_start_;  ///< CSR over nodes
@@ -58,7 +67,8 @@ class BlockMatrix {
   /// Each block's columns, each padded to 4 floats: a product's column is one 4-wide vector.
   std::vector<std::array<float, 12>> values_;
   std::vector<std::array<std::uint32_t, 64>> cell_slots_;
-  std::vector<glm::dvec3> r_, z_, p_, q_;  // solver scratch
+  std::vector<glm::dvec3> r_, z_, p_, q_;      // solver scratch
+  std::vector<std::uint8_t> held_or_hanging_;  // solver scratch
   std::vector<glm::dmat3> inv_diag_;
   /// multiply()'s operand in single precision, padded to 4 floats.
   mutable std::vector<std::array<float, 4>> x_single_;

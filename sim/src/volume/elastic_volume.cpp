@@ -37,17 +37,6 @@ struct ElasticVolume::Solver {
   std::vector<glm::dmat3> warped_rotation;
 };
 
-namespace {
-
-glm::dvec3 cell_sides(const HexLattice& lattice, std::size_t c) {
-  const auto& ijk = lattice.cell_ijk[c];
-  return {lattice.axis[0][ijk[0] + 1] - lattice.axis[0][ijk[0]],
-          lattice.axis[1][ijk[1] + 1] - lattice.axis[1][ijk[1]],
-          lattice.axis[2][ijk[2] + 1] - lattice.axis[2][ijk[2]]};
-}
-
-}  // namespace
-
 ElasticVolume::ElasticVolume(HexLattice lattice, const ElasticMaterial& material, ElasticLaw law)
     : lattice_(std::move(lattice)), law_(law) {
   check_elastic(material);
@@ -69,7 +58,7 @@ ElasticVolume::ElasticVolume(HexLattice lattice, const ElasticMaterial& material
   std::vector<glm::dvec3> shape_sides;
   s.cell_shape.resize(lattice_.cells.size());
   for (std::size_t c = 0; c < lattice_.cells.size(); ++c) {
-    const glm::dvec3 h = cell_sides(lattice_, c);
+    const glm::dvec3 h = lattice_.cell_sides(c);
     const double node_mass = material.density_kg_per_m3 * h.x * h.y * h.z * lattice_.fill[c] / 8.0;
     for (const std::uint32_t node : lattice_.cells[c])
       mass_[node] += node_mass;
@@ -87,6 +76,13 @@ ElasticVolume::ElasticVolume(ElasticVolume&&) noexcept = default;
 ElasticVolume& ElasticVolume::operator=(ElasticVolume&&) noexcept = default;
 
 void ElasticVolume::hold(std::uint32_t node) {
+  // A hanging node follows its masters: they are held instead.
+  for (const HangingNode& h : lattice_.hanging) {
+    if (h.node != node) continue;
+    for (std::uint32_t m = 0; m < h.masters_count; ++m)
+      hold(h.masters[m]);
+    return;
+  }
   held_.at(node) = 1;
   x_[node] = lattice_.rest[node];
   v_[node] = glm::dvec3(0.0);
@@ -140,6 +136,7 @@ DynamicResult ElasticVolume::advance(std::span<const PointLoad> loads, const Dyn
     s.held_product.resize(n);
     for (std::size_t i = 0; i < n; ++i)
       if (held_[i]) s.held_step[i] = held_velocity_ - v_[i];
+    BlockMatrix::expand(s.held_step, lattice_.hanging);
     s.matrix.multiply(s.held_step, s.held_product);
     for (std::size_t i = 0; i < n; ++i)
       s.force[i] -= s.held_product[i];
@@ -147,7 +144,13 @@ DynamicResult ElasticVolume::advance(std::span<const PointLoad> loads, const Dyn
   // Warm start: the last step's velocity change (the motion changes smoothly step to step).
   if (s.step.size() != n) s.step.assign(n, glm::dvec3(0.0));
   const BlockMatrix::SolveStats cg =
-      s.matrix.solve(s.force, s.step, held_, o.cg_tolerance, o.max_cg);
+      s.matrix.solve(s.force, s.step, held_, o.cg_tolerance, o.max_cg, lattice_.hanging);
+  if (!lattice_.hanging.empty()) {
+    // The hanging nodes follow the held ones at their given change too.
+    for (std::size_t i = 0; i < n; ++i)
+      if (held_[i]) s.step[i] = held_velocity_ - v_[i];
+    BlockMatrix::expand(s.step, lattice_.hanging);
+  }
   for (std::size_t i = 0; i < n; ++i) {
     if (held_[i]) {
       v_[i] = held_velocity_;
@@ -178,7 +181,7 @@ double ElasticVolume::step_compliance(std::span<const PointLoad> contact,
       s.unit_load[cell[a]] += (share * c.point.weights[a]) * direction;
   }
   // The step's matrix as advance() left it: A dv = h f, dx = h dv.
-  s.matrix.solve(s.unit_load, s.give, held_, cg_tolerance, max_cg);
+  s.matrix.solve(s.unit_load, s.give, held_, cg_tolerance, max_cg, lattice_.hanging);
   double along = 0.0;
   for (std::size_t i = 0; i < n; ++i)
     if (!held_[i]) along += glm::dot(s.unit_load[i], s.give[i]);
@@ -209,9 +212,12 @@ PressResult ElasticVolume::press_sphere(std::span<const EmbeddedPoint> points,
 
   PressResult result;
   const auto residual_norm = [&] {
+    // A hanging node's force is its masters' (restricted: its own entry comes back zero).
+    s.product.assign(s.force.begin(), s.force.end());
+    BlockMatrix::restrict_to_masters(s.product, lattice_.hanging);
     double r = 0.0;
     for (std::size_t i = 0; i < n; ++i)
-      if (!held_[i]) r = std::max(r, glm::length(s.force[i]));
+      if (!held_[i]) r = std::max(r, glm::length(s.product[i]));
     return r;
   };
   for (int it = 0; it < o.max_newton; ++it) {
@@ -235,7 +241,7 @@ PressResult ElasticVolume::press_sphere(std::span<const EmbeddedPoint> points,
     }
     std::fill(s.step.begin(), s.step.end(), glm::dvec3(0.0));
     const BlockMatrix::SolveStats cg =
-        s.matrix.solve(s.force, s.step, held_, o.cg_tolerance, o.max_cg);
+        s.matrix.solve(s.force, s.step, held_, o.cg_tolerance, o.max_cg, lattice_.hanging);
     result.cg_iterations += cg.iterations;
     // Backtracking: the Newton matrix is the corotated linear one, softer than neo-Hookean
     // tissue in compression, so a full step may overshoot; halve it while the residual grows.
@@ -296,7 +302,7 @@ void ElasticVolume::assemble_elements(bool with_matrix, double warp_tolerance, d
   std::fill(s.force.begin(), s.force.end(), glm::dvec3(0.0));
   for (std::size_t c = 0; c < lattice_.cells.size(); ++c) {
     const auto& cell = lattice_.cells[c];
-    const glm::dvec3 h = cell_sides(lattice_, c);
+    const glm::dvec3 h = lattice_.cell_sides(c);
     const std::array<glm::dvec3, 8> g = centre_gradients(h);
     glm::dmat3 f(0.0);
     for (std::size_t a = 0; a < 8; ++a)

@@ -17,11 +17,12 @@ std::vector<EmbeddedPoint> embed_points(const HexLattice& lattice,
                                   " lies in no cell of the lattice");
     }
     const auto& ijk = lattice.cell_ijk[static_cast<std::size_t>(cell)];
+    const std::size_t n = lattice.span(static_cast<std::size_t>(cell));
     glm::dvec3 t;
     for (int a = 0; a < 3; ++a) {
       const std::vector<double>& x = lattice.axis[static_cast<std::size_t>(a)];
       const std::size_t i = ijk[static_cast<std::size_t>(a)];
-      t[a] = std::clamp((points[p][a] - x[i]) / (x[i + 1] - x[i]), 0.0, 1.0);
+      t[a] = std::clamp((points[p][a] - x[i]) / (x[i + n] - x[i]), 0.0, 1.0);
     }
     EmbeddedPoint e;
     e.cell = static_cast<std::uint32_t>(cell);

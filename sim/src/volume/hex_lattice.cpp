@@ -72,6 +72,13 @@ std::array<std::uint32_t, 3> HexLattice::locate(const glm::dvec3& p) const {
   return ijk;
 }
 
+glm::dvec3 HexLattice::cell_sides(std::size_t c) const {
+  const auto& ijk = cell_ijk[c];
+  const std::uint32_t n = span(c);
+  return {axis[0][ijk[0] + n] - axis[0][ijk[0]], axis[1][ijk[1] + n] - axis[1][ijk[1]],
+          axis[2][ijk[2] + n] - axis[2][ijk[2]]};
+}
+
 std::int32_t HexLattice::kept_cell(const glm::dvec3& p) const {
   const auto [i, j, k] = locate(p);
   const auto d = cell_dims();

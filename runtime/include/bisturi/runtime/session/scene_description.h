@@ -84,6 +84,14 @@ struct SolidDescription {
   enum class Model { Surface, Volume } model = Model::Surface;
   bool model_given = false;
   double cell_mm = 8.0;
+  /// Where the volume's cells are split finer (sim/volume/volume_body.h): the cells meeting the
+  /// cube of half_width_mm about centre_mm (scene frame), each into factor^3.
+  struct Refinement {
+    std::array<double, 3> centre_mm{0, 0, 0};
+    double half_width_mm = 0.0;
+    int factor = 2;
+  };
+  std::optional<Refinement> refine;
   /// The solid's weight is carried by the tissues around it, as in the scan it came from (an
   /// organ in situ is in equilibrium with them): no gravity on its volume (model volume only).
   bool supported = false;

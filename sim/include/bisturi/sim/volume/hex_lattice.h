@@ -31,6 +31,17 @@ struct LatticeOptions {
   double floor_cell_m = 0.0;
 };
 
+/// A node of a fine cell that lies on a face or an edge of a coarser neighbour without being one
+/// of its corners: it is not free, but follows that face or edge (its position, velocity and
+/// every motion are its masters' by bilinear or linear weights), so the fine and the coarse
+/// cells stay joined. The solve works on the free nodes only (BlockMatrix::solve).
+struct HangingNode {
+  std::uint32_t node = 0;
+  std::uint32_t masters_count = 0;  ///< 2 on an edge, 4 on a face
+  std::array<std::uint32_t, 4> masters{};
+  std::array<double, 4> weights{};
+};
+
 struct HexLattice {
   /// Node coordinates along x, y and z (rest, metres): node (i, j, k) is at
   /// (axis[0][i], axis[1][j], axis[2][k]).
@@ -40,8 +51,20 @@ struct HexLattice {
   std::vector<std::array<std::uint32_t, 8>> cells;
   std::vector<std::array<std::uint32_t, 3>> cell_ijk;  ///< the cell's lattice position
   std::vector<double> fill;  ///< share of each cell's volume inside the surface, (0, 1]
-  /// The kept cell at lattice position (i, j, k), or -1: cell_at[(k * ny + j) * nx + i].
+  /// The kept cell at lattice position (i, j, k), or -1: cell_at[(k * ny + j) * nx + i]. A
+  /// cell spanning several positions is at each of them.
   std::vector<std::int32_t> cell_at;
+  /// Per cell, how many lattice positions it spans along each axis (a coarse cell of a
+  /// two-level lattice); empty: every cell spans one.
+  std::vector<std::uint32_t> cell_span;
+  /// The nodes that follow a coarser neighbour's face or edge (a two-level lattice's).
+  std::vector<HangingNode> hanging;
+
+  [[nodiscard]] std::uint32_t span(std::size_t cell) const {
+    return cell_span.empty() ? 1u : cell_span[cell];
+  }
+  /// Cell c's sides (metres).
+  [[nodiscard]] glm::dvec3 cell_sides(std::size_t c) const;
 
   [[nodiscard]] std::array<std::size_t, 3> cell_dims() const {
     return {axis[0].size() - 1, axis[1].size() - 1, axis[2].size() - 1};
@@ -51,6 +74,18 @@ struct HexLattice {
   /// The kept cell containing p, or -1.
   [[nodiscard]] std::int32_t kept_cell(const glm::dvec3& p) const;
 };
+
+/// A lattice of two resolutions: cells of `coarse_m` over the closed surface, but those meeting
+/// the box [refine_lo, refine_hi] split into factor^3 cells, the fine nodes on the faces between
+/// the two sizes hanging on the coarse cells' corners. Cells are kept as build_hex_lattice keeps
+/// them (fill_samples per fine cell). Throws std::invalid_argument on an empty surface or bad
+/// options.
+HexLattice build_two_level_lattice(std::span<const glm::dvec3> vertices,
+                                   std::span<const std::array<std::uint32_t, 3>> triangles,
+                                   double coarse_m, std::uint32_t factor,
+                                   const glm::dvec3& refine_lo, const glm::dvec3& refine_hi,
+                                   int fill_samples = 3,
+                                   std::span<const glm::dvec3> also_embed = {});
 
 /// Node coordinates from lo to hi: cells of `finest` within fine_half_width of `centre`, then
 /// each `growth` times the last up to `coarsest`; with lo_cell > 0 the cells shrink again

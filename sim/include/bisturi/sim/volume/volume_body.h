@@ -21,8 +21,14 @@
 namespace bisturi::sim {
 
 struct VolumeOptions {
-  /// Cell side (metres): the lattice is uniform at this size.
+  /// Cell side (metres): the lattice is uniform at this size, but for the refined box.
   double cell_m = 0.006;
+  /// Cells meeting the cube of this half width about refine_centre_m are split into
+  /// refine_factor^3 (hex_lattice.h, build_two_level_lattice): resolution where the instrument
+  /// works. 1: none.
+  std::uint32_t refine_factor = 1;
+  glm::dvec3 refine_centre_m{0.0};
+  double refine_half_width_m = 0.0;
   ElasticMaterial material;
   ElasticLaw law = ElasticLaw::Corotational;
   /// Stiffness of the spring pulling a grasped vertex to its target (N/m); 0: 20 E h, what
