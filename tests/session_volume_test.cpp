@@ -183,16 +183,19 @@ TEST(SceneFile, RefineSplitsTheVolumesCellsInABox) {
                              std::to_string(middle.x) + ", " + std::to_string(middle.y) + ", " +
                              std::to_string(middle.z) + "]\n";
   const SceneDescription scene = parse_scene(
-      solid_with(refine + "factor = 4\nhalf_width_mm = 6.0", "preset = 'liver'"), "scene.toml");
+      solid_with(refine + "factor = 4\nhalf_width_mm = 6.0\nfollow = true", "preset = 'liver'"),
+      "scene.toml");
   ASSERT_TRUE(scene.solids[0].refine.has_value());
   EXPECT_EQ(scene.solids[0].refine->factor, 4);
   EXPECT_DOUBLE_EQ(scene.solids[0].refine->half_width_mm, 6.0);
+  EXPECT_TRUE(scene.solids[0].refine->follow);
   SessionSim sim(scene, build_solids(scene), std::vector<devices::ForceChannel>{});
   SessionSim coarse(plain, build_solids(plain), std::vector<devices::ForceChannel>{});
   const sim::HexLattice& lattice = sim.world().volume(0)->volume().lattice();
   EXPECT_FALSE(lattice.hanging.empty());
   EXPECT_GT(lattice.cells.size(), coarse.world().volume(0)->volume().lattice().cells.size());
   EXPECT_NEAR(sim.world().volume(0)->volume().finest_cell_m(), 0.002, 1e-9);
+  EXPECT_TRUE(sim.world().volume(0)->options().refine_follows);
   // Twice the cell by default; the factor 2 to 4; for volumes only; a centre it must have.
   EXPECT_DOUBLE_EQ(parse_scene(solid_with(refine, "preset = 'liver'"), "scene.toml")
                        .solids[0]

@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <vector>
@@ -22,26 +23,37 @@ namespace {
 constexpr double kRadius_m = 0.015;
 const glm::dvec3 kCentre_m(0.0195, 0.0195, 0.0195);  // sphere(40, 15 mm)
 
-/// The sphere with its lowest 3 mm anchored, stepped by a liver-like volume of 3 mm cells;
-/// exact_solve: each step's solve to a residual of 1e-9 (not the session's 1e-3).
-SimWorld volume_world(bool gravity, bool exact_solve = false) {
-  WorldOptions options;
-  if (!gravity) options.integrator.gravity_m_s2 = glm::dvec3(0.0);
-  SimWorld world(options);
+/// The sphere with its lowest 3 mm anchored.
+SoftBody anchored_sphere() {
   SoftBody body(testing::sphere(40, kRadius_m * 1e3), Material{});
   for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
     const VertexId v(i);
     if (body.mesh().alive(v) && body.position(v).z < kCentre_m.z - kRadius_m + 0.003)
       body.set_anchored(v, true);
   }
-  world.add_body(std::move(body));
+  return body;
+}
+
+/// A liver-like volume of 3 mm cells.
+VolumeOptions liver_cells() {
   VolumeOptions volume;
   volume.cell_m = 0.003;
+  volume.material = tissue_preset("liver").material;
+  return volume;
+}
+
+/// The anchored sphere stepped by a liver-like volume of 3 mm cells; exact_solve: each step's
+/// solve to a residual of 1e-9 (not the session's 1e-3).
+SimWorld volume_world(bool gravity, bool exact_solve = false) {
+  WorldOptions options;
+  if (!gravity) options.integrator.gravity_m_s2 = glm::dvec3(0.0);
+  SimWorld world(options);
+  world.add_body(anchored_sphere());
+  VolumeOptions volume = liver_cells();
   if (exact_solve) {
     volume.cg_tolerance = 1e-9;
     volume.max_cg = 2000;
   }
-  volume.material = tissue_preset("liver").material;
   world.set_volume(0, volume);
   world.prepare();
   return world;
@@ -126,6 +138,73 @@ TEST(SimVolumeBody, TheComplianceUnderTheProbeGivesTheNextStepsForce) {
     EXPECT_NEAR(change, stiffness * further_m, 0.05 * stiffness * further_m)
         << "at " << depth_m * 1e3 << " mm: the tissue gives " << held[0].compliance_m_per_N
         << " m/N; the coupling alone would predict " << coupling * further_m << " N";
+  }
+}
+
+TEST(SimVolumeBody, ARefinedBoxFollowsTheProbeWithoutAJump) {
+  // 3 mm cells split in 8 within 8 mm of the contact, following it: the probe presses the top
+  // 2 mm deep, then slides 12 mm along the surface. The box moves with it (its centre within a
+  // cell of the contact), and no move jolts the surface or the force beyond what a step does.
+  WorldOptions options;
+  options.integrator.gravity_m_s2 = glm::dvec3(0.0);
+  options.haptic.probe_radius_m = 0.003;
+  SimWorld world(options);
+  world.add_body(anchored_sphere());
+  VolumeOptions volume = liver_cells();
+  volume.refine_factor = 2;
+  volume.refine_centre_m = kCentre_m + glm::dvec3(0.0, 0.0, kRadius_m);
+  volume.refine_half_width_m = 0.008;
+  volume.refine_follows = true;
+  world.set_volume(0, volume);
+  world.prepare();
+  const double probe = options.haptic.probe_radius_m;
+  // The tip 2 mm deep at polar angle a (radians) from the top, in the x-z plane.
+  const auto tip = [&](double a) {
+    return kCentre_m + (kRadius_m + probe - 0.002) * glm::dvec3(std::sin(a), 0.0, std::cos(a));
+  };
+  HapticOutput out;
+  for (int s = 0; s < 300; ++s)
+    out = world.step(tip(0.0));
+  const VolumeBody& v = *world.volume(0);
+  EXPECT_EQ(v.refocus_count(), 0u);
+  const double slide = 0.012 / kRadius_m;  // 12 mm of arc
+  const int steps = 600;
+  double largest_force_change = 0.0, largest_move_change = 0.0, largest_force = 0.0;
+  std::vector<glm::dvec3> before(world.body(0).positions().begin(),
+                                 world.body(0).positions().end());
+  double last_move = 0.0;
+  for (int s = 1; s <= steps; ++s) {
+    const std::uint64_t moved = v.refocus_count();
+    const HapticOutput next = world.step(tip(slide * s / steps));
+    double move = 0.0;
+    const auto& x = world.body(0).positions();
+    for (std::size_t i = 0; i < before.size(); ++i)
+      move = std::max(move, glm::length(x[i] - before[i]));
+    before.assign(x.begin(), x.end());
+    largest_force = std::max(largest_force, glm::length(next.force_N));
+    if (v.refocus_count() != moved) {
+      largest_force_change =
+          std::max(largest_force_change, glm::length(next.force_N - out.force_N));
+      largest_move_change = std::max(largest_move_change, move - last_move);
+    }
+    last_move = move;
+    out = next;
+  }
+  // It moves when the contact is half its half width (4 mm) from its centre: twice in 12 mm.
+  EXPECT_GE(v.refocus_count(), 2u);
+  const glm::dvec3 under_tip =
+      kCentre_m + kRadius_m * glm::dvec3(std::sin(slide), 0.0, std::cos(slide));
+  const glm::dvec3 off = glm::abs(v.options().refine_centre_m - under_tip);
+  EXPECT_LT(std::max({off.x, off.y, off.z}), 0.004 + 0.002) << "the box stayed behind";
+  EXPECT_LT(largest_force_change, 0.1 * largest_force) << "of " << largest_force << " N";
+  EXPECT_LT(largest_move_change, 1e-4) << "a surface vertex jumped (m)";
+  const HexLattice& lattice = v.volume().lattice();
+  ASSERT_FALSE(lattice.hanging.empty());
+  for (const HangingNode& h : lattice.hanging) {
+    glm::dvec3 at(0.0);
+    for (std::uint32_t k = 0; k < h.masters_count; ++k)
+      at += h.weights[k] * v.volume().positions()[h.masters[k]];
+    EXPECT_LT(glm::length(at - v.volume().positions()[h.node]), 1e-12);
   }
 }
 

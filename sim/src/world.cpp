@@ -102,6 +102,17 @@ void SimWorld::step(std::span<const glm::dvec3> devices_m, std::span<HapticOutpu
     out[p].compliance_m_per_N = touched ? touched->probe_compliance(p) : 0.0;
     out[p].patch_velocity_m_s = touched ? touched->probe_patch_velocity(p) : glm::dvec3(0.0);
   }
+  // A refined box that follows the first probe moves to its contact (the next step on): the
+  // surface under the proxy, a probe radius below it towards the tip.
+  if (!out.empty() && out[0].contact && out[0].body >= 0 && out[0].depth_m > 0.0) {
+    const auto b = static_cast<std::uint32_t>(out[0].body);
+    const glm::dvec3 inward = glm::normalize(devices_m[0] - out[0].proxy_m);
+    const glm::dvec3 contact = out[0].proxy_m + options_.haptic.probe_radius_m * inward;
+    if (volumes_[b] && volumes_[b]->should_follow(contact)) {
+      volumes_[b]->refocus(bodies_[b], contact);
+      bvhs_[b].update(bodies_[b]);
+    }
+  }
   ++steps_;
 }
 

@@ -298,6 +298,8 @@ int run_run(const RunOptions& options) {
       solid["volume_cells"] = s.volume_cells;
       solid["volume_nodes"] = s.volume_nodes;
       solid["volume_build_ms"] = s.volume_build_ms;
+      solid["volume_refocuses"] = s.volume_refocuses;
+      solid["volume_longest_refocus_ms"] = s.volume_longest_refocus_ms;
     }
     solids.push_back(std::move(solid));
   }

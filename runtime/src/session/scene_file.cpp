@@ -399,12 +399,13 @@ class SceneReader {
       const std::string at = path + ".refine";
       if (s.model != SolidDescription::Model::Volume)
         fail(t.get("refine"), t, at, "only for model = \"volume\"");
-      only_keys(*r, at, {"centre_mm", "half_width_mm", "factor"});
+      only_keys(*r, at, {"centre_mm", "half_width_mm", "factor", "follow"});
       SolidDescription::Refinement refine;
       refine.centre_mm = numbers<3>(*r, at, "centre_mm", refine.centre_mm);
       if (!r->contains("centre_mm")) fail(t.get("refine"), t, at, "needs centre_mm");
       refine.half_width_mm = positive(*r, at, "half_width_mm", 2.0 * s.cell_mm);
       refine.factor = static_cast<int>(integer(*r, at, "factor", refine.factor, 2, 4));
+      refine.follow = boolean(*r, at, "follow", refine.follow);
       s.refine = refine;
     }
     s.supported = boolean(t, path, "supported", s.supported);

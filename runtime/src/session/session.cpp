@@ -616,6 +616,12 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   report.overruns = overruns.load();
   report.realtime_priority = realtime.load();
   report.final_state_hash = sim.state_hash();
+  for (std::uint32_t b = 0; b < report.solids.size(); ++b) {
+    if (const sim::VolumeBody* volume = sim.world().volume(b)) {
+      report.solids[b].volume_refocuses = volume->refocus_count();
+      report.solids[b].volume_longest_refocus_ms = volume->longest_refocus_ms();
+    }
+  }
   {
     const sim::BloodCounts& c = sim.blood().counts();
     report.bleeding = {c.emitted,

@@ -152,6 +152,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
         volume.refine_centre_m = sim::scene_to_sim(
             glm::dvec3(d.refine->centre_mm[0], d.refine->centre_mm[1], d.refine->centre_mm[2]));
         volume.refine_half_width_m = d.refine->half_width_mm * sim::kMetresPerMillimetre;
+        volume.refine_follows = d.refine->follow;
       }
       volume.material = {d.material.youngs_modulus_kPa, d.material.poisson_ratio,
                          d.material.density_kg_per_m3, d.material.retardation_time_s};

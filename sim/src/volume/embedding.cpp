@@ -6,32 +6,38 @@
 
 namespace bisturi::sim {
 
+std::optional<EmbeddedPoint> embed_point(const HexLattice& lattice, const glm::dvec3& point) {
+  const std::int32_t cell = lattice.kept_cell(point);
+  if (cell < 0) return std::nullopt;
+  const auto& ijk = lattice.cell_ijk[static_cast<std::size_t>(cell)];
+  const std::size_t n = lattice.span(static_cast<std::size_t>(cell));
+  glm::dvec3 t;
+  for (int a = 0; a < 3; ++a) {
+    const std::vector<double>& x = lattice.axis[static_cast<std::size_t>(a)];
+    const std::size_t i = ijk[static_cast<std::size_t>(a)];
+    t[a] = std::clamp((point[a] - x[i]) / (x[i + n] - x[i]), 0.0, 1.0);
+  }
+  EmbeddedPoint e;
+  e.cell = static_cast<std::uint32_t>(cell);
+  for (int c = 0; c < 8; ++c) {
+    e.weights[static_cast<std::size_t>(c)] = ((c & 1) ? t.x : 1.0 - t.x) *
+                                             (((c >> 1) & 1) ? t.y : 1.0 - t.y) *
+                                             (((c >> 2) & 1) ? t.z : 1.0 - t.z);
+  }
+  return e;
+}
+
 std::vector<EmbeddedPoint> embed_points(const HexLattice& lattice,
                                         std::span<const glm::dvec3> points) {
   std::vector<EmbeddedPoint> out;
   out.reserve(points.size());
   for (std::size_t p = 0; p < points.size(); ++p) {
-    const std::int32_t cell = lattice.kept_cell(points[p]);
-    if (cell < 0) {
+    const std::optional<EmbeddedPoint> e = embed_point(lattice, points[p]);
+    if (!e) {
       throw std::invalid_argument("embed_points: point " + std::to_string(p) +
                                   " lies in no cell of the lattice");
     }
-    const auto& ijk = lattice.cell_ijk[static_cast<std::size_t>(cell)];
-    const std::size_t n = lattice.span(static_cast<std::size_t>(cell));
-    glm::dvec3 t;
-    for (int a = 0; a < 3; ++a) {
-      const std::vector<double>& x = lattice.axis[static_cast<std::size_t>(a)];
-      const std::size_t i = ijk[static_cast<std::size_t>(a)];
-      t[a] = std::clamp((points[p][a] - x[i]) / (x[i + n] - x[i]), 0.0, 1.0);
-    }
-    EmbeddedPoint e;
-    e.cell = static_cast<std::uint32_t>(cell);
-    for (int c = 0; c < 8; ++c) {
-      e.weights[static_cast<std::size_t>(c)] = ((c & 1) ? t.x : 1.0 - t.x) *
-                                               (((c >> 1) & 1) ? t.y : 1.0 - t.y) *
-                                               (((c >> 2) & 1) ? t.z : 1.0 - t.z);
-    }
-    out.push_back(e);
+    out.push_back(*e);
   }
   return out;
 }

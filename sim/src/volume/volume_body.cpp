@@ -1,6 +1,7 @@
 #include "bisturi/sim/volume/volume_body.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <string>
 
@@ -8,10 +9,58 @@
 #include <glm/gtx/norm.hpp>
 
 #include "bisturi/sim/errors.h"
+#include "block_matrix.h"
 
 namespace bisturi::sim {
 
 namespace {
+
+/// Where the lattice's motion takes `p` (positions or velocities of its nodes in `field`): in
+/// its kept cell, or, outside every kept cell (a corner of a coarse cell in the air, where the
+/// fine cells were not kept), extrapolated from the nearest kept cell within two positions.
+/// False when there is none.
+bool motion_at(const HexLattice& lattice, std::span<const glm::dvec3> field, const glm::dvec3& p,
+               glm::dvec3& out) {
+  if (const std::optional<EmbeddedPoint> at = embed_point(lattice, p)) {
+    out = embedded_position(lattice, field, *at);
+    return true;
+  }
+  const auto ijk = lattice.locate(p);
+  const auto d = lattice.cell_dims();
+  std::int32_t best = -1;
+  double best_distance = INFINITY;
+  for (int dk = -2; dk <= 2; ++dk)
+    for (int dj = -2; dj <= 2; ++dj)
+      for (int di = -2; di <= 2; ++di) {
+        const long i = long(ijk[0]) + di, j = long(ijk[1]) + dj, k = long(ijk[2]) + dk;
+        if (i < 0 || j < 0 || k < 0 || i >= long(d[0]) || j >= long(d[1]) || k >= long(d[2]))
+          continue;
+        const std::int32_t c =
+            lattice.cell_at[(std::size_t(k) * d[1] + std::size_t(j)) * d[0] + std::size_t(i)];
+        if (c < 0) continue;
+        const auto& o = lattice.cell_ijk[std::size_t(c)];
+        const glm::dvec3 centre =
+            glm::dvec3(lattice.axis[0][o[0]], lattice.axis[1][o[1]], lattice.axis[2][o[2]]) +
+            0.5 * lattice.cell_sides(std::size_t(c));
+        const double distance = glm::length(centre - p);
+        if (distance < best_distance) {
+          best_distance = distance;
+          best = c;
+        }
+      }
+  if (best < 0) return false;
+  // Trilinear weights past the cell's faces: the cell's motion, continued.
+  const auto& o = lattice.cell_ijk[std::size_t(best)];
+  const glm::dvec3 lo(lattice.axis[0][o[0]], lattice.axis[1][o[1]], lattice.axis[2][o[2]]);
+  const glm::dvec3 t = (p - lo) / lattice.cell_sides(std::size_t(best));
+  out = glm::dvec3(0.0);
+  for (std::uint32_t c = 0; c < 8; ++c) {
+    const double w = ((c & 1u) ? t.x : 1.0 - t.x) * (((c >> 1) & 1u) ? t.y : 1.0 - t.y) *
+                     (((c >> 2) & 1u) ? t.z : 1.0 - t.z);
+    out += w * field[lattice.cells[std::size_t(best)][c]];
+  }
+  return true;
+}
 
 /// The compliance is one number, u^T A^-1 u: its error is about the square of the solve's
 /// relative residual, so a loose solve gives it to well under a percent.
@@ -62,11 +111,56 @@ VolumeBody::VolumeBody(const SoftBody& body, const VolumeOptions& options)
                                   ? options.target_stiffness_N_per_m
                                   : 20.0 * volume_.youngs_modulus_Pa() * volume_.finest_cell_m();
   embed_slots(body);
+  hold_anchored(body);
+}
+
+void VolumeBody::hold_anchored(const SoftBody& body) {
   for (std::uint32_t i = 0; i < embedded_.size(); ++i) {
     if (!embedded_[i] || !body.anchored(VertexId(i))) continue;
     for (const std::uint32_t node : volume_.lattice().cells[embedding_[i].cell])
       volume_.hold(node);
   }
+}
+
+bool VolumeBody::should_follow(const glm::dvec3& point_m) const {
+  if (!options_.refine_follows || options_.refine_factor <= 1) return false;
+  const glm::dvec3 d = glm::abs(point_m - options_.refine_centre_m);
+  return std::max({d.x, d.y, d.z}) > 0.5 * options_.refine_half_width_m;
+}
+
+void VolumeBody::refocus(SoftBody& body, const glm::dvec3& centre_m) {
+  const auto begin = std::chrono::steady_clock::now();
+  VolumeOptions options = options_;
+  options.refine_centre_m = centre_m;
+  ElasticVolume next = build_volume(body, options);
+  // The new nodes where the old lattice has moved their rest positions to; a node far from
+  // every old cell (none should be: both fill the same surface) moves with the supports.
+  const HexLattice& old = volume_.lattice();
+  const std::vector<glm::dvec3>& rest = next.lattice().rest;
+  std::vector<glm::dvec3> x(rest.size()), v(rest.size());
+  for (std::size_t i = 0; i < rest.size(); ++i) {
+    if (!motion_at(old, volume_.positions(), rest[i], x[i]) ||
+        !motion_at(old, volume_.velocities(), rest[i], v[i])) {
+      x[i] = rest[i] + volume_.held_offset();
+      v[i] = volume_.held_velocity();
+    }
+  }
+  // A hanging node on its new faces, whatever the old cells gave it.
+  BlockMatrix::expand(x, next.lattice().hanging);
+  BlockMatrix::expand(v, next.lattice().hanging);
+  const glm::dvec3 held_velocity = volume_.held_velocity();
+  volume_ = std::move(next);
+  options_ = options;
+  std::fill(embedded_.begin(), embedded_.end(), std::uint8_t{0});
+  embed_slots(body);
+  hold_anchored(body);
+  volume_.set_state(x, v);
+  volume_.set_held_velocity(held_velocity);
+  write_surface(body);
+  ++refocus_count_;
+  longest_refocus_ms_ = std::max(
+      longest_refocus_ms_,
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin).count());
 }
 
 void VolumeBody::embed_slots(const SoftBody& body) {

@@ -90,6 +90,9 @@ struct SolidDescription {
     std::array<double, 3> centre_mm{0, 0, 0};
     double half_width_mm = 0.0;
     int factor = 2;
+    /// The box moves to the first hand's contact on the solid when it presses more than half
+    /// the half width from the box's centre.
+    bool follow = false;
   };
   std::optional<Refinement> refine;
   /// The solid's weight is carried by the tissues around it, as in the scan it came from (an

@@ -113,6 +113,9 @@ struct SolidReport {
   std::size_t volume_cells = 0;   ///< a volume's hexahedra, and their nodes
   std::size_t volume_nodes = 0;
   double volume_build_ms = 0.0;  ///< the volume's lattice, elements and embedding
+  /// A refined box that follows the instrument: how often it moved, and its longest rebuild.
+  std::uint64_t volume_refocuses = 0;
+  double volume_longest_refocus_ms = 0.0;
 };
 
 /// A vessel that pulses with the heartbeat: its lumen pressure over the beat.

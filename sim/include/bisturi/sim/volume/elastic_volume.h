@@ -104,6 +104,7 @@ class ElasticVolume {
   /// moves: breathing displaces an organ through its attachment); zero holds them where they
   /// are. The free nodes follow through the elements.
   void set_held_velocity(const glm::dvec3& velocity_m_s) { held_velocity_ = velocity_m_s; }
+  [[nodiscard]] const glm::dvec3& held_velocity() const { return held_velocity_; }
   /// Where the held nodes are, as a displacement from their rest positions (zero without any).
   [[nodiscard]] glm::dvec3 held_offset() const;
 

@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -19,6 +20,9 @@ struct EmbeddedPoint {
   std::uint32_t cell = 0;
   std::array<double, 8> weights{};  ///< by corner, summing to 1
 };
+
+/// The point's cell and weights at rest, or none when it lies in no kept cell.
+std::optional<EmbeddedPoint> embed_point(const HexLattice& lattice, const glm::dvec3& point);
 
 /// Each point's cell and weights at rest. Throws std::invalid_argument naming the first point
 /// that lies in no kept cell.

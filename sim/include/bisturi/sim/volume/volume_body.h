@@ -29,6 +29,10 @@ struct VolumeOptions {
   std::uint32_t refine_factor = 1;
   glm::dvec3 refine_centre_m{0.0};
   double refine_half_width_m = 0.0;
+  /// The refined box follows the first haptic probe: when its contact on this body is more
+  /// than half the half width from the box's centre, the lattice is built again about it
+  /// (VolumeBody::refocus), and the cells it left are coarse again.
+  bool refine_follows = false;
   ElasticMaterial material;
   ElasticLaw law = ElasticLaw::Corotational;
   /// Stiffness of the spring pulling a grasped vertex to its target (N/m); 0: 20 E h, what
@@ -58,6 +62,20 @@ class VolumeBody {
   /// After a topology change: embeds the vertices the body gained (at their rest positions).
   void sync_topology(const SoftBody& body);
 
+  /// Builds the lattice again with its refined box about `centre_m` (a two-level lattice
+  /// only): the new nodes take the old lattice's motion where they are (positions and
+  /// velocities interpolated in the old cells), the surface is embedded again and the anchored
+  /// cells held again. Allocates and takes a few milliseconds: between steps, on the tissue's
+  /// thread.
+  void refocus(SoftBody& body, const glm::dvec3& centre_m);
+  /// Whether a contact at `point_m` is far enough from the refined box's centre for a
+  /// following box to move (refine_follows).
+  [[nodiscard]] bool should_follow(const glm::dvec3& point_m) const;
+  [[nodiscard]] const VolumeOptions& options() const { return options_; }
+  /// How many times the box moved, and the longest rebuild (ms).
+  [[nodiscard]] std::uint64_t refocus_count() const { return refocus_count_; }
+  [[nodiscard]] double longest_refocus_ms() const { return longest_refocus_ms_; }
+
   [[nodiscard]] const ElasticVolume& volume() const { return volume_; }
   /// The anchored part (its held cells) moves at `velocity` from the next step on, the rest
   /// following through the elements (ElasticVolume::set_held_velocity): breathing.
@@ -82,6 +100,8 @@ class VolumeBody {
  private:
   /// Embeds the alive vertex slots not embedded yet (at their rest positions).
   void embed_slots(const SoftBody& body);
+  /// Holds the nodes of the cells holding an anchored vertex.
+  void hold_anchored(const SoftBody& body);
   /// The body's loads as point loads on the lattice (into loads_).
   void gather_loads(const SoftBody& body);
   void write_surface(SoftBody& body) const;
@@ -104,6 +124,8 @@ class VolumeBody {
   std::vector<double> probe_speed_;
   std::vector<std::uint8_t> loaded_;  // scratch: per vertex slot
   std::vector<glm::dvec3> saved_x_, saved_v_;
+  std::uint64_t refocus_count_ = 0;
+  double longest_refocus_ms_ = 0.0;
 };
 
 }  // namespace bisturi::sim
