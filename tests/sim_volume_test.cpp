@@ -227,7 +227,7 @@ TEST(TwoLevelLattice, FillsASphereHangsItsFineNodesOnTheCoarseAndEmbedsEveryVert
   // 3 mm cells, split in 27 within 4 mm of the top.
   const glm::dvec3 top(0.001, -0.002, 0.013);
   const HexLattice lattice = build_two_level_lattice(
-      s.vertices, s.triangles, 0.003, 3, top - glm::dvec3(0.004), top + glm::dvec3(0.004));
+      s.vertices, s.triangles, {0.003, 3, {{top - glm::dvec3(0.004), top + glm::dvec3(0.004)}}});
   std::size_t fine = 0, coarse = 0;
   double volume = 0.0;
   for (std::size_t c = 0; c < lattice.cells.size(); ++c) {
@@ -285,14 +285,15 @@ TEST(TwoLevelLattice, PressedWhereItIsFineItGivesTheFineLatticesForce) {
     if (nodes) nodes->assign(volume.positions().begin(), volume.positions().end());
     return r.probe_force_N.z;
   };
-  const glm::dvec3 none(-1.0);
   const double coarse =
-      press(build_two_level_lattice(s.vertices, s.triangles, 0.0025, 1, none, none), nullptr);
+      press(build_two_level_lattice(s.vertices, s.triangles, {0.0025, 1, {}}), nullptr);
   const double fine =
-      press(build_two_level_lattice(s.vertices, s.triangles, 0.00125, 1, none, none), nullptr);
-  const HexLattice two = build_two_level_lattice(s.vertices, s.triangles, 0.0025, 2,
-                                                 probe - glm::dvec3(0.006, 0.006, 0.006),
-                                                 probe + glm::dvec3(0.006, 0.006, 0.001));
+      press(build_two_level_lattice(s.vertices, s.triangles, {0.00125, 1, {}}), nullptr);
+  const HexLattice two = build_two_level_lattice(
+      s.vertices, s.triangles,
+      {0.0025,
+       2,
+       {{probe - glm::dvec3(0.006, 0.006, 0.006), probe + glm::dvec3(0.006, 0.006, 0.001)}}});
   const std::vector<HangingNode> hanging = two.hanging;
   std::vector<glm::dvec3> nodes;
   const double refined = press(two, &nodes);

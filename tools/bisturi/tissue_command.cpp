@@ -110,7 +110,8 @@ double small_depth_exponent(const Curve& c) {
     if (c.force_N[i] > 0.0 && c.depth_mm[i] > 0.0) use.push_back(i);
   if (use.size() < 2) return 0.0;
   std::size_t n = 2;
-  while (n < use.size() && c.depth_mm[use[n]] <= 0.1 * c.depth_mm.back() * 1.0000001) ++n;
+  while (n < use.size() && c.depth_mm[use[n]] <= 0.1 * c.depth_mm.back() * 1.0000001)
+    ++n;
   double sx = 0, sy = 0, sxx = 0, sxy = 0;
   for (std::size_t k = 0; k < n; ++k) {
     const double x = std::log(c.depth_mm[use[k]]), y = std::log(c.force_N[use[k]]);
@@ -140,15 +141,14 @@ void add_tissue_command(CLI::App& app, TissueIndentOptions& o,
       ->check(kPositive);
   auto* material = cmd->add_option("--material", o.material,
                                    "a tissue preset: liver, kidney, spleen, vessel-wall, fat");
-  auto* youngs = cmd->add_option("--youngs-kPa", o.youngs_kPa, "Young's modulus (kPa)")
-                     ->check(kPositive);
+  auto* youngs =
+      cmd->add_option("--youngs-kPa", o.youngs_kPa, "Young's modulus (kPa)")->check(kPositive);
   material->excludes(youngs);
   cmd->add_option("--poisson", o.poisson,
                   "Poisson's ratio in [0, 0.5) (default: the preset's, 0.45)");
   cmd->add_option("--probe-radius-mm", o.probe_radius_mm, "R: the rigid probe's radius (mm)")
       ->check(kPositive);
-  cmd->add_option("--depth-mm", o.depth_mm, "D: the deepest indentation (mm)")
-      ->check(kPositive);
+  cmd->add_option("--depth-mm", o.depth_mm, "D: the deepest indentation (mm)")->check(kPositive);
   cmd->add_option("--model", o.model,
                   "volume (hexahedral finite elements under the surface, the default) or "
                   "surface (the spring membrane)")
@@ -156,6 +156,10 @@ void add_tissue_command(CLI::App& app, TissueIndentOptions& o,
   cmd->add_option("--cell-mm", o.cell_mm,
                   "volume: the finest cell, at the probe (mm; default: the probe's radius / 8)")
       ->check(kPositive);
+  cmd->add_option("--lattice", o.lattice,
+                  "volume: graded (rectilinear, growing away from the probe; the default) or "
+                  "two-level (cells of four times the finest, split in 64 about the probe)")
+      ->check(CLI::IsMember({"graded", "two-level"}));
   cmd->add_option("--vertices", o.vertices,
                   "about this many surface vertices (default 2000; volume: 20000)")
       ->check(CLI::Range(std::size_t{50}, std::size_t{2000000}))
@@ -231,10 +235,11 @@ int run_tissue_indent(const TissueIndentOptions& o) {
               o.shape.c_str(), o.size_mm, name.c_str(), elastic.youngs_modulus_kPa,
               elastic.poisson_ratio, o.probe_radius_mm, c.vertices);
   if (o.model == "volume") {
-    std::printf("volume: %zu hexahedra, %zu nodes (%zu held), finest cell %.3g mm; built in %.2f s, "
-                "solved in %.2f s (%d Newton steps, %ld CG iterations)%s\n",
-                c.cells, c.nodes, c.held_nodes, c.finest_cell_mm, c.build_s, c.solve_s,
-                c.newton_iterations, c.cg_iterations, c.converged ? "" : ", NOT converged");
+    std::printf(
+        "volume: %zu hexahedra, %zu nodes (%zu held), finest cell %.3g mm; built in %.2f s, "
+        "solved in %.2f s (%d Newton steps, %ld CG iterations)%s\n",
+        c.cells, c.nodes, c.held_nodes, c.finest_cell_mm, c.build_s, c.solve_s, c.newton_iterations,
+        c.cg_iterations, c.converged ? "" : ", NOT converged");
   } else {
     std::printf("surface: dt %.3g s, calibrated structural %.4g N/m, bulk modulus %.4g Pa\n",
                 o.dt_s, c.structural_N_per_m, c.bulk_modulus_Pa);

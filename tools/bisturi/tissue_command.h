@@ -30,11 +30,14 @@ struct TissueIndentOptions {
   double depth_mm = 2.0;
   std::size_t vertices = 2000;
   double dt_s = 1e-3;
-  int points = 10;         ///< depths sampled, evenly up to depth_mm
-  int settle_steps = 400;  ///< steps held at each depth
+  int points = 10;               ///< depths sampled, evenly up to depth_mm
+  int settle_steps = 400;        ///< steps held at each depth
   std::string model = "volume";  ///< "volume" (hexahedral FEM) or "surface" (the spring membrane)
   double cell_mm = 0.0;          ///< volume: the finest cell, at the probe (0: from the probe)
-  bool vertices_given = false;   ///< --vertices was given (the volume model's default is finer)
+  /// volume: "graded" (rectilinear, growing away from the probe) or "two-level" (cells four
+  /// times the finest, split in 64 about the probe, hanging nodes between).
+  std::string lattice = "graded";
+  bool vertices_given = false;  ///< --vertices was given (the volume model's default is finer)
   bool json = false;
 };
 

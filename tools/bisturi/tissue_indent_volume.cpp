@@ -103,8 +103,27 @@ IndentCurve indent_volume(const TissueIndentOptions& o, double youngs_kPa, doubl
   std::vector<glm::dvec3> samples =
       contact_samples(vertices, triangles, top, 2.0 * lattice.fine_half_width_m, spacing);
   std::erase_if(samples, [&](const glm::dvec3& p) { return p.z < hold_z; });
-  sim::ElasticVolume volume(sim::build_hex_lattice(vertices, triangles, lattice, samples),
-                            material);
+  const auto build = [&] {
+    if (o.lattice != "two-level")
+      return sim::build_hex_lattice(vertices, triangles, lattice, samples);
+    // Cells of four times the finest, split in 64 over the contact patch's box and, for the
+    // sphere, over the cap it stands on (held on a few coarse nodes it rocks, and the Newton
+    // steps do not converge).
+    sim::TwoLevelOptions two;
+    two.coarse_m = 4.0 * lattice.finest_m;
+    two.factor = 4;
+    const double half = lattice.fine_half_width_m;
+    two.refine.push_back(
+        {top - glm::dvec3(half, half, half), top + glm::dvec3(half, half, lattice.finest_m)});
+    if (sphere) {
+      const glm::dvec3 cap(top.x, top.y, hold_z);
+      two.refine.push_back({cap - glm::dvec3(cap_radius, cap_radius, 0.0),
+                            cap + glm::dvec3(cap_radius, cap_radius, two.coarse_m)});
+    }
+    two.floor_z_m = sphere ? hold_z : -INFINITY;
+    return sim::build_two_level_lattice(vertices, triangles, two, samples);
+  };
+  sim::ElasticVolume volume(build(), material);
   const std::vector<sim::EmbeddedPoint> points = sim::embed_points(volume.lattice(), samples);
   // The rigid plane: the sphere's cut (its nodes within the cap), the block's bottom.
   const double floor_z = volume.lattice().axis[2].front();

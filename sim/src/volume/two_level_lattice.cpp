@@ -14,9 +14,11 @@ namespace bisturi::sim {
 
 HexLattice build_two_level_lattice(std::span<const glm::dvec3> vertices,
                                    std::span<const std::array<std::uint32_t, 3>> triangles,
-                                   double coarse_m, std::uint32_t factor,
-                                   const glm::dvec3& refine_lo, const glm::dvec3& refine_hi,
-                                   int fill_samples, std::span<const glm::dvec3> also_embed) {
+                                   const TwoLevelOptions& options,
+                                   std::span<const glm::dvec3> also_embed) {
+  const double coarse_m = options.coarse_m;
+  const std::uint32_t factor = options.factor;
+  const int fill_samples = options.fill_samples;
   if (vertices.empty() || triangles.empty())
     throw std::invalid_argument("two-level lattice: the surface is empty");
   if (!(coarse_m > 0.0) || factor < 1 || fill_samples < 1)
@@ -30,6 +32,9 @@ HexLattice build_two_level_lattice(std::span<const glm::dvec3> vertices,
   }
   lo -= glm::dvec3(0.1 * fine_m);
   hi += glm::dvec3(0.1 * fine_m);
+  if (options.floor_z_m > lo.z) lo.z = options.floor_z_m;
+  if (!(hi.z > lo.z))
+    throw std::invalid_argument("two-level lattice: the floor is above the solid");
   HexLattice lattice;
   std::array<std::size_t, 3> coarse{};  // coarse cells per axis
   for (std::size_t a = 0; a < 3; ++a) {
@@ -63,6 +68,7 @@ HexLattice build_two_level_lattice(std::span<const glm::dvec3> vertices,
   std::vector<std::uint8_t> holds_point(fill.size(), 0);
   for (const auto& points : {vertices, also_embed}) {
     for (const glm::dvec3& v : points) {
+      if (v.z < lo.z) continue;  // below the floor: cut away
       const auto [i, j, k] = lattice.locate(v);
       holds_point[fine_index(i, j, k)] = 1;
     }
@@ -103,8 +109,10 @@ HexLattice build_two_level_lattice(std::span<const glm::dvec3> vertices,
   const auto refined = [&](std::size_t ci, std::size_t cj, std::size_t ck) {
     const glm::dvec3 cell_lo = lo + coarse_m * glm::dvec3(double(ci), double(cj), double(ck));
     const glm::dvec3 cell_hi = cell_lo + glm::dvec3(coarse_m);
-    return glm::all(glm::lessThan(cell_lo, refine_hi)) &&
-           glm::all(glm::greaterThan(cell_hi, refine_lo));
+    return std::any_of(options.refine.begin(), options.refine.end(), [&](const auto& box) {
+      return glm::all(glm::lessThan(cell_lo, box.hi)) &&
+             glm::all(glm::greaterThan(cell_hi, box.lo));
+    });
   };
   const std::size_t f = factor;
   for (int pass = 0; pass < 2; ++pass) {

@@ -90,10 +90,12 @@ ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options) {
       triangles[t][c] = compact[indices[3 * t + c]];
   if (options.refine_factor > 1 && options.refine_half_width_m > 0.0) {
     const glm::dvec3 half(options.refine_half_width_m);
-    return ElasticVolume(
-        build_two_level_lattice(vertices, triangles, options.cell_m, options.refine_factor,
-                                options.refine_centre_m - half, options.refine_centre_m + half),
-        options.material, options.law);
+    TwoLevelOptions lattice;
+    lattice.coarse_m = options.cell_m;
+    lattice.factor = options.refine_factor;
+    lattice.refine = {{options.refine_centre_m - half, options.refine_centre_m + half}};
+    return ElasticVolume(build_two_level_lattice(vertices, triangles, lattice), options.material,
+                         options.law);
   }
   LatticeOptions lattice;
   lattice.finest_m = options.cell_m;

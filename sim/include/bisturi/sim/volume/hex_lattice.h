@@ -75,16 +75,25 @@ struct HexLattice {
   [[nodiscard]] std::int32_t kept_cell(const glm::dvec3& p) const;
 };
 
-/// A lattice of two resolutions: cells of `coarse_m` over the closed surface, but those meeting
-/// the box [refine_lo, refine_hi] split into factor^3 cells, the fine nodes on the faces between
-/// the two sizes hanging on the coarse cells' corners. Cells are kept as build_hex_lattice keeps
-/// them (fill_samples per fine cell). Throws std::invalid_argument on an empty surface or bad
-/// options.
+struct TwoLevelOptions {
+  struct Box {
+    glm::dvec3 lo{0.0}, hi{0.0};
+  };
+  double coarse_m = 0.004;   ///< the cells' side
+  std::uint32_t factor = 2;  ///< each refined cell is split into factor^3
+  std::vector<Box> refine;   ///< the cells meeting any of these boxes are split
+  int fill_samples = 3;      ///< per axis and fine cell
+  /// The solid is cut at this height: no cell below it (a rigid plane it stands on).
+  double floor_z_m = -INFINITY;
+};
+
+/// A lattice of two resolutions: cells of coarse_m over the closed surface, but those meeting
+/// a refine box split into factor^3 cells, the fine nodes on the faces between the two sizes
+/// hanging on the coarse cells' corners. Cells are kept as build_hex_lattice keeps them.
+/// Throws std::invalid_argument on an empty surface or bad options.
 HexLattice build_two_level_lattice(std::span<const glm::dvec3> vertices,
                                    std::span<const std::array<std::uint32_t, 3>> triangles,
-                                   double coarse_m, std::uint32_t factor,
-                                   const glm::dvec3& refine_lo, const glm::dvec3& refine_hi,
-                                   int fill_samples = 3,
+                                   const TwoLevelOptions& options,
                                    std::span<const glm::dvec3> also_embed = {});
 
 /// Node coordinates from lo to hi: cells of `finest` within fine_half_width of `centre`, then
