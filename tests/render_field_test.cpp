@@ -8,6 +8,9 @@
 #include <cstdio>
 #include <vector>
 
+#include <glm/common.hpp>
+
+#include "bisturi/runtime/render/drape_mesh.h"
 #include "bisturi/runtime/render/instrument_mesh.h"
 #include "bisturi/scene/oriented_builder.h"
 #include "bisturi/scene/shapes.h"
@@ -23,6 +26,42 @@ constexpr std::uint32_t kSize = 192;
 
 bool background(const std::uint8_t* px) {
   return px[0] == 0 && px[1] == 0 && px[2] == 0;
+}
+
+TEST(DrapeSheet, LiesUnderTheSolidsFacingUpAndReachesPastThem) {
+  // Solids in [0, 100] x [0, 60] x [40, 90] mm: the sheet 2 mm under their lowest point, facing
+  // up, reaching the larger side (100 mm) past them each way.
+  const Dlfl sheet = drape_sheet({0.0, 0.0, 40.0}, {100.0, 60.0, 90.0});
+  glm::dvec3 lo(1e9), hi(-1e9);
+  for (std::uint32_t i = 0; i < sheet.vertex_capacity(); ++i) {
+    if (!sheet.alive(VertexId(i))) continue;
+    const glm::dvec3& p = sheet.position(VertexId(i));
+    EXPECT_DOUBLE_EQ(p.z, 38.0);
+    lo = glm::min(lo, p);
+    hi = glm::max(hi, p);
+  }
+  EXPECT_NEAR(lo.x, -100.0, 1e-9);
+  EXPECT_NEAR(hi.x, 200.0, 1e-9);
+  EXPECT_NEAR(lo.y, -120.0, 1e-9);
+  EXPECT_NEAR(hi.y, 180.0, 1e-9);
+  std::size_t faces = 0;
+  for (std::uint32_t f = 0; f < sheet.face_capacity(); ++f) {
+    // The hole round the sheet's edge is a labelled face of its own, not drawn.
+    if (!sheet.alive(FaceId(f)) || sheet.is_bounding(FaceId(f))) continue;
+    ++faces;
+    // The face's turn seen from above: counter-clockwise (its area along +z positive).
+    double area_z = 0.0;
+    const CornerId first = sheet.first_corner(FaceId(f));
+    CornerId c = first;
+    do {
+      const glm::dvec3& a = sheet.position(sheet.vertex(c));
+      const glm::dvec3& b = sheet.position(sheet.vertex(sheet.next(c)));
+      area_z += a.x * b.y - b.x * a.y;
+      c = sheet.next(c);
+    } while (c != first);
+    EXPECT_GT(area_z, 0.0) << "face " << f << " faces down";
+  }
+  EXPECT_EQ(faces, 24u * 24u);
 }
 
 class RenderFieldTest : public RendererFixture {};

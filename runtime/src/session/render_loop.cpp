@@ -10,6 +10,7 @@
 #include <stdexcept>
 #include <thread>
 
+#include <glm/common.hpp>
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/quaternion.hpp>
 #include <glm/gtx/quaternion.hpp>
@@ -17,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "bisturi/devices/trace/trace_format.h"
+#include "bisturi/runtime/render/drape_mesh.h"
 #include "bisturi/runtime/render/errors.h"
 #include "bisturi/runtime/render/instrument_mesh.h"
 #include "bisturi/runtime/render/openxr_sink.h"
@@ -241,6 +243,8 @@ void feed_controller(devices::ControllerFeed& feed, const render::HeadsetFrame& 
 
 /// The background (linear RGB): a dark shade of surgical drape green, not a black void.
 constexpr glm::vec3 kFieldBackground{0.035f, 0.098f, 0.091f};
+/// The drape under the solids: the same green, lit (linear RGB, cloth: no highlight).
+constexpr glm::vec3 kDrapeColour{0.040f, 0.115f, 0.100f};
 
 }  // namespace
 
@@ -329,6 +333,21 @@ void run_render_loop(const RenderLoopContext& c) {
     m.colour = glm::vec3(static_cast<float>(rgb[0]), static_cast<float>(rgb[1]),
                          static_cast<float>(rgb[2]));
     ids.push_back(renderer.add_solid(meshes[b].mesh, m));
+  }
+  // The drape the solids lie on, at the blood's tray: lit by the lamp, the floor of the field.
+  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+  for (const auto& solid : initial.solids) {
+    for (const glm::dvec3& p : solid.positions_mm) {
+      lo = glm::min(lo, p);
+      hi = glm::max(hi, p);
+    }
+  }
+  if (lo.x <= hi.x) {
+    render::Material drape;
+    drape.colour = kDrapeColour;
+    drape.interior_colour = kDrapeColour;
+    drape.specular = 0.0f;
+    (void)renderer.add_solid(render::drape_sheet(lo, hi), drape);
   }
   double probe_radius = 1.5, probe_length = 60.0;
   for (const InstrumentDescription& in : scene.instruments) {
