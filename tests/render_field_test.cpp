@@ -88,6 +88,41 @@ TEST_F(RenderFieldTest, TheSideAwayFromTheKeyLightIsNotBlack) {
   EXPECT_GT(red[red.size() / 100], 95) << "darkest " << red.front();
 }
 
+TEST_F(RenderFieldTest, ASolidCastsItsShadowOnTheShadowPlaneAndTheDrapeDoesNot) {
+  // Seen from the origin down -z: a sheet at z = -300 mm facing the viewer and a sphere of
+  // 15 mm at (60, 0, -150). Its shadow, its footprint on the sheet straight along z, is seen
+  // nearer the middle than the sphere itself (at 60 / 300 against 60 / 150 of the view), a
+  // dark disc on the lit sheet; without the shadow plane the sheet is lit there.
+  const auto dark_pixels = [&](bool shadows) -> int {
+    RendererOptions options;
+    auto* r = make(options, kSize);
+    if (r == nullptr) return -1;
+    Material sheet;
+    sheet.casts_shadow = false;
+    r->add_solid(drape_sheet({-40.0, -40.0, -298.0}, {40.0, 40.0, -290.0}), sheet);
+    r->add_solid(testing::sphere_mm({60.0, 0.0, -150.0}, 15.0));
+    if (shadows) r->set_shadow_plane(-300.0);
+    Capture frame;
+    r->set_sink(&frame);
+    r->render(testing::at_origin());
+    r->flush();
+    int dark = 0;
+    for (std::uint32_t y = 0; y < kSize; ++y)
+      for (std::uint32_t x = 0; x < kSize; ++x) {
+        const std::uint8_t* px = frame.at(0, x, y);
+        if (!background(px) && px[0] < 60) ++dark;
+      }
+    return dark;
+  };
+  const int lit = dark_pixels(false);
+  if (lit < 0) GTEST_SKIP() << "no Vulkan device";
+  const int shadowed = dark_pixels(true);
+  std::printf("dark pixels: %d without the shadow plane, %d with it\n", lit, shadowed);
+  EXPECT_EQ(lit, 0);
+  EXPECT_GT(shadowed, 30);
+  EXPECT_LT(shadowed, 400) << "more than the sphere's footprint: the sheet shadows itself";
+}
+
 /// A square of 80 mm tilted away from the viewer: its lower edge at 170 mm, its upper at 330.
 Dlfl receding_square() {
   PolygonMesh grid = grid_mesh(8, 8, 10.0, true);

@@ -28,6 +28,9 @@ struct IndexBuffer {
   std::uint64_t generation = 0;
 };
 
+/// A shadow on the drape: very dark green (linear RGB).
+constexpr glm::vec3 kShadowColour{0.004f, 0.012f, 0.010f};
+
 struct Solid {
   std::unique_ptr<SolidLevels> levels;
   Material material;
@@ -93,6 +96,7 @@ struct StereoRenderer::Impl {
   VkDescriptorPool descriptor_pool = VK_NULL_HANDLE;
   std::vector<FrameSlot> slots;
   std::vector<Solid> solids;
+  double shadow_plane_z_mm = std::numeric_limits<double>::quiet_NaN();
   /// Index buffers replaced while frames in flight may still read them: freed once the frame
   /// counter passes the number stored with them.
   std::deque<std::pair<std::uint64_t, vk::Buffer>> retired;
@@ -333,6 +337,51 @@ struct StereoRenderer::Impl {
     }
   }
 
+  /// The planned draws again, flattened onto the shadow plane under an overhead lamp (straight
+  /// down: the shadow is each solid's footprint), dark and unlit, 0.3 mm above the plane so the
+  /// plane does not hide them. A thousandth of the height is kept so the normals stay finite.
+  void record_shadows(VkCommandBuffer cmd, const FrameSlot& slot, VkPipeline& bound,
+                      FrameStats& stats) {
+    if (!std::isfinite(shadow_plane_z_mm)) return;
+    constexpr double kKeep = 1e-3, kLift_mm = 0.3;
+    glm::dmat4 flatten(1.0);
+    flatten[2][2] = kKeep;
+    flatten[3][2] = (1.0 - kKeep) * shadow_plane_z_mm + kLift_mm;
+    for (const PlannedDraw& d : draws) {
+      const Solid& s = solids[d.solid];
+      if (!s.material.casts_shadow) continue;
+      vk::DrawConstants constants;
+      constants.model = to_float(flatten * (s.instrument ? s.pose : glm::dmat4(1.0)));
+      constants.colour = glm::vec4(kShadowColour, 1.0f);
+      constants.material = {1.0f, 0.0f, 0.0f, 1.0f};
+      constants.interior = glm::vec4(kShadowColour, 0.0f);
+      record_draw(cmd, slot, d, constants, bound, stats);
+    }
+  }
+
+  /// One planned draw with `constants`: its pipeline (two-sided for an open solid), its
+  /// streamed vertices and index ranges.
+  void record_draw(VkCommandBuffer cmd, const FrameSlot& slot, const PlannedDraw& d,
+                   const vk::DrawConstants& constants, VkPipeline& bound, FrameStats& stats) {
+    const Solid& s = solids[d.solid];
+    const VkPipeline wanted = s.boundary.open() ? pipeline->two_sided() : pipeline->pipeline();
+    if (wanted != bound) {
+      vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, wanted);
+      bound = wanted;
+    }
+    vkCmdPushConstants(cmd, pipeline->layout(),
+                       VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
+                       sizeof(constants), &constants);
+    const VkBuffer vertex_buffer = slot.stream.handle();
+    vkCmdBindVertexBuffers(cmd, 0, 1, &vertex_buffer, &d.vertex_offset);
+    vkCmdBindIndexBuffer(cmd, s.index_buffers[d.level].buffer.handle(), 0, VK_INDEX_TYPE_UINT32);
+    for (std::size_t r = d.first_range; r < d.first_range + d.range_count; ++r) {
+      vkCmdDrawIndexed(cmd, ranges[r].index_count, 1, ranges[r].first_index, 0, 0);
+      ++stats.draw_calls;
+      stats.triangles_drawn += ranges[r].index_count / 3;
+    }
+  }
+
   /// The coarsest level whose error projects to at most max_error_px in either eye.
   std::size_t pick_level(const SolidLevels& levels, const Aabb& world_bounds,
                          const std::array<EyeView, 2>& eyes) const {
@@ -482,29 +531,15 @@ struct StereoRenderer::Impl {
                             &slot.descriptors, 0, nullptr);
     for (const PlannedDraw& d : draws) {
       const Solid& s = solids[d.solid];
-      const VkPipeline wanted = s.boundary.open() ? pipeline->two_sided() : pipeline->pipeline();
-      if (wanted != bound) {
-        vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, wanted);
-        bound = wanted;
-      }
       vk::DrawConstants constants;
       constants.model = to_float(s.instrument ? s.pose : glm::dmat4(1.0));
       constants.colour = glm::vec4(s.material.colour, 1.0f);
       constants.material = {s.material.ambient, s.material.diffuse, s.material.specular,
                             s.material.shininess};
       constants.interior = glm::vec4(s.material.interior_colour, 0.0f);
-      vkCmdPushConstants(cmd, pipeline->layout(),
-                         VK_SHADER_STAGE_VERTEX_BIT | VK_SHADER_STAGE_FRAGMENT_BIT, 0,
-                         sizeof(constants), &constants);
-      const VkBuffer vertex_buffer = slot.stream.handle();
-      vkCmdBindVertexBuffers(cmd, 0, 1, &vertex_buffer, &d.vertex_offset);
-      vkCmdBindIndexBuffer(cmd, s.index_buffers[d.level].buffer.handle(), 0, VK_INDEX_TYPE_UINT32);
-      for (std::size_t r = d.first_range; r < d.first_range + d.range_count; ++r) {
-        vkCmdDrawIndexed(cmd, ranges[r].index_count, 1, ranges[r].first_index, 0, 0);
-        ++stats.draw_calls;
-        stats.triangles_drawn += ranges[r].index_count / 3;
-      }
+      record_draw(cmd, slot, d, constants, bound, stats);
     }
+    record_shadows(cmd, slot, bound, stats);
     vkCmdEndRenderPass(cmd);
 
     slot.read_back = sink != nullptr;
@@ -592,6 +627,9 @@ void StereoRenderer::set_material(SolidId id, const Material& material) {
 }
 void StereoRenderer::set_visible(SolidId id, bool visible) {
   impl_->solid(id).visible = visible;
+}
+void StereoRenderer::set_shadow_plane(double z_mm) {
+  impl_->shadow_plane_z_mm = z_mm;
 }
 const SolidLevels& StereoRenderer::levels(SolidId id) const {
   return *impl_->solid(id).levels;

@@ -41,6 +41,9 @@ struct Material {
   /// The inner side of the surface (back faces, seen through an incision): a darker, redder
   /// tissue colour, lit without specular highlight (matte), linear RGB.
   glm::vec3 interior_colour{0.42f, 0.06f, 0.05f};
+  /// Drawn again, flattened and dark, on the shadow plane (set_shadow_plane): false for what
+  /// is the plane itself (a drape) or too small to matter (blood drops).
+  bool casts_shadow = true;
 };
 
 enum class DevicePreference : std::uint8_t { Any, Gpu, Cpu };
@@ -106,6 +109,10 @@ class StereoRenderer {
   void set_pose(SolidId id, const glm::dmat4& pose);
   void set_material(SolidId id, const Material& material);
   void set_visible(SolidId id, bool visible);
+  /// A horizontal surface at z_mm (world millimetres, z up; a drape) takes the shadows of the
+  /// solids and instruments under an overhead operating lamp: each is drawn again flattened
+  /// onto it, dark, a little above it. NaN: no shadows (the default).
+  void set_shadow_plane(double z_mm);
   [[nodiscard]] const SolidLevels& levels(SolidId id) const;
   /// The level drawn for the solid in the last frame (-1: culled or hidden).
   [[nodiscard]] int drawn_level(SolidId id) const;
