@@ -58,7 +58,7 @@ struct Field {
     for (int k = 0; k < ticks; ++k) {
       (void)sim.tick(hands);
       const sim::BloodCounts& c = sim.blood().counts();
-      accounted = accounted && c.emitted == c.in_flight + c.pooled + c.drained;
+      accounted = accounted && c.emitted == c.in_flight + c.pooled + c.drained + c.recycled;
     }
   }
   /// The vessel's anterior wall (its most -y vertex) at height z_mm.
@@ -122,7 +122,7 @@ TEST(Bleeding, ACutVesselBleedsUntilAGrasperClampsIt) {
   f.run(500);
   EXPECT_EQ(f.sim.blood().counts().emitted, clamped_at) << "clamped: no flow";
   EXPECT_EQ(f.sim.blood_flow_m3_s(), 0.0);
-  EXPECT_TRUE(f.accounted) << "emitted = in flight + pooled + drained, every step";
+  EXPECT_TRUE(f.accounted) << "emitted = in flight + pooled + drained + recycled, every step";
   EXPECT_GT(f.sim.blood().counts().pooled, 0u) << "some came to rest";
   // None inside the tissue at the end.
   for (const glm::dvec3& p : f.sim.blood().positions()) {

@@ -156,8 +156,10 @@ TOML
     drained=$(echo "$counts" | cut -d, -f1); emitted=$(echo "$counts" | cut -d, -f2)
     in_flight=$(echo "$counts" | cut -d, -f3)
     pooled=$(tr -d ' \n' < "$work/bleeding/report.json" | grep -o '"pooled":[0-9]*' | head -1 | sed 's/[^0-9]//g')
+    recycled=$(tr -d ' \n' < "$work/bleeding/report.json" | grep -o '"recycled":[0-9]*' | head -1 | sed 's/[^0-9]//g')
     [ "${emitted:-0}" -gt 0 ] || { grep -A8 '"bleeding"' "$work/bleeding/report.json"; fail "the cut vessel did not bleed"; }
-    [ "$emitted" -eq $((in_flight + pooled + drained)) ] || fail "emitted $emitted != $in_flight + $pooled + $drained"
+    [ "$emitted" -eq $((in_flight + pooled + drained + ${recycled:-0})) ] ||
+      fail "emitted $emitted != $in_flight + $pooled + $drained + ${recycled:-0}"
     out=$("$bisturi" replay "$work/bleeding.btrace" --json) || { echo "$out"; fail "replay exited $?"; }
     echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "the bleeding session did not replay"; }
     echo "bleeding: ok ($emitted particles: $in_flight in flight, $pooled pooled, $drained drained)"

@@ -77,6 +77,12 @@ std::size_t Blood::emit(std::span<const BloodSource> sources, double flow_m3_s, 
                         double dt_s) {
   if (sources.empty() || !(flow_m3_s > 0.0)) return 0;
   pending_m3_ += flow_m3_s * dt_s;
+  if (options_.recycle) {
+    const auto wanted = static_cast<std::size_t>(pending_m3_ / particle_volume_m3_);
+    const std::size_t room =
+        options_.max_particles > x_.size() ? options_.max_particles - x_.size() : 0;
+    if (wanted > room) recycle_pooled(wanted - room);
+  }
   std::size_t made = 0;
   while (pending_m3_ >= particle_volume_m3_ && x_.size() < options_.max_particles) {
     pending_m3_ -= particle_volume_m3_;
@@ -239,14 +245,35 @@ void Blood::collide(std::span<const BloodSurface> surfaces) {
 }
 
 void Blood::remove_drained() {
-  std::size_t w = 0;
+  remove_.assign(x_.size(), 0);
   for (std::size_t i = 0; i < x_.size(); ++i) {
     const glm::dvec3& x = x_[i];
     if (x.x < options_.field_min_m.x || x.y < options_.field_min_m.y ||
         x.x > options_.field_max_m.x || x.y > options_.field_max_m.y) {
+      remove_[i] = 1;
       ++counts_.drained;
-      continue;
     }
+  }
+  remove_marked();
+}
+
+void Blood::recycle_pooled(std::size_t count) {
+  remove_.assign(x_.size(), 0);
+  for (std::size_t i = 0; i < x_.size() && count > 0; ++i) {
+    if (!pooled_[i]) continue;
+    remove_[i] = 1;
+    ++counts_.recycled;
+    --count;
+  }
+  remove_marked();
+  counts_.pooled = static_cast<std::uint64_t>(std::count(pooled_.begin(), pooled_.end(), 1));
+  counts_.in_flight = x_.size() - counts_.pooled;
+}
+
+void Blood::remove_marked() {
+  std::size_t w = 0;
+  for (std::size_t i = 0; i < x_.size(); ++i) {
+    if (remove_[i]) continue;
     x_[w] = x_[i];
     v_[w] = v_[i];
     pooled_[w] = pooled_[i];

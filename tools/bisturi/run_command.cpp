@@ -345,6 +345,7 @@ int run_run(const RunOptions& options) {
         {"in_flight", r.bleeding.in_flight},
         {"pooled", r.bleeding.pooled},
         {"drained", r.bleeding.drained},
+        {"recycled", r.bleeding.recycled},
         {"volume_ml", r.bleeding.volume_ml},
         {"most_particles", r.bleeding.most_particles},
         {"step_ms", summary_json(r.blood_step_ms)}}},

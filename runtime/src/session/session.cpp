@@ -629,7 +629,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                        c.pooled,
                        c.drained,
                        sim.blood().emitted_ml(),
-                       sim.blood_most_particles()};
+                       sim.blood_most_particles(),
+                       c.recycled};
     for (const double step : sim.blood_step_ms())
       report.blood_step_ms.record(step);
   }

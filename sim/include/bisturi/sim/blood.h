@@ -25,7 +25,10 @@ struct BloodOptions {
   double viscosity = 0.1;
   int iterations = 3;                ///< density constraint iterations per substep
   int substeps = 2;                  ///< per step
-  std::size_t max_particles = 5000;  ///< emission stops at this many in flight and pooled
+  std::size_t max_particles = 5000;  ///< at most this many in flight and pooled
+  /// At max_particles the oldest pooled particles make room for new ones (soaked up, as a swab
+  /// would): the vessel goes on bleeding at a bounded cost. Off: emission stops there.
+  bool recycle = true;
   glm::dvec3 gravity_m_s2{0.0, 0.0, -9.81};
   /// The tray under the field (the table's drapes): a plane at this height the blood runs on and
   /// pools on like any surface.
@@ -54,6 +57,7 @@ struct BloodCounts {
   std::uint64_t in_flight = 0;
   std::uint64_t pooled = 0;
   std::uint64_t drained = 0;
+  std::uint64_t recycled = 0;  ///< pooled particles taken to make room (BloodOptions::recycle)
 };
 
 class Blood {
@@ -89,6 +93,10 @@ class Blood {
   void solve_density();
   void collide(std::span<const BloodSurface> surfaces);
   void remove_drained();
+  /// Takes the `count` oldest pooled particles (the first in emission order).
+  void recycle_pooled(std::size_t count);
+  /// Removes the particles whose remove_ is set, keeping the others' order.
+  void remove_marked();
 
   BloodOptions options_;
   double h_ = 0.0;             ///< kernel radius
@@ -112,6 +120,7 @@ class Blood {
   /// Per particle, this substep: 0 idle (pooled, nothing in flight near it), 1 in flight, 2
   /// pooled next to one in flight (its density constraint pushes on that one).
   std::vector<std::uint8_t> active_;
+  std::vector<std::uint8_t> remove_;  ///< scratch
 };
 
 }  // namespace bisturi::sim

@@ -176,12 +176,13 @@ struct SessionReport {
   double breathing_period_s = 0.0;
   std::vector<std::pair<std::string, std::array<double, 3>>> breathing;
   /// Bleeding (sim/blood.h): the blood's particles at the end (emitted = in flight + pooled +
-  /// drained), the volume that left the vessels, the most particles in the field at once, and
-  /// each blood step's wall time on the tissue thread.
+  /// drained + recycled), the volume that left the vessels, the most particles in the field at
+  /// once, and each blood step's wall time on the tissue thread.
   struct Bleeding {
     std::uint64_t emitted = 0, in_flight = 0, pooled = 0, drained = 0;
     double volume_ml = 0.0;
     std::uint64_t most_particles = 0;
+    std::uint64_t recycled = 0;
   } bleeding;
   TimingRecorder blood_step_ms{"ms"};
   /// The hands: the scene names of the haptic devices, in hand order (an event's hand indexes it).
