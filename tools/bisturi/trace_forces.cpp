@@ -86,7 +86,9 @@ void add_command(ChannelStats& s, const std::vector<double>& forces, double time
       ++s.reversals;
     s.last_change = change;
   }
-  s.last = std::move(now);
+  // A fault's zero is the safety path's, not the loop's: the loop's next command follows its
+  // own last one (the guard holds the device at zero meanwhile), so steps are measured from it.
+  if (!fault_zero || s.last.empty()) s.last = std::move(now);
   s.window.push_back(m);
   if (s.window.size() > kChatterWindow) s.window.pop_front();
   if (s.window.size() == kChatterWindow) {
