@@ -51,6 +51,9 @@ ElasticVolume::ElasticVolume(HexLattice lattice, const ElasticMaterial& material
   x_ = lattice_.rest;
   v_.assign(x_.size(), glm::dvec3(0.0));
   held_.assign(x_.size(), 0);
+  hanging_index_.assign(x_.size(), -1);
+  for (std::size_t k = 0; k < lattice_.hanging.size(); ++k)
+    hanging_index_[lattice_.hanging[k].node] = static_cast<std::int32_t>(k);
   mass_.assign(x_.size(), 0.0);
   solver_ = std::make_unique<Solver>(lattice_);
   Solver& s = *solver_;
@@ -77,8 +80,8 @@ ElasticVolume& ElasticVolume::operator=(ElasticVolume&&) noexcept = default;
 
 void ElasticVolume::hold(std::uint32_t node) {
   // A hanging node follows its masters: they are held instead.
-  for (const HangingNode& h : lattice_.hanging) {
-    if (h.node != node) continue;
+  if (const std::int32_t k = hanging_index_.at(node); k >= 0) {
+    const HangingNode& h = lattice_.hanging[static_cast<std::size_t>(k)];
     for (std::uint32_t m = 0; m < h.masters_count; ++m)
       hold(h.masters[m]);
     return;

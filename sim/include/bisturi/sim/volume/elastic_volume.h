@@ -156,6 +156,7 @@ class ElasticVolume {
   std::vector<glm::dvec3> v_;
   std::vector<double> mass_;
   std::vector<std::uint8_t> held_;
+  std::vector<std::int32_t> hanging_index_;  ///< per node: its entry in lattice_.hanging, or -1
   glm::dvec3 held_velocity_{0.0};
   std::vector<double> multipliers_;  ///< per surface point, N
   std::unique_ptr<Solver> solver_;
