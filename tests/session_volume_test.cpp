@@ -22,6 +22,7 @@
 #include "bisturi/sim/cutting.h"
 #include "bisturi/sim/units.h"
 #include "bisturi/sim/volume/hex_lattice.h"
+#include "liver_procedure.h"
 
 namespace bisturi::runtime {
 namespace {
@@ -89,16 +90,9 @@ TEST(SceneFile, AClosedSolidWithAModulusIsAVolumeAndAnOpenOneAMembrane) {
 }
 
 TEST(LiverScene, TheVolumeLiverFollowsTheScriptedProcedure) {
-  const SceneDescription scene =
-      read_scene_file(std::string(BISTURI_SOURCE_DIR) + "/config/liver.toml");
-  ASSERT_EQ(scene.solids[0].model, SolidDescription::Model::Volume);
-  const std::vector<BuiltSolid> solids = build_solids(scene);
-  const Nanoseconds duration(static_cast<std::int64_t>(scene.duration_s * 1e9));
-  const Procedure p = make_procedure("default", solids, duration, devices::SimulatedGlove::kJoints);
-  std::vector<devices::ForceChannel> channels(5);
-  for (devices::ForceChannel& c : channels)
-    c.max_force_N = 3.0;
-  SessionSim sim(scene, build_solids(scene), channels);
+  LiverProcedure liver_scene;
+  ASSERT_EQ(liver_scene.scene.solids[0].model, SolidDescription::Model::Volume);
+  SessionSim& sim = liver_scene.sim;
   ASSERT_NE(sim.world().volume(0), nullptr);
   EXPECT_EQ(sim.world().volume(1), nullptr);  // the vessel: an open tube, a membrane
   EXPECT_EQ(sim.world().volume(0)->embedded_vertices(), sim.world().body(0).mesh().num_vertices());
@@ -108,16 +102,8 @@ TEST(LiverScene, TheVolumeLiverFollowsTheScriptedProcedure) {
     top_at_rest = std::max(top_at_rest, x.z);
   double palpation_force = 0.0;
   std::uint64_t liver_rollbacks = 0;
-  const std::uint32_t ticks_per_step = 2;  // 500 Hz
-  const std::int64_t steps = static_cast<std::int64_t>(scene.duration_s * 500.0);
-  for (std::int64_t k = 1; k <= steps; ++k) {
-    const Nanoseconds t(k * 2'000'000);
-    devices::HapticState state;
-    state.sample_time = t;
-    state.end_effector_poses = {p.first_hand.pose_at(t)};
-    state.finger_joint_angles_rad = p.first_hand.joints_at(t, devices::SimulatedGlove::kJoints);
-    state.buttons = p.first_hand.buttons_at(t);
-    const TickOutput& out = sim.tick(state, ticks_per_step);
+  for (std::int64_t k = 1; k <= liver_scene.steps(); ++k) {
+    const TickOutput& out = liver_scene.step(k);
     const sim::StepStats& liver = sim.world().last_stats(0);
     liver_rollbacks += liver.rolled_back ? 1 : 0;
     ASSERT_FALSE(liver.frozen) << "at " << k * 2 << " ms";
@@ -219,6 +205,26 @@ TEST(SceneFile, SupportedIsForVolumesOnly) {
                   .supported);
   EXPECT_NE(error(solid_with("model = 'surface'\nsupported = true", "preset = 'liver'"))
                 .find("only for model"),
+            std::string::npos);
+}
+
+TEST(SceneFile, DrawnIsForVolumesAndDownsamplesLabelMapsOnly) {
+  const SceneDescription scene = parse_scene(
+      solid_with("decimate = 0.2\n[solids.drawn]\ndecimate = 0.8\nsmooth = 2", "preset = 'liver'"),
+      "scene.toml");
+  ASSERT_TRUE(scene.solids[0].drawn.has_value());
+  EXPECT_DOUBLE_EQ(scene.solids[0].drawn->decimate, 0.8);
+  EXPECT_EQ(scene.solids[0].drawn->smooth, 2);
+  EXPECT_NE(
+      error(solid_with("model = 'surface'\n[solids.drawn]\ndecimate = 0.8", "preset = 'liver'"))
+          .find("only for model"),
+      std::string::npos);
+  EXPECT_NE(error(solid_with("[solids.drawn]\ndownsample = [2, 2, 2]", "preset = 'liver'"))
+                .find("label map"),
+            std::string::npos);
+  EXPECT_NE(error(solid_with("[solids.drawn]\ndecimate = 1.5", "preset = 'liver'")).find("(0, 1]"),
+            std::string::npos);
+  EXPECT_NE(error(solid_with("[solids.drawn]\nlevel = 2", "preset = 'liver'")).find("level"),
             std::string::npos);
 }
 

@@ -301,6 +301,12 @@ int run_run(const RunOptions& options) {
       solid["volume_refocuses"] = s.volume_refocuses;
       solid["volume_longest_refocus_ms"] = s.volume_longest_refocus_ms;
     }
+    if (s.drawn_vertices > 0) {
+      solid["drawn"] = {{"vertices", s.drawn_vertices},       {"faces", s.drawn_faces},
+                        {"build_ms", s.drawn_build_ms},       {"rest_gap_mm", s.drawn_rest_gap_mm},
+                        {"most_gap_mm", s.drawn_most_gap_mm}, {"cuts", s.drawn_cuts},
+                        {"cuts_missed", s.drawn_cuts_missed}};
+    }
     solids.push_back(std::move(solid));
   }
   nlohmann::json injected = nlohmann::json::array();

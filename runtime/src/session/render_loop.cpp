@@ -241,6 +241,24 @@ void feed_controller(devices::ControllerFeed& feed, const render::HeadsetFrame& 
   last_amplitude = *amplitude;
 }
 
+/// A finer drawn surface to its volume's nodes now, cut by the incisions made on its solid since
+/// the last frame; its figures into `report`.
+void follow_drawn(DrawnSurface& drawn, const SolidState& state,
+                  const std::vector<Incision>& incisions, std::size_t seen, std::size_t body,
+                  SolidReport& report) {
+  drawn.use_lattice(state.lattice);
+  drawn.follow(state.nodes_m);
+  for (std::size_t k = seen; k < incisions.size(); ++k) {
+    if (incisions[k].body != body) continue;
+    if (drawn.cut(incisions[k].points_m)) {
+      ++report.drawn_cuts;
+    } else {
+      ++report.drawn_cuts_missed;
+    }
+  }
+  report.drawn_most_gap_mm = std::max(report.drawn_most_gap_mm, drawn.gap_mm(state.positions_mm));
+}
+
 /// The background (linear RGB): a dark shade of surgical drape green, not a black void.
 constexpr glm::vec3 kFieldBackground{0.035f, 0.098f, 0.091f};
 /// The drape under the solids: the same green, lit (linear RGB, cloth: no highlight).
@@ -326,9 +344,19 @@ void run_render_loop(const RenderLoopContext& c) {
 
   std::vector<RenderSolid> meshes(initial.solids.size());
   std::vector<render::SolidId> ids;
+  // A solid with a finer drawn surface is drawn by it (drawn_surface.h).
+  std::vector<DrawnSurface*> drawn(initial.solids.size(), nullptr);
+  for (std::size_t b = 0; c.drawn != nullptr && b < std::min(drawn.size(), c.drawn->size()); ++b)
+    drawn[b] = (*c.drawn)[b].get();
+  std::size_t incisions_seen = 0;
   for (std::size_t b = 0; b < initial.solids.size(); ++b) {
-    meshes[b].rebuild(*initial.solids[b].topology);
-    meshes[b].set_positions(initial.solids[b].positions_mm);
+    if (drawn[b] != nullptr) {
+      meshes[b].rebuild(*drawn[b]->topology());
+      meshes[b].set_positions(drawn[b]->positions_mm());
+    } else {
+      meshes[b].rebuild(*initial.solids[b].topology);
+      meshes[b].set_positions(initial.solids[b].positions_mm);
+    }
     const auto& rgb = scene.solids[b].material.colour;
     render::Material m;
     m.colour = glm::vec3(static_cast<float>(rgb[0]), static_cast<float>(rgb[1]),
@@ -446,10 +474,18 @@ void run_render_loop(const RenderLoopContext& c) {
     const Snapshot& s = handoff.front();
     for (std::size_t b = 0; b < s.solids.size(); ++b) {
       const SolidState& st = s.solids[b];
-      if (st.topology->version != meshes[b].version) meshes[b].rebuild(*st.topology);
-      meshes[b].set_positions(st.positions_mm);
+      if (drawn[b] != nullptr) {
+        follow_drawn(*drawn[b], st, s.incisions, incisions_seen, b, report.solids[b]);
+        if (drawn[b]->topology()->version != meshes[b].version)
+          meshes[b].rebuild(*drawn[b]->topology());
+        meshes[b].set_positions(drawn[b]->positions_mm());
+      } else {
+        if (st.topology->version != meshes[b].version) meshes[b].rebuild(*st.topology);
+        meshes[b].set_positions(st.positions_mm);
+      }
       renderer.update_solid(ids[b], meshes[b].mesh);
     }
+    incisions_seen = s.incisions.size();
     if (blood && (!s.blood_mm.empty() || drawn_drops > 0)) {
       blood->place(s.blood_mm);
       renderer.update_solid(blood_id, blood->mesh());

@@ -20,6 +20,7 @@
 #include "bisturi/runtime/session/scene_description.h"
 #include "bisturi/runtime/session/session.h"
 #include "bisturi/runtime/session/triple_buffer.h"
+#include "drawn_surface.h"
 #include "session_snapshot.h"
 
 namespace bisturi::runtime {
@@ -66,6 +67,10 @@ struct RenderLoopContext {
   /// moves on by the display timeout (kHeadsetDisplayTimeout on a headset, kFileDisplayTimeout
   /// when frames go to files). The haptic loop holds its forces at zero once it has passed.
   std::atomic<std::int64_t>* display_deadline_ns = nullptr;
+  /// Per solid, the finer surface drawn in its place (null: its simulated surface is drawn).
+  /// The loop moves them with their volumes, cuts them with the simulation's incisions and
+  /// writes their figures into the report's solids.
+  std::vector<std::unique_ptr<DrawnSurface>>* drawn = nullptr;
 };
 
 /// A headset's picture frozen this long stops the forces (18 frames at 90 Hz).

@@ -102,6 +102,17 @@ for (std::size_t v = 0; v < mesh.vertex_capacity(); ++v)
 return mesh;
 }  // namespace bisturi::runtime
 
+std::optional<Dlfl> build_drawn_surface(const SolidDescription& solid,
+                                        const std::string& scene_name,
+                                        const BuildProgress& progress) {
+  if (!solid.drawn) return std::nullopt;
+  SolidDescription drawn = solid;
+  drawn.downsample = solid.drawn->downsample;
+  drawn.decimate = solid.drawn->decimate;
+  drawn.smooth = solid.drawn->smooth;
+  return build_solid(drawn, scene_name, progress);
+}
+
 std::vector<BuiltSolid> build_solids(const SceneDescription& scene, const BuildProgress& progress) {
   const std::string name = scene.file.empty() ? "default scene" : scene.file.string();
   std::vector<BuiltSolid> out;

@@ -319,12 +319,37 @@ class SceneReader {
     h.field_distance_m = number(t, "headset", "field_distance_m", h.field_distance_m);
   }
 
+  /// Three integers in [lo, hi] at `key` (which must be there).
+  std::array<std::int64_t, 3> integers3(const toml::table& t, const std::string& path,
+                                        const std::string& key, std::int64_t lo,
+                                        std::int64_t hi) const {
+    std::array<std::int64_t, 3> out{};
+    const toml::node* n = t.get(key);
+    const toml::array* a = n->as_array();
+    if (a == nullptr || a->size() != 3) fail(n, t, path + "." + key, "expected 3 integers");
+    for (std::size_t i = 0; i < 3; ++i) {
+      const auto v = a->get(i)->value<std::int64_t>();
+      if (!a->get(i)->is_integer() || !v || *v < lo || *v > hi) {
+        fail(a->get(i), t, path + "." + key + "[" + std::to_string(i) + "]",
+             "expected an integer between " + std::to_string(lo) + " and " + std::to_string(hi));
+      }
+      out[i] = *v;
+    }
+    return out;
+  }
+
+  /// A label map's downsampling: 3 integers in [1, 64].
+  std::array<int, 3> downsample(const toml::table& t, const std::string& path) const {
+    const std::array<std::int64_t, 3> v = integers3(t, path, "downsample", 1, 64);
+    return {static_cast<int>(v[0]), static_cast<int>(v[1]), static_cast<int>(v[2])};
+  }
+
   SolidDescription read_solid(const toml::table& t, const std::string& path) const {
-    only_keys(t, path,
-              {"name",    "mesh",      "volume",    "phantom",    "dims",          "spacing_mm",
-               "a_mm",    "b_mm",      "iso",       "label",      "downsample",    "decimate",
-               "smooth",  "offset_mm", "material",  "anchors",    "simulate",      "model",
-               "cell_mm", "refine",    "supported", "pulse_mmHg", "pressure_mmHg", "breathing_mm"});
+    only_keys(t, path, {"name",       "mesh",       "volume",        "phantom",      "dims",
+                        "spacing_mm", "a_mm",       "b_mm",          "iso",          "label",
+                        "downsample", "decimate",   "smooth",        "offset_mm",    "material",
+                        "anchors",    "simulate",   "model",         "cell_mm",      "refine",
+                        "supported",  "pulse_mmHg", "pressure_mmHg", "breathing_mm", "drawn"});
     SolidDescription s;
     s.name = string_or(t, path, "name", path);
     const int sources = (t.contains("mesh") ? 1 : 0) + (t.contains("volume") ? 1 : 0) +
@@ -342,18 +367,7 @@ class SceneReader {
       s.source = SolidDescription::Source::Phantom;
       s.phantom = string_or(t, path, "phantom", s.phantom);
     }
-    if (const toml::node* n = t.get("dims")) {
-      const toml::array* a = n->as_array();
-      if (a == nullptr || a->size() != 3) fail(n, t, path + ".dims", "expected 3 integers");
-      for (std::size_t i = 0; i < 3; ++i) {
-        const auto v = a->get(i)->value<std::int64_t>();
-        if (!a->get(i)->is_integer() || !v || *v < 2 || *v > 1024) {
-          fail(a->get(i), t, path + ".dims[" + std::to_string(i) + "]",
-               "expected an integer between 2 and 1024");
-        }
-        s.dims[i] = *v;
-      }
-    }
+    if (t.contains("dims")) s.dims = integers3(t, path, "dims", 2, 1024);
     s.spacing_mm = positive(t, path, "spacing_mm", s.spacing_mm);
     s.a_mm = number(t, path, "a_mm", s.a_mm);
     s.b_mm = number(t, path, "b_mm", s.b_mm);
@@ -361,18 +375,10 @@ class SceneReader {
     if (t.contains("label")) {
       s.label = static_cast<std::uint32_t>(integer(t, path, "label", 1, 0, 0xffffff));
     }
-    if (const toml::node* n = t.get("downsample")) {
-      const toml::array* a = n->as_array();
-      if (a == nullptr || a->size() != 3) fail(n, t, path + ".downsample", "expected 3 integers");
-      for (std::size_t i = 0; i < 3; ++i) {
-        const auto v = a->get(i)->value<std::int64_t>();
-        if (!a->get(i)->is_integer() || !v || *v < 1 || *v > 64) {
-          fail(a->get(i), t, path + ".downsample[" + std::to_string(i) + "]",
-               "expected an integer between 1 and 64");
-        }
-        s.downsample[i] = static_cast<int>(*v);
-      }
-      if (!s.label) fail(n, t, path + ".downsample", "only for a label map (give 'label')");
+    if (t.contains("downsample")) {
+      s.downsample = downsample(t, path);
+      if (!s.label)
+        fail(t.get("downsample"), t, path + ".downsample", "only for a label map (give 'label')");
     }
     s.decimate = number(t, path, "decimate", s.decimate);
     if (!(s.decimate > 0.0 && s.decimate <= 1.0)) {
@@ -407,6 +413,23 @@ class SceneReader {
       refine.factor = static_cast<int>(integer(*r, at, "factor", refine.factor, 2, 4));
       refine.follow = boolean(*r, at, "follow", refine.follow);
       s.refine = refine;
+    }
+    if (const toml::table* d = table_at(t, path, "drawn")) {
+      const std::string at = path + ".drawn";
+      if (s.model != SolidDescription::Model::Volume)
+        fail(t.get("drawn"), t, at, "only for model = \"volume\" (a surface rides on a volume)");
+      only_keys(*d, at, {"downsample", "decimate", "smooth"});
+      SolidDescription::Drawn drawn;
+      if (d->contains("downsample")) {
+        drawn.downsample = downsample(*d, at);
+        if (!s.label)
+          fail(d->get("downsample"), *d, at + ".downsample", "only for a label map (give 'label')");
+      }
+      drawn.decimate = number(*d, at, "decimate", drawn.decimate);
+      if (!(drawn.decimate > 0.0 && drawn.decimate <= 1.0))
+        fail(d->get("decimate"), *d, at + ".decimate", "must be in (0, 1]");
+      drawn.smooth = static_cast<int>(integer(*d, at, "smooth", drawn.smooth, 0, 1000));
+      s.drawn = drawn;
     }
     s.supported = boolean(t, path, "supported", s.supported);
     if (t.contains("supported") && s.model != SolidDescription::Model::Volume) {

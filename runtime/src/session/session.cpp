@@ -41,6 +41,7 @@
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/sim/units.h"
 #include "bisturi/sim/volume/volume_body.h"
+#include "drawn_surface.h"
 #include "fault_injector.h"
 #include "haptic_loop.h"
 #include "haptic_thread.h"
@@ -405,6 +406,24 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
 
   // ---- The hand-off ----
   const Snapshot initial = initial_snapshot(sim);
+  // Solids drawn finer than they are simulated ride on their volumes (drawn_surface.h).
+  std::vector<std::unique_ptr<DrawnSurface>> drawn(scene.solids.size());
+  for (std::uint32_t b = 0; b < scene.solids.size(); ++b) {
+    if (!scene.solids[b].drawn || !initial.solids[b].lattice) continue;
+    stage("build drawn surface");
+    const auto start = std::chrono::steady_clock::now();
+    std::optional<Dlfl> mesh = build_drawn_surface(
+        scene.solids[b], scene.file.empty() ? "default scene" : scene.file.string());
+    drawn[b] = std::make_unique<DrawnSurface>(std::move(*mesh), sim.world().body(b),
+                                              initial.solids[b].lattice);
+    SolidReport& s = report.solids[b];
+    s.drawn_build_ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    s.drawn_vertices = drawn[b]->vertices();
+    s.drawn_faces = drawn[b]->faces();
+    s.drawn_rest_gap_mm = drawn[b]->rest_gap_mm();
+    s.drawn_most_gap_mm = s.drawn_rest_gap_mm;
+  }
   TripleBuffer<Snapshot> handoff(initial);
   TripleBuffer<render::HeadPose> head_handoff;
 
@@ -470,7 +489,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                            &faults.lose_controller,
                            &faults.stall_swapchain,
                            &faults.headset_sink,
-                           &display_deadline_ns});
+                           &display_deadline_ns,
+                           &drawn});
         } catch (const std::exception& e) {
           render_error = e.what();
           render_ready.store(true);

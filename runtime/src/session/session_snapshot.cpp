@@ -6,6 +6,8 @@
 
 #include "bisturi/scene/polygon_export.h"
 #include "bisturi/sim/units.h"
+#include "bisturi/sim/volume/volume_body.h"
+#include "bisturi/sim/world.h"
 
 namespace bisturi::runtime {
 
@@ -20,6 +22,13 @@ std::shared_ptr<const Topology> make_topology(const Dlfl& mesh) {
   return t;
 }
 
+void copy_volume(const sim::SimWorld& world, std::uint32_t body, SolidState& state) {
+  const sim::VolumeBody* volume = world.volume(body);
+  if (volume == nullptr) return;
+  const std::span<const glm::dvec3> x = volume->volume().positions();
+  state.nodes_m.assign(x.begin(), x.end());
+}
+
 Snapshot initial_snapshot(SessionSim& sim) {
   Snapshot initial;
   initial.solids.resize(sim.body_count());
@@ -30,6 +39,10 @@ Snapshot initial_snapshot(SessionSim& sim) {
     initial.solids[b].topology = make_topology(body.mesh());
     for (std::size_t i = 0; i < body.positions().size(); ++i)
       initial.solids[b].positions_mm[i] = sim::sim_to_scene(body.positions()[i]);
+    if (const sim::VolumeBody* volume = sim.world().volume(static_cast<std::uint32_t>(b)))
+      initial.solids[b].lattice =
+          std::make_shared<const sim::HexLattice>(volume->volume().lattice());
+    copy_volume(sim.world(), static_cast<std::uint32_t>(b), initial.solids[b]);
   }
   return initial;
 }
@@ -38,8 +51,12 @@ SnapshotPublisher::SnapshotPublisher(SessionSim& sim, const Snapshot& initial,
                                      TripleBuffer<Snapshot>& snapshots,
                                      std::vector<devices::Nanoseconds>& event_times)
     : sim_(sim), snapshots_(snapshots), event_times_(event_times) {
-  for (const SolidState& st : initial.solids)
-    topology_.push_back(st.topology);
+  for (std::size_t b = 0; b < initial.solids.size(); ++b) {
+    topology_.push_back(initial.solids[b].topology);
+    lattice_.push_back(initial.solids[b].lattice);
+    const sim::VolumeBody* volume = sim.world().volume(static_cast<std::uint32_t>(b));
+    lattice_refocuses_.push_back(volume != nullptr ? volume->refocus_count() : 0);
+  }
 }
 
 void SnapshotPublisher::publish(const TickOutput& out,
@@ -57,7 +74,17 @@ void SnapshotPublisher::publish(const TickOutput& out,
     st.positions_mm.resize(x.size());
     for (std::size_t i = 0; i < x.size(); ++i)
       st.positions_mm[i] = sim::sim_to_scene(x[i]);
+    if (const sim::VolumeBody* volume = sim_.world().volume(static_cast<std::uint32_t>(b))) {
+      if (volume->refocus_count() != lattice_refocuses_[b]) {
+        // The refined box moved (between steps, on this thread; it allocated already).
+        lattice_refocuses_[b] = volume->refocus_count();
+        lattice_[b] = std::make_shared<const sim::HexLattice>(volume->volume().lattice());
+      }
+      st.lattice = lattice_[b];
+      copy_volume(sim_.world(), static_cast<std::uint32_t>(b), st);
+    }
   }
+  if (s.incisions.size() != sim_.incisions().size()) s.incisions = sim_.incisions();
   const std::vector<glm::dvec3>& blood = sim_.blood().positions();
   s.blood_mm.resize(blood.size());
   for (std::size_t i = 0; i < blood.size(); ++i)

@@ -17,6 +17,7 @@
 #include "bisturi/runtime/session/triple_buffer.h"
 #include "bisturi/scene/dlfl.h"
 #include "bisturi/scene/oriented_builder.h"
+#include "bisturi/sim/volume/hex_lattice.h"
 
 namespace bisturi::runtime {
 
@@ -41,6 +42,10 @@ std::shared_ptr<const Topology> make_topology(const Dlfl& mesh);
 struct SolidState {
   std::vector<glm::dvec3> positions_mm;  ///< by body vertex slot
   std::shared_ptr<const Topology> topology;
+  /// A volume body's lattice (a new one after its refined box moved; null for a membrane) and
+  /// its nodes now (metres): what a finer drawn surface follows (drawn_surface.h).
+  std::shared_ptr<const sim::HexLattice> lattice;
+  std::vector<glm::dvec3> nodes_m;
 };
 
 /// What the tissue thread hands the render thread after each step (the head pose comes straight
@@ -58,9 +63,13 @@ struct Snapshot {
   std::vector<SolidState> solids;
   std::vector<InstrumentState> instruments;  ///< one per hand
   std::vector<glm::dvec3> blood_mm;          ///< the blood's particles (sim/blood.h)
+  std::vector<Incision> incisions;           ///< the cuts made so far (SessionSim::incisions)
   std::uint64_t event_count = 0;
   std::array<EventStamp, 16> recent{};  ///< the last events, by index % size
 };
+
+/// A volume body's lattice and nodes into `state` (nothing for a membrane).
+void copy_volume(const sim::SimWorld& world, std::uint32_t body, SolidState& state);
 
 /// The solids as they are before the first step.
 Snapshot initial_snapshot(SessionSim& sim);
@@ -84,6 +93,8 @@ class SnapshotPublisher {
   TripleBuffer<Snapshot>& snapshots_;
   std::vector<devices::Nanoseconds>& event_times_;
   std::vector<std::shared_ptr<const Topology>> topology_;
+  std::vector<std::shared_ptr<const sim::HexLattice>> lattice_;
+  std::vector<std::uint64_t> lattice_refocuses_;
   std::uint64_t published_events_ = 0;
   std::array<EventStamp, 16> recent_{};
   std::atomic<std::size_t> event_count_{0};

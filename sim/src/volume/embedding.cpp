@@ -1,21 +1,28 @@
 #include "bisturi/sim/volume/embedding.h"
 
 #include <algorithm>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
+
 namespace bisturi::sim {
 
-std::optional<EmbeddedPoint> embed_point(const HexLattice& lattice, const glm::dvec3& point) {
-  const std::int32_t cell = lattice.kept_cell(point);
-  if (cell < 0) return std::nullopt;
+namespace {
+
+/// Trilinear weights of `point` in kept cell `cell`, its parameters clamped to the cell or not.
+EmbeddedPoint weights_in(const HexLattice& lattice, std::int32_t cell, const glm::dvec3& point,
+                         bool clamp) {
   const auto& ijk = lattice.cell_ijk[static_cast<std::size_t>(cell)];
   const std::size_t n = lattice.span(static_cast<std::size_t>(cell));
   glm::dvec3 t;
   for (int a = 0; a < 3; ++a) {
     const std::vector<double>& x = lattice.axis[static_cast<std::size_t>(a)];
     const std::size_t i = ijk[static_cast<std::size_t>(a)];
-    t[a] = std::clamp((point[a] - x[i]) / (x[i + n] - x[i]), 0.0, 1.0);
+    t[a] = (point[a] - x[i]) / (x[i + n] - x[i]);
+    if (clamp) t[a] = std::clamp(t[a], 0.0, 1.0);
   }
   EmbeddedPoint e;
   e.cell = static_cast<std::uint32_t>(cell);
@@ -25,6 +32,33 @@ std::optional<EmbeddedPoint> embed_point(const HexLattice& lattice, const glm::d
                                              (((c >> 2) & 1) ? t.z : 1.0 - t.z);
   }
   return e;
+}
+
+}  // namespace
+
+std::optional<EmbeddedPoint> embed_point(const HexLattice& lattice, const glm::dvec3& point) {
+  const std::int32_t cell = lattice.kept_cell(point);
+  if (cell < 0) return std::nullopt;
+  return weights_in(lattice, cell, point, true);
+}
+
+std::optional<EmbeddedPoint> embed_point_nearest(const HexLattice& lattice,
+                                                 const glm::dvec3& point) {
+  if (const auto inside = embed_point(lattice, point)) return inside;
+  if (lattice.cells.empty()) return std::nullopt;
+  std::int32_t best = 0;
+  double best_d2 = std::numeric_limits<double>::infinity();
+  for (std::size_t c = 0; c < lattice.cells.size(); ++c) {
+    const glm::dvec3 lo = lattice.rest[lattice.cells[c][0]];
+    const glm::dvec3 hi = lattice.rest[lattice.cells[c][7]];
+    const glm::dvec3 gap = glm::max(glm::max(lo - point, point - hi), glm::dvec3(0.0));
+    const double d2 = glm::dot(gap, gap);
+    if (d2 < best_d2) {
+      best_d2 = d2;
+      best = static_cast<std::int32_t>(c);
+    }
+  }
+  return weights_in(lattice, best, point, false);
 }
 
 std::vector<EmbeddedPoint> embed_points(const HexLattice& lattice,

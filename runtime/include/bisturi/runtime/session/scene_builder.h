@@ -2,11 +2,13 @@
 // Builds the solids of a SceneDescription at start-up: phantom or volume -> isosurface (marching
 // cubes into the DLFL; a label of a label map through the smooth label surface of
 // label_surface.h) -> decimation -> Taubin smoothing -> offset; mesh files through the polygon
-// import. One mesh per solid, for the tissue model and the renderer alike (no separate drawing
-// mesh at full resolution yet). Deterministic: a live session and its replay build identical solids.
+// import. One mesh per solid for the tissue model, drawn too unless the solid asks for a finer
+// drawn surface ([solids.drawn]: build_drawn_surface). Deterministic: a live session and its
+// replay build identical solids.
 
 #include <cstddef>
 #include <functional>
+#include <optional>
 #include <string_view>
 #include <vector>
 
@@ -30,6 +32,12 @@ using BuildProgress =
 /// gives no surface; InputError from the readers for bad files.
 Dlfl build_solid(const SolidDescription& solid, const std::string& scene_name,
                  const BuildProgress& progress = {});
+
+/// The solid's drawn surface, when it asks for one finer than its simulated one: the same source
+/// with its [solids.drawn] settings. None without them.
+std::optional<Dlfl> build_drawn_surface(const SolidDescription& solid,
+                                        const std::string& scene_name,
+                                        const BuildProgress& progress = {});
 
 /// Builds every solid of `scene`, in order.
 std::vector<BuiltSolid> build_solids(const SceneDescription& scene,

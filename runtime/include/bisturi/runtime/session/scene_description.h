@@ -95,6 +95,14 @@ struct SolidDescription {
     bool follow = false;
   };
   std::optional<Refinement> refine;
+  /// What is drawn, when finer than what is simulated (model volume only): the same source
+  /// built with these settings instead, its vertices riding on the volume (drawn_surface.h).
+  struct Drawn {
+    std::array<int, 3> downsample{1, 1, 1};  ///< label maps only
+    double decimate = 1.0;
+    int smooth = 0;
+  };
+  std::optional<Drawn> drawn;
   /// The solid's weight is carried by the tissues around it, as in the scan it came from (an
   /// organ in situ is in equilibrium with them): no gravity on its volume (model volume only).
   bool supported = false;

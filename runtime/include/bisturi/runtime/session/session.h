@@ -116,6 +116,17 @@ struct SolidReport {
   /// A refined box that follows the instrument: how often it moved, and its longest rebuild.
   std::uint64_t volume_refocuses = 0;
   double volume_longest_refocus_ms = 0.0;
+  /// A finer drawn surface riding on the volume ([solids.drawn]; 0 vertices: the simulated
+  /// surface is drawn): its size, build time (surface, embedding and closest points), and how
+  /// far it was from the simulated surface at rest and, at most, in any frame drawn (mm).
+  std::size_t drawn_vertices = 0;
+  std::size_t drawn_faces = 0;
+  double drawn_build_ms = 0.0;
+  double drawn_rest_gap_mm = 0.0;
+  double drawn_most_gap_mm = 0.0;
+  /// Cuts made on the drawn surface, and those its surface gave no path for (drawn uncut).
+  std::uint64_t drawn_cuts = 0;
+  std::uint64_t drawn_cuts_missed = 0;
 };
 
 /// A vessel that pulses with the heartbeat: its lumen pressure over the beat.

@@ -47,6 +47,14 @@ struct SessionEvent {
   std::string detail;      ///< e.g. "42 vertices held", "path of 9 vertices", the cut error
 };
 
+/// A cut that was made: the body and where the blade crossed its surface (metres), as
+/// sim::cut_surface took them. A drawn surface finer than the simulated one is cut along the same
+/// points (drawn_surface.h).
+struct Incision {
+  std::uint32_t body = 0;
+  std::vector<glm::dvec3> points_m;
+};
+
 /// One hand's share of a step: its instrument's force and what its device is commanded.
 struct HandOutput {
   glm::dvec3 force_N{0.0};        ///< proxy force on the tip (world frame)
@@ -177,6 +185,8 @@ class SessionSim {
   /// Haptic ticks simulated so far (the sum of the steps' ticks).
   [[nodiscard]] std::uint64_t ticks() const { return ticks_; }
   [[nodiscard]] const std::vector<SessionEvent>& events() const { return events_; }
+  /// The cuts made so far, in order.
+  [[nodiscard]] const std::vector<Incision>& incisions() const { return incisions_; }
   /// Divergence events of the integrator (rollbacks, frozen bodies) so far.
   [[nodiscard]] std::uint64_t divergence_events() const { return divergence_events_; }
   /// Combined state hash of every body (FNV-1a over their SoftBody::state_hash in order).
@@ -305,6 +315,7 @@ class SessionSim {
   std::uint32_t step_ticks_ = 1;  ///< ticks the integrator's time step now covers
   std::uint64_t divergence_events_ = 0;
   std::vector<SessionEvent> events_;
+  std::vector<Incision> incisions_;
   TickOutput out_;
   std::vector<glm::dvec3> tips_m_;             ///< per hand, scratch
   std::vector<sim::HapticOutput> haptic_out_;  ///< per hand, scratch

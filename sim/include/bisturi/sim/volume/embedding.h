@@ -24,6 +24,13 @@ struct EmbeddedPoint {
 /// The point's cell and weights at rest, or none when it lies in no kept cell.
 std::optional<EmbeddedPoint> embed_point(const HexLattice& lattice, const glm::dvec3& point);
 
+/// The point's cell and weights at rest; a point in no kept cell (a drawn surface finer than the
+/// one the lattice was built around pokes out of it by a fraction of a cell) takes the nearest
+/// kept cell, its weights extrapolated (they still sum to 1: the cell's motion, continued). None
+/// only for a lattice without cells.
+std::optional<EmbeddedPoint> embed_point_nearest(const HexLattice& lattice,
+                                                 const glm::dvec3& point);
+
 /// Each point's cell and weights at rest. Throws std::invalid_argument naming the first point
 /// that lies in no kept cell.
 std::vector<EmbeddedPoint> embed_points(const HexLattice& lattice,

@@ -1,0 +1,113 @@
+// A finer drawn surface on a volume body (see drawn_surface.h).
+
+#include "drawn_surface.h"
+
+#include <algorithm>
+#include <stdexcept>
+#include <utility>
+
+#include <glm/geometric.hpp>
+
+#include "bisturi/sim/collision.h"
+#include "bisturi/sim/cutting.h"
+#include "bisturi/sim/errors.h"
+#include "bisturi/sim/units.h"
+
+namespace bisturi::runtime {
+
+DrawnSurface::DrawnSurface(Dlfl drawn, const sim::SoftBody& simulated,
+                           std::shared_ptr<const sim::HexLattice> lattice)
+    : body_(std::move(drawn), simulated.material()), lattice_(std::move(lattice)) {
+  if (!lattice_ || lattice_->cells.empty())
+    throw std::invalid_argument("a drawn surface needs a volume lattice with cells");
+  embed_all();
+  // Each drawn vertex's closest point on the simulated surface at rest.
+  const sim::CollisionDevice device;
+  const sim::SurfaceBvh bvh(device, simulated);
+  const sim::SurfaceTriangles& triangles = simulated.triangles();
+  const std::vector<glm::dvec3>& x = body_.positions();
+  anchor_.resize(x.size());
+  std::vector<glm::dvec3> simulated_mm(simulated.positions().size());
+  for (std::size_t i = 0; i < simulated_mm.size(); ++i)
+    simulated_mm[i] = sim::sim_to_scene(simulated.positions()[i]);
+  for (std::size_t v = 0; v < x.size(); ++v) {
+    const sim::SurfacePoint p = bvh.closest_point(simulated, x[v]);
+    if (!p.found) continue;
+    SurfaceAnchor& a = anchor_[v];
+    for (std::size_t k = 0; k < 3; ++k)
+      a.slot[k] = triangles.indices[3 * p.triangle + k];
+    a.weights = p.barycentric;
+  }
+  follow(lattice_->rest);
+  rest_gap_mm_ = gap_mm(simulated_mm);
+  topology_ = make_topology(body_.mesh());
+}
+
+void DrawnSurface::embed_all() {
+  const std::vector<glm::dvec3>& x = body_.positions();
+  embedding_.resize(x.size());
+  for (std::size_t v = 0; v < x.size(); ++v) {
+    const VertexId id{static_cast<std::uint32_t>(v)};
+    if (!body_.mesh().alive(id)) continue;
+    embedding_[v] = *sim::embed_point_nearest(*lattice_, body_.rest_position(id));
+  }
+}
+
+void DrawnSurface::use_lattice(const std::shared_ptr<const sim::HexLattice>& lattice) {
+  if (!lattice || lattice == lattice_) return;
+  lattice_ = lattice;
+  embed_all();
+}
+
+void DrawnSurface::follow(std::span<const glm::dvec3> nodes_m) {
+  std::vector<glm::dvec3>& x = body_.positions();
+  positions_mm_.resize(x.size());
+  if (nodes_m.size() != lattice_->rest.size()) return;  // a snapshot of another lattice
+  for (std::size_t v = 0; v < x.size(); ++v) {
+    x[v] = sim::embedded_position(*lattice_, nodes_m, embedding_[v]);
+    positions_mm_[v] = sim::sim_to_scene(x[v]);
+  }
+}
+
+bool DrawnSurface::cut(std::span<const glm::dvec3> points_m) {
+  sim::CutResult result;
+  try {
+    result = sim::cut_surface(body_, points_m);
+  } catch (const sim::CutError&) {
+    return false;
+  }
+  // The far lip's copies stand where their originals stand, in the same cells, and keep their
+  // closest points on the simulated surface.
+  const std::size_t slots = body_.positions().size();
+  embedding_.resize(slots);
+  anchor_.resize(slots);
+  for (const VertexId copy : result.new_vertices) {
+    for (const VertexId original : result.path) {
+      if (body_.rest_position(original) != body_.rest_position(copy)) continue;
+      embedding_[copy.idx] = embedding_[original.idx];
+      anchor_[copy.idx] = anchor_[original.idx];
+      break;
+    }
+  }
+  positions_mm_.resize(slots);
+  for (std::size_t v = 0; v < slots; ++v)
+    positions_mm_[v] = sim::sim_to_scene(body_.positions()[v]);
+  topology_ = make_topology(body_.mesh());
+  return true;
+}
+
+double DrawnSurface::gap_mm(std::span<const glm::dvec3> simulated_mm) const {
+  double most = 0.0;
+  for (std::size_t v = 0; v < anchor_.size() && v < positions_mm_.size(); ++v) {
+    const SurfaceAnchor& a = anchor_[v];
+    if (a.weights == glm::dvec3(0.0)) continue;
+    if (std::max({a.slot[0], a.slot[1], a.slot[2]}) >= simulated_mm.size()) continue;
+    const glm::dvec3 on = a.weights.x * simulated_mm[a.slot[0]] +
+                          a.weights.y * simulated_mm[a.slot[1]] +
+                          a.weights.z * simulated_mm[a.slot[2]];
+    most = std::max(most, glm::length(positions_mm_[v] - on));
+  }
+  return most;
+}
+
+}  // namespace bisturi::runtime

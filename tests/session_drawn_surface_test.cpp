@@ -1,0 +1,107 @@
+// A solid drawn finer than it is simulated ([solids.drawn]): the liver scene's drawn surface riding
+// on its volume through the scripted procedure: it stays as close to the simulated surface as it
+// was at rest, and the procedure's cut opens it too.
+
+#include <gtest/gtest.h>
+
+#include <glm/geometric.hpp>
+
+#include <algorithm>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "bisturi/devices/simulated.h"
+#include "bisturi/runtime/session/procedure.h"
+#include "bisturi/runtime/session/scene_builder.h"
+#include "bisturi/runtime/session/scene_description.h"
+#include "bisturi/runtime/session/session_sim.h"
+#include "bisturi/scene/dlfl_validate.h"
+#include "bisturi/scene/polygon_import.h"
+#include "bisturi/sim/units.h"
+#include "liver_procedure.h"
+#include "session/drawn_surface.h"
+
+namespace bisturi::runtime {
+namespace {
+
+using devices::Nanoseconds;
+
+/// The vertices round `mesh`'s openings (its labelled boundary faces).
+std::vector<glm::dvec3> opening(const Dlfl& mesh, const std::vector<glm::dvec3>& positions_mm) {
+  std::vector<glm::dvec3> out;
+  for (std::uint32_t f = 0; f < mesh.face_capacity(); ++f) {
+    const FaceId id{f};
+    if (!mesh.alive(id) || !mesh.is_bounding(id)) continue;
+    const CornerId first = mesh.first_corner(id);
+    CornerId c = first;
+    do {
+      out.push_back(positions_mm[mesh.vertex(c).idx]);
+      c = mesh.next(c);
+    } while (c != first);
+  }
+  return out;
+}
+
+TEST(LiverScene, TheDrawnLiverRidesOnTheVolumeAndIsCutWithIt) {
+  LiverProcedure liver;
+  const SceneDescription& scene = liver.scene;
+  ASSERT_TRUE(scene.solids[0].drawn.has_value());
+  SessionSim& sim = liver.sim;
+  const sim::VolumeBody* volume = sim.world().volume(0);
+  ASSERT_NE(volume, nullptr);
+  auto lattice = std::make_shared<const sim::HexLattice>(volume->volume().lattice());
+  DrawnSurface drawn(*build_drawn_surface(scene.solids[0], "liver.toml"), sim.world().body(0),
+                     lattice);
+  // Tens of thousands of vertices drawn on the few hundred simulated.
+  EXPECT_GT(drawn.vertices(), 10u * sim.world().body(0).mesh().num_vertices());
+  EXPECT_GT(drawn.rest_gap_mm(), 0.0);
+  EXPECT_LT(drawn.rest_gap_mm(), 6.0);
+
+  const auto simulated_mm = [&] {
+    std::vector<glm::dvec3> x;
+    for (const glm::dvec3& q : sim.world().body(0).positions())
+      x.push_back(sim::sim_to_scene(q));
+    return x;
+  };
+  const auto nodes = [&] {
+    const auto x = volume->volume().positions();
+    return std::vector<glm::dvec3>(x.begin(), x.end());
+  };
+  double most_gap = 0.0, most_moved = 0.0;
+  const std::vector<glm::dvec3> rest = drawn.positions_mm();
+  std::size_t cuts_seen = 0;
+  for (std::int64_t k = 1; k <= liver.steps(); ++k) {
+    (void)liver.step(k);
+    if (k % 6 != 0 && sim.incisions().size() == cuts_seen) continue;  // ~ the display's rate
+    drawn.follow(nodes());
+    for (; cuts_seen < sim.incisions().size(); ++cuts_seen) {
+      const Incision& cut = sim.incisions()[cuts_seen];
+      if (cut.body != 0) continue;
+      ASSERT_TRUE(drawn.cut(cut.points_m)) << "cut " << cuts_seen;
+      EXPECT_TRUE(validate(drawn.mesh()).ok());
+      // The drawn surface opens along the blade: every vertex of its new opening lies near
+      // the blade's points.
+      const std::vector<glm::dvec3> lips = opening(drawn.mesh(), drawn.positions_mm());
+      ASSERT_GE(lips.size(), 4u);
+      for (const glm::dvec3& lip : lips) {
+        double nearest = 1e9;
+        for (const glm::dvec3& b : cut.points_m)
+          nearest = std::min(nearest, glm::length(lip - sim::sim_to_scene(b)));
+        EXPECT_LT(nearest, 6.0);
+      }
+    }
+    most_gap = std::max(most_gap, drawn.gap_mm(simulated_mm()));
+    for (std::size_t v = 0; v < rest.size(); ++v)
+      most_moved = std::max(most_moved, glm::length(drawn.positions_mm()[v] - rest[v]));
+  }
+  EXPECT_EQ(cuts_seen, sim.incisions().size());
+  EXPECT_GE(sim.incisions().size(), 1u);
+  // The procedure pressed the liver millimetres deep, and the drawn surface went with it: the
+  // two surfaces stayed as far apart as at rest, to a millimetre.
+  EXPECT_GT(most_moved, 2.0);
+  EXPECT_LT(most_gap, drawn.rest_gap_mm() + 1.0);
+}
+
+}  // namespace
+}  // namespace bisturi::runtime
