@@ -28,7 +28,7 @@ namespace {
 using devices::Nanoseconds;
 
 /// The vertices round `mesh`'s openings (its labelled boundary faces).
-std::vector<glm::dvec3> opening(const Dlfl& mesh, const std::vector<glm::dvec3>& positions_mm) {
+std::vector<glm::dvec3> opening(const Dlfl& mesh) {
   std::vector<glm::dvec3> out;
   for (std::uint32_t f = 0; f < mesh.face_capacity(); ++f) {
     const FaceId id{f};
@@ -36,7 +36,7 @@ std::vector<glm::dvec3> opening(const Dlfl& mesh, const std::vector<glm::dvec3>&
     const CornerId first = mesh.first_corner(id);
     CornerId c = first;
     do {
-      out.push_back(positions_mm[mesh.vertex(c).idx]);
+      out.push_back(mesh.positions()[mesh.vertex(c).idx]);
       c = mesh.next(c);
     } while (c != first);
   }
@@ -69,7 +69,8 @@ TEST(LiverScene, TheDrawnLiverRidesOnTheVolumeAndIsCutWithIt) {
     return std::vector<glm::dvec3>(x.begin(), x.end());
   };
   double most_gap = 0.0, most_moved = 0.0;
-  const std::vector<glm::dvec3> rest = drawn.positions_mm();
+  const std::vector<glm::dvec3> rest(drawn.mesh().positions().begin(),
+                                     drawn.mesh().positions().end());
   std::size_t cuts_seen = 0;
   for (std::int64_t k = 1; k <= liver.steps(); ++k) {
     (void)liver.step(k);
@@ -82,7 +83,7 @@ TEST(LiverScene, TheDrawnLiverRidesOnTheVolumeAndIsCutWithIt) {
       EXPECT_TRUE(validate(drawn.mesh()).ok());
       // The drawn surface opens along the blade: every vertex of its new opening lies near
       // the blade's points.
-      const std::vector<glm::dvec3> lips = opening(drawn.mesh(), drawn.positions_mm());
+      const std::vector<glm::dvec3> lips = opening(drawn.mesh());
       ASSERT_GE(lips.size(), 4u);
       for (const glm::dvec3& lip : lips) {
         double nearest = 1e9;
@@ -93,7 +94,7 @@ TEST(LiverScene, TheDrawnLiverRidesOnTheVolumeAndIsCutWithIt) {
     }
     most_gap = std::max(most_gap, drawn.gap_mm(simulated_mm()));
     for (std::size_t v = 0; v < rest.size(); ++v)
-      most_moved = std::max(most_moved, glm::length(drawn.positions_mm()[v] - rest[v]));
+      most_moved = std::max(most_moved, glm::length(drawn.mesh().positions()[v] - rest[v]));
   }
   EXPECT_EQ(cuts_seen, sim.incisions().size());
   EXPECT_GE(sim.incisions().size(), 1u);

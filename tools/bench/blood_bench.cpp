@@ -1,14 +1,16 @@
 // Blood (sim/blood.h): one step of 1/90 s for N particles resting and flowing on a rigid slab,
-// against the display period it must fit beside the tissue (the ratio is the share of the
-// period one step takes on one core).
+// and the liquid surface drawn round them (runtime/render/liquid_surface.h), against the display
+// period each must fit in (the ratio is the share of the period one takes on one core).
 
 #include <benchmark/benchmark.h>
 
 #include <chrono>
 
+#include "bisturi/runtime/render/liquid_surface.h"
 #include "bisturi/scene/oriented_builder.h"
 #include "bisturi/scene/shapes.h"
 #include "bisturi/sim/blood.h"
+#include "bisturi/sim/units.h"
 #include "bisturi/sim/world.h"
 
 namespace bisturi::sim {
@@ -31,9 +33,20 @@ SimWorld slab_world() {
   return world;
 }
 
-void BM_BloodStep(benchmark::State& state) {
-  const auto particles = static_cast<std::size_t>(state.range(0));
-  SimWorld world = slab_world();
+/// Times per iteration as a share of the display period.
+void count_share_of_display_period(benchmark::State& state) {
+  state.counters["share_of_display_period"] =
+      benchmark::Counter(static_cast<double>(state.iterations()) * kDisplayPeriod_s,
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+
+/// 500 to 5000 particles, timed by hand (the setup pours them), in milliseconds.
+void particle_counts(benchmark::internal::Benchmark* b) {
+  b->Arg(500)->Arg(1000)->Arg(2000)->Arg(5000)->UseManualTime()->Unit(benchmark::kMillisecond);
+}
+
+/// Blood poured from four points 10 mm above the slab until there are `particles`.
+Blood poured_blood(SimWorld& world, std::size_t particles) {
   BloodOptions options;
   options.max_particles = particles;
   options.floor_z_m = -0.05;
@@ -41,7 +54,6 @@ void BM_BloodStep(benchmark::State& state) {
   options.field_max_m = glm::dvec3(0.2);
   Blood blood(options);
   const BloodSurface surface{&world.body(0), &world.bvh(0)};
-  // Poured from four points 10 mm above the slab until there are as many as asked.
   std::vector<BloodSource> sources;
   for (const double x : {0.025, 0.055})
     for (const double y : {0.025, 0.055})
@@ -50,6 +62,14 @@ void BM_BloodStep(benchmark::State& state) {
     (void)blood.emit(sources, 50e-6, 0.2, kDisplayPeriod_s);
     blood.step(kDisplayPeriod_s, {&surface, 1});
   }
+  return blood;
+}
+
+void BM_BloodStep(benchmark::State& state) {
+  const auto particles = static_cast<std::size_t>(state.range(0));
+  SimWorld world = slab_world();
+  Blood blood = poured_blood(world, particles);
+  const BloodSurface surface{&world.body(0), &world.bvh(0)};
   for (auto _ : state) {
     const auto begin = std::chrono::steady_clock::now();
     blood.step(kDisplayPeriod_s, {&surface, 1});
@@ -58,17 +78,29 @@ void BM_BloodStep(benchmark::State& state) {
   }
   state.counters["particles"] = static_cast<double>(blood.positions().size());
   state.counters["pooled"] = static_cast<double>(blood.counts().pooled);
-  state.counters["share_of_display_period"] =
-      benchmark::Counter(static_cast<double>(state.iterations()) * kDisplayPeriod_s,
-                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  count_share_of_display_period(state);
 }
-BENCHMARK(BM_BloodStep)
-    ->Arg(500)
-    ->Arg(1000)
-    ->Arg(2000)
-    ->Arg(5000)
-    ->UseManualTime()
-    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_BloodStep)->Apply(particle_counts);
+
+void BM_BloodLiquidSurface(benchmark::State& state) {
+  const auto particles = static_cast<std::size_t>(state.range(0));
+  SimWorld world = slab_world();
+  const Blood blood = poured_blood(world, particles);
+  std::vector<glm::dvec3> centres_mm;
+  for (const glm::dvec3& p : blood.positions())
+    centres_mm.push_back(sim_to_scene(p));
+  render::LiquidSurface liquid;
+  for (auto _ : state) {
+    const auto begin = std::chrono::steady_clock::now();
+    benchmark::DoNotOptimize(liquid.update(centres_mm).num_faces());
+    state.SetIterationTime(
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count());
+  }
+  state.counters["particles"] = static_cast<double>(centres_mm.size());
+  state.counters["faces"] = static_cast<double>(liquid.mesh().num_faces());
+  count_share_of_display_period(state);
+}
+BENCHMARK(BM_BloodLiquidSurface)->Apply(particle_counts);
 
 }  // namespace
 }  // namespace bisturi::sim

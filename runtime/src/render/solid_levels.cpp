@@ -202,6 +202,21 @@ void SolidLevels::update(const Dlfl& mesh) {
   }
 }
 
+void SolidLevels::replace(const Dlfl& mesh) {
+  topology_version_ = mesh.topology_version();
+  copy_positions(mesh);
+  build_source(mesh);
+}
+
+void SolidLevels::recut(const Dlfl& mesh) {
+  std::vector<SolidLevel> coarser;
+  for (std::size_t i = source_level_ + 1; i < levels_.size(); ++i)
+    coarser.push_back(std::move(levels_[i]));
+  replace(mesh);
+  for (SolidLevel& level : coarser)
+    levels_.push_back(std::move(level));
+}
+
 void SolidLevels::rebuild_derived_levels(const Dlfl& mesh) {
   topology_version_ = mesh.topology_version();
   copy_positions(mesh);

@@ -612,6 +612,20 @@ void StereoRenderer::update_solid(SolidId id, const Dlfl& mesh) {
   }
 }
 
+void StereoRenderer::replace_solid(SolidId id, const Dlfl& mesh) {
+  Solid& s = impl_->solid(id);
+  s.levels->replace(mesh);
+  s.index_buffers.resize(s.levels->level_count());
+  s.boundary.rebuild(mesh);
+}
+
+void StereoRenderer::recut_solid(SolidId id, const Dlfl& mesh) {
+  Solid& s = impl_->solid(id);
+  s.levels->recut(mesh);
+  s.index_buffers.resize(s.levels->level_count());
+  s.boundary.rebuild(mesh);
+}
+
 void StereoRenderer::rebuild_levels(SolidId id, const Dlfl& mesh) {
   Solid& s = impl_->solid(id);
   s.levels->rebuild_derived_levels(mesh);

@@ -38,9 +38,9 @@ DrawnSurface::DrawnSurface(Dlfl drawn, const sim::SoftBody& simulated,
       a.slot[k] = triangles.indices[3 * p.triangle + k];
     a.weights = p.barycentric;
   }
+  mesh_mm_ = body_.mesh();
   follow(lattice_->rest);
   rest_gap_mm_ = gap_mm(simulated_mm);
-  topology_ = make_topology(body_.mesh());
 }
 
 void DrawnSurface::embed_all() {
@@ -60,12 +60,12 @@ void DrawnSurface::use_lattice(const std::shared_ptr<const sim::HexLattice>& lat
 }
 
 void DrawnSurface::follow(std::span<const glm::dvec3> nodes_m) {
-  std::vector<glm::dvec3>& x = body_.positions();
-  positions_mm_.resize(x.size());
   if (nodes_m.size() != lattice_->rest.size()) return;  // a snapshot of another lattice
-  for (std::size_t v = 0; v < x.size(); ++v) {
+  std::vector<glm::dvec3>& x = body_.positions();
+  auto& drawn = mesh_mm_.positions();
+  for (std::size_t v = 0; v < std::min(x.size(), drawn.size()); ++v) {
     x[v] = sim::embedded_position(*lattice_, nodes_m, embedding_[v]);
-    positions_mm_[v] = sim::sim_to_scene(x[v]);
+    drawn[v] = sim::sim_to_scene(x[v]);
   }
 }
 
@@ -89,23 +89,24 @@ bool DrawnSurface::cut(std::span<const glm::dvec3> points_m) {
       break;
     }
   }
-  positions_mm_.resize(slots);
+  mesh_mm_ = body_.mesh();
   for (std::size_t v = 0; v < slots; ++v)
-    positions_mm_[v] = sim::sim_to_scene(body_.positions()[v]);
-  topology_ = make_topology(body_.mesh());
+    mesh_mm_.positions()[v] = sim::sim_to_scene(body_.positions()[v]);
+  ++cuts_;
   return true;
 }
 
 double DrawnSurface::gap_mm(std::span<const glm::dvec3> simulated_mm) const {
   double most = 0.0;
-  for (std::size_t v = 0; v < anchor_.size() && v < positions_mm_.size(); ++v) {
+  const auto& drawn = mesh_mm_.positions();
+  for (std::size_t v = 0; v < anchor_.size() && v < drawn.size(); ++v) {
     const SurfaceAnchor& a = anchor_[v];
     if (a.weights == glm::dvec3(0.0)) continue;
     if (std::max({a.slot[0], a.slot[1], a.slot[2]}) >= simulated_mm.size()) continue;
     const glm::dvec3 on = a.weights.x * simulated_mm[a.slot[0]] +
                           a.weights.y * simulated_mm[a.slot[1]] +
                           a.weights.z * simulated_mm[a.slot[2]];
-    most = std::max(most, glm::length(positions_mm_[v] - on));
+    most = std::max(most, glm::length(drawn[v] - on));
   }
   return most;
 }

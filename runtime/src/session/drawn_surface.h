@@ -23,7 +23,6 @@
 #include "bisturi/sim/soft_body.h"
 #include "bisturi/sim/volume/embedding.h"
 #include "bisturi/sim/volume/hex_lattice.h"
-#include "session_snapshot.h"
 
 namespace bisturi::runtime {
 
@@ -48,11 +47,11 @@ class DrawnSurface {
   [[nodiscard]] double gap_mm(std::span<const glm::dvec3> simulated_mm) const;
   /// gap_mm at rest.
   [[nodiscard]] double rest_gap_mm() const { return rest_gap_mm_; }
-  /// The drawn faces (shared with the renderer; a new one after each cut).
-  [[nodiscard]] const std::shared_ptr<const Topology>& topology() const { return topology_; }
-  /// By vertex slot (mm), as of the last follow().
-  [[nodiscard]] const std::vector<glm::dvec3>& positions_mm() const { return positions_mm_; }
-  [[nodiscard]] const Dlfl& mesh() const { return body_.mesh(); }
+  /// What is drawn: the surface at the positions of the last follow() (mm). A cut adds
+  /// vertices and faces; the vertices it had keep their indices.
+  [[nodiscard]] const Dlfl& mesh() const { return mesh_mm_; }
+  /// Cuts made on it so far.
+  [[nodiscard]] std::uint64_t cuts() const { return cuts_; }
   [[nodiscard]] std::size_t vertices() const { return body_.mesh().num_vertices(); }
   [[nodiscard]] std::size_t faces() const { return body_.mesh().num_faces(); }
 
@@ -69,8 +68,8 @@ class DrawnSurface {
   std::shared_ptr<const sim::HexLattice> lattice_;
   std::vector<sim::EmbeddedPoint> embedding_;  ///< by vertex slot
   std::vector<SurfaceAnchor> anchor_;          ///< by vertex slot
-  std::vector<glm::dvec3> positions_mm_;
-  std::shared_ptr<const Topology> topology_;
+  Dlfl mesh_mm_;
+  std::uint64_t cuts_ = 0;
   double rest_gap_mm_ = 0.0;
 };
 

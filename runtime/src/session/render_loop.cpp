@@ -21,12 +21,12 @@
 #include "bisturi/runtime/render/drape_mesh.h"
 #include "bisturi/runtime/render/errors.h"
 #include "bisturi/runtime/render/instrument_mesh.h"
+#include "bisturi/runtime/render/liquid_surface.h"
 #include "bisturi/runtime/render/openxr_sink.h"
 #include "bisturi/runtime/render/png_sink.h"
 #include "bisturi/runtime/session/fault_injection.h"
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/sim/units.h"
-#include "blood_drops.h"
 
 namespace bisturi::runtime {
 
@@ -350,18 +350,13 @@ void run_render_loop(const RenderLoopContext& c) {
     drawn[b] = (*c.drawn)[b].get();
   std::size_t incisions_seen = 0;
   for (std::size_t b = 0; b < initial.solids.size(); ++b) {
-    if (drawn[b] != nullptr) {
-      meshes[b].rebuild(*drawn[b]->topology());
-      meshes[b].set_positions(drawn[b]->positions_mm());
-    } else {
-      meshes[b].rebuild(*initial.solids[b].topology);
-      meshes[b].set_positions(initial.solids[b].positions_mm);
-    }
+    meshes[b].rebuild(*initial.solids[b].topology);
+    meshes[b].set_positions(initial.solids[b].positions_mm);
     const auto& rgb = scene.solids[b].material.colour;
     render::Material m;
     m.colour = glm::vec3(static_cast<float>(rgb[0]), static_cast<float>(rgb[1]),
                          static_cast<float>(rgb[2]));
-    ids.push_back(renderer.add_solid(meshes[b].mesh, m));
+    ids.push_back(renderer.add_solid(drawn[b] != nullptr ? drawn[b]->mesh() : meshes[b].mesh, m));
   }
   // The drape the solids lie on, at the blood's tray: lit by the lamp, the floor of the field.
   glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
@@ -403,14 +398,15 @@ void run_render_loop(const RenderLoopContext& c) {
         renderer.add_instrument(render::capsule_solid(0.4, 1.0), blade_material, glm::dmat4(1.0)));
     renderer.set_visible(blade_ids.back(), false);
   }
-  // Blood, where a cut may open a pulsing vessel: one solid of drops, moved every frame.
-  std::optional<BloodDrops> blood;
+  // Blood, where a cut may open a pulsing vessel: a liquid surface round its particles, built
+  // again each frame while there are any.
+  std::optional<render::LiquidSurface> blood;
   render::SolidId blood_id{};
-  std::size_t drawn_drops = 0;
+  bool blood_drawn = false;
   const bool may_bleed = std::any_of(scene.solids.begin(), scene.solids.end(),
                                      [](const SolidDescription& d) { return d.pulse_mmHg; });
   if (may_bleed && scene.physiology.blood_max_particles > 0) {
-    blood.emplace(static_cast<std::size_t>(scene.physiology.blood_max_particles), 1.2);
+    blood.emplace();
     render::Material wet_blood;
     wet_blood.colour = {0.36f, 0.01f, 0.02f};
     wet_blood.specular = 0.6f;
@@ -418,6 +414,7 @@ void run_render_loop(const RenderLoopContext& c) {
     wet_blood.interior_colour = wet_blood.colour;
     wet_blood.casts_shadow = false;
     blood_id = renderer.add_solid(blood->mesh(), wet_blood);
+    renderer.set_visible(blood_id, false);
   }
   render_ready.store(true);
   const render::PoseClock::time_point origin = render::PoseClock::now();  // ~ the haptic start
@@ -475,21 +472,33 @@ void run_render_loop(const RenderLoopContext& c) {
     for (std::size_t b = 0; b < s.solids.size(); ++b) {
       const SolidState& st = s.solids[b];
       if (drawn[b] != nullptr) {
+        const std::uint64_t cuts = drawn[b]->cuts();
         follow_drawn(*drawn[b], st, s.incisions, incisions_seen, b, report.solids[b]);
-        if (drawn[b]->topology()->version != meshes[b].version)
-          meshes[b].rebuild(*drawn[b]->topology());
-        meshes[b].set_positions(drawn[b]->positions_mm());
+        if (drawn[b]->cuts() != cuts) {
+          renderer.recut_solid(ids[b], drawn[b]->mesh());
+        } else {
+          renderer.update_solid(ids[b], drawn[b]->mesh());
+        }
       } else {
-        if (st.topology->version != meshes[b].version) meshes[b].rebuild(*st.topology);
+        const bool cut = st.topology->version != meshes[b].version;
+        if (cut) meshes[b].rebuild(*st.topology);
         meshes[b].set_positions(st.positions_mm);
+        if (cut) {
+          // Rebuilt here: its topology version counts this copy's edits, not the simulated one's.
+          renderer.replace_solid(ids[b], meshes[b].mesh);
+        } else {
+          renderer.update_solid(ids[b], meshes[b].mesh);
+        }
       }
-      renderer.update_solid(ids[b], meshes[b].mesh);
     }
     incisions_seen = s.incisions.size();
-    if (blood && (!s.blood_mm.empty() || drawn_drops > 0)) {
-      blood->place(s.blood_mm);
-      renderer.update_solid(blood_id, blood->mesh());
-      drawn_drops = s.blood_mm.size();
+    // The blood's surface is built again every other frame (45 Hz at 90): on two cores its
+    // extraction at the display's rate took CPU the tissue and haptic threads missed.
+    if (blood && (!s.blood_mm.empty() || blood_drawn) &&
+        (frames.load(std::memory_order_relaxed) % 2 == 0 || !blood_drawn || s.blood_mm.empty())) {
+      renderer.replace_solid(blood_id, blood->update(s.blood_mm));
+      blood_drawn = !s.blood_mm.empty();
+      renderer.set_visible(blood_id, blood_drawn);
     }
     // Each probe's shaft rises from its tip along the hand; a blade shows while it cuts.
     for (std::size_t h = 0; h < std::min(s.instruments.size(), probe_ids.size()); ++h) {

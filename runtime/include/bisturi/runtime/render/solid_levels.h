@@ -77,6 +77,14 @@ class SolidLevels {
   /// New positions of the same solid; a changed topology version rebuilds the solid's own level
   /// and drops the derived ones.
   void update(const Dlfl& mesh);
+  /// Another mesh for the solid, whatever its topology version (a mesh built anew each frame
+  /// starts its own count): its own level rebuilt, the derived ones dropped.
+  void replace(const Dlfl& mesh);
+  /// The same solid after a cut (its vertices keep their indices; some were added): its own
+  /// level is rebuilt and the decimated ones are kept, following the vertices they kept. A
+  /// cut's slit is below their error at the distances they are drawn from, and decimating the
+  /// solid again would take a frame many times over.
+  void recut(const Dlfl& mesh);
   /// Builds the decimated and subdivided levels again from the current mesh.
   void rebuild_derived_levels(const Dlfl& mesh);
 

@@ -105,6 +105,12 @@ class StereoRenderer {
   SolidId add_instrument(const Dlfl& mesh, const Material& material, const glm::dmat4& pose);
   /// New positions of a solid (and new topology when its version moved).
   void update_solid(SolidId id, const Dlfl& mesh);
+  /// Another mesh for a solid (a new topology, whatever its version says: a mesh imported or
+  /// extracted anew starts its own count); its derived levels are dropped.
+  void replace_solid(SolidId id, const Dlfl& mesh);
+  /// A solid after a cut, its vertices numbered as before (SolidLevels::recut): its coarser
+  /// levels are kept.
+  void recut_solid(SolidId id, const Dlfl& mesh);
   void rebuild_levels(SolidId id, const Dlfl& mesh);
   void set_pose(SolidId id, const glm::dmat4& pose);
   void set_material(SolidId id, const Material& material);

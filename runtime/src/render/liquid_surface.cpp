@@ -1,0 +1,156 @@
+// A liquid's surface round its particles (see liquid_surface.h).
+
+#include "bisturi/runtime/render/liquid_surface.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include <glm/geometric.hpp>
+#include <glm/gtc/type_precision.hpp>
+
+#include <glm/common.hpp>
+
+#include "bisturi/scene/oriented_builder.h"
+#include "bisturi/scene/volume/marching_cubes.h"
+
+namespace bisturi::render {
+
+LiquidSurface::LiquidSurface(const LiquidSurfaceOptions& options) : options_(options) {}
+
+namespace {
+
+/// Union-find root of i (with path halving).
+std::uint32_t root(std::vector<std::uint32_t>& parent, std::uint32_t i) {
+  while (parent[i] != i) {
+    parent[i] = parent[parent[i]];
+    i = parent[i];
+  }
+  return i;
+}
+
+}  // namespace
+
+void LiquidSurface::cluster(std::span<const glm::dvec3> centres_mm) {
+  // Particles whose kernels overlap (closer than twice the reach) share a grid; a spray of drops
+  // far apart gets a small grid each instead of one grid over the whole field.
+  const double link = 2.0 * options_.kernel_radius_mm;
+  const auto n = static_cast<std::uint32_t>(centres_mm.size());
+  parent_.resize(n);
+  for (std::uint32_t i = 0; i < n; ++i)
+    parent_[i] = i;
+  const auto key = [link](const glm::dvec3& p) {
+    const glm::i64vec3 c(glm::floor(p / link));
+    return std::array<std::int64_t, 3>{c.x, c.y, c.z};
+  };
+  buckets_.clear();
+  for (std::uint32_t i = 0; i < n; ++i)
+    buckets_[key(centres_mm[i])].push_back(i);
+  for (const auto& [cell, members] : buckets_) {
+    for (std::int64_t dz = -1; dz <= 1; ++dz) {
+      for (std::int64_t dy = -1; dy <= 1; ++dy) {
+        for (std::int64_t dx = -1; dx <= 1; ++dx) {
+          const auto other = buckets_.find({cell[0] + dx, cell[1] + dy, cell[2] + dz});
+          if (other == buckets_.end()) continue;
+          for (const std::uint32_t i : members) {
+            for (const std::uint32_t j : other->second) {
+              if (j <= i || glm::length(centres_mm[i] - centres_mm[j]) >= link) continue;
+              parent_[root(parent_, i)] = root(parent_, j);
+            }
+          }
+        }
+      }
+    }
+  }
+  clusters_.clear();
+  std::vector<std::int64_t> slot(n, -1);
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const std::uint32_t r = root(parent_, i);
+    if (slot[r] < 0) {
+      slot[r] = static_cast<std::int64_t>(clusters_.size());
+      clusters_.emplace_back();
+    }
+    clusters_[static_cast<std::size_t>(slot[r])].push_back(centres_mm[i]);
+  }
+}
+
+const Dlfl& LiquidSurface::update(std::span<const glm::dvec3> centres_mm) {
+  combined_ = PolygonMesh{};
+  cell_mm_ = options_.cell_mm;
+  cluster(centres_mm);
+  for (const std::vector<glm::dvec3>& c : clusters_)
+    add_part(c);
+  mesh_ = build_oriented_manifold(combined_);
+  return mesh_;
+}
+
+void LiquidSurface::add_part(std::span<const glm::dvec3> centres_mm) {
+  const double reach = options_.kernel_radius_mm;
+  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
+  for (const glm::dvec3& c : centres_mm) {
+    lo = glm::min(lo, c);
+    hi = glm::max(hi, c);
+  }
+  // A margin of the kernel's reach and a cell more: the field is below iso on the grid's border,
+  // so every part is closed.
+  double cell = options_.cell_mm;
+  glm::dvec3 extent = hi - lo + 2.0 * (reach + cell);
+  const auto samples_at = [&](double h) {
+    double n = 1.0;
+    for (int a = 0; a < 3; ++a)
+      n *= std::ceil(extent[a] / h) + 1.0;
+    return n;
+  };
+  while (samples_at(cell) > static_cast<double>(options_.max_samples)) {
+    cell *= 1.25;
+    extent = hi - lo + 2.0 * (reach + cell);
+  }
+  cell_mm_ = std::max(cell_mm_, cell);
+  VolumeGeometry& g = field_.geometry;
+  for (int a = 0; a < 3; ++a)
+    g.dims[static_cast<std::size_t>(a)] =
+        static_cast<std::int64_t>(std::ceil(extent[a] / cell)) + 1;
+  g.spacing = glm::dvec3(cell);
+  g.origin = lo - (reach + cell);
+  g.direction = glm::dmat3(1.0);
+  field_.values.assign(g.voxel_count(), 0.0f);
+
+  // Each particle adds its kernel to the samples within its reach.
+  const double inv_r2 = 1.0 / (reach * reach);
+  const auto span = static_cast<std::int64_t>(std::ceil(reach / cell));
+  for (const glm::dvec3& c : centres_mm) {
+    const glm::dvec3 at = (c - g.origin) / cell;
+    const std::int64_t ci = std::llround(at.x), cj = std::llround(at.y), ck = std::llround(at.z);
+    for (std::int64_t k = std::max<std::int64_t>(ck - span, 0);
+         k <= std::min(ck + span, g.dims[2] - 1); ++k) {
+      const double dz = g.origin.z + static_cast<double>(k) * cell - c.z;
+      for (std::int64_t j = std::max<std::int64_t>(cj - span, 0);
+           j <= std::min(cj + span, g.dims[1] - 1); ++j) {
+        const double dy = g.origin.y + static_cast<double>(j) * cell - c.y;
+        const double dyz = dy * dy + dz * dz;
+        if (dyz >= reach * reach) continue;
+        float* row = &field_.values[g.linear_index(0, j, k)];
+        for (std::int64_t i = std::max<std::int64_t>(ci - span, 0);
+             i <= std::min(ci + span, g.dims[0] - 1); ++i) {
+          const double dx = g.origin.x + static_cast<double>(i) * cell - c.x;
+          const double q = 1.0 - (dx * dx + dyz) * inv_r2;
+          if (q > 0.0) row[i] += static_cast<float>(q * q * q);
+        }
+      }
+    }
+  }
+  IsoSurfaceOptions iso;
+  iso.iso = options_.iso;
+  const PolygonMesh part = extract_isosurface_mesh(field_, iso);
+  const auto base = static_cast<std::uint32_t>(combined_.positions.size());
+  combined_.positions.insert(combined_.positions.end(), part.positions.begin(),
+                             part.positions.end());
+  for (std::size_t f = 0; f < part.face_count(); ++f) {
+    const std::span<const std::uint32_t> face = part.face(f);
+    combined_.add_face({face[0] + base, face[1] + base, face[2] + base});
+  }
+}
+
+}  // namespace bisturi::render

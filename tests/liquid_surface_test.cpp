@@ -1,0 +1,97 @@
+// The blood's liquid surface (runtime/render/liquid_surface.h): a lone particle is a bead of the
+// kernel's iso radius, drops apart stay apart, a pool is one closed sheet, and every part is a
+// closed, outward-facing surface.
+
+#include <gtest/gtest.h>
+
+#include <glm/geometric.hpp>
+
+#include <cmath>
+#include <vector>
+
+#include "bisturi/runtime/render/liquid_surface.h"
+#include "bisturi/scene/dlfl_queries.h"
+#include "bisturi/scene/dlfl_validate.h"
+
+namespace bisturi::render {
+namespace {
+
+/// The volume a closed surface encloses (divergence theorem over its triangulated faces).
+double enclosed_volume(const Dlfl& mesh) {
+  double six_v = 0.0;
+  for (std::uint32_t f = 0; f < mesh.face_capacity(); ++f) {
+    const FaceId id{f};
+    if (!mesh.alive(id) || mesh.is_bounding(id)) continue;
+    const CornerId first = mesh.first_corner(id);
+    const glm::dvec3 a = mesh.position(mesh.vertex(first));
+    for (CornerId c = mesh.next(first); mesh.next(c) != first; c = mesh.next(c))
+      six_v += glm::dot(
+          a, glm::cross(mesh.position(mesh.vertex(c)), mesh.position(mesh.vertex(mesh.next(c)))));
+  }
+  return six_v / 6.0;
+}
+
+/// Every part closed (no ring) and of genus 0.
+void expect_closed_balls(const Dlfl& mesh) {
+  EXPECT_TRUE(validate(mesh).ok());
+  for (const Part& part : connected_parts(mesh)) {
+    const PartTopology t = part_topology(mesh, part);
+    EXPECT_EQ(t.rings, 0u);
+    EXPECT_EQ(t.genus, 0);
+  }
+}
+
+TEST(LiquidSurface, ALoneParticleIsABeadOfTheKernelsIsoRadius) {
+  LiquidSurface liquid;
+  const glm::dvec3 centre{10.3, -4.1, 7.7};
+  const Dlfl& bead = liquid.update(std::vector<glm::dvec3>{centre});
+  expect_closed_balls(bead);
+  ASSERT_EQ(connected_parts(bead).size(), 1u);
+  // (1 - r^2/R^2)^3 = iso at r = R sqrt(1 - iso^(1/3)): 1.32 mm with the defaults.
+  const LiquidSurfaceOptions o;
+  const double radius = o.kernel_radius_mm * std::sqrt(1.0 - std::cbrt(o.iso));
+  for (std::uint32_t v = 0; v < bead.vertex_capacity(); ++v) {
+    if (!bead.alive(VertexId(v))) continue;
+    EXPECT_NEAR(glm::length(bead.position(VertexId(v)) - centre), radius, 0.25 * o.cell_mm);
+  }
+  // Facing out: it encloses a positive volume, less than the sphere it is inscribed in (two
+  // cells across, it is a coarse polyhedron: an inscribed octahedron holds 0.32 of the sphere).
+  const double sphere = 4.0 / 3.0 * 3.14159265358979 * radius * radius * radius;
+  EXPECT_GT(enclosed_volume(bead), 0.3 * sphere);
+  EXPECT_LT(enclosed_volume(bead), sphere);
+}
+
+TEST(LiquidSurface, DropsApartStayApartAndAPoolIsOneSheet) {
+  LiquidSurface liquid;
+  // Two drops 20 mm apart: two beads, each on its own small grid.
+  const Dlfl& drops = liquid.update(std::vector<glm::dvec3>{{0, 0, 0}, {20, 0, 0}});
+  expect_closed_balls(drops);
+  EXPECT_EQ(connected_parts(drops).size(), 2u);
+  EXPECT_EQ(liquid.groups(), 2u);
+
+  // A pool: 12 x 12 particles at the blood's rest spacing (2.4 mm) on a tray, one drop above.
+  std::vector<glm::dvec3> pool;
+  for (int i = 0; i < 12; ++i)
+    for (int j = 0; j < 12; ++j)
+      pool.push_back({2.4 * i, 2.4 * j, 0.0});
+  pool.push_back({13.0, 13.0, 30.0});
+  const Dlfl& sheet = liquid.update(pool);
+  expect_closed_balls(sheet);
+  EXPECT_EQ(connected_parts(sheet).size(), 2u);  // the pool and the drop
+  // The pool's top is flat over its middle: no bead per particle there.
+  double lowest_top = 1e9, highest_top = -1e9;
+  for (std::uint32_t v = 0; v < sheet.vertex_capacity(); ++v) {
+    if (!sheet.alive(VertexId(v))) continue;
+    const glm::dvec3 p = sheet.position(VertexId(v));
+    if (p.z < 0.5 || p.z > 10.0 || p.x < 6.0 || p.x > 20.0 || p.y < 6.0 || p.y > 20.0) continue;
+    lowest_top = std::min(lowest_top, p.z);
+    highest_top = std::max(highest_top, p.z);
+  }
+  ASSERT_LT(lowest_top, highest_top);
+  EXPECT_LT(highest_top - lowest_top, 0.35);
+  // No particles: nothing drawn.
+  EXPECT_EQ(liquid.update(std::vector<glm::dvec3>{}).num_faces(), 0u);
+}
+
+}  // namespace
+}  // namespace bisturi::render
