@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <optional>
+#include <span>
 #include <vector>
 
 #include <glm/common.hpp>
@@ -13,6 +15,7 @@
 #include "bisturi/runtime/render/drape_mesh.h"
 #include "bisturi/runtime/render/instrument_mesh.h"
 #include "bisturi/scene/oriented_builder.h"
+#include "bisturi/scene/polygon_export.h"
 #include "bisturi/scene/shapes.h"
 #include "render_test_support.h"
 
@@ -121,6 +124,84 @@ TEST_F(RenderFieldTest, ASolidCastsItsShadowOnTheShadowPlaneAndTheDrapeDoesNot) 
   EXPECT_EQ(lit, 0);
   EXPECT_GT(shadowed, 30);
   EXPECT_LT(shadowed, 400) << "more than the sphere's footprint: the sheet shadows itself";
+}
+
+/// `mesh` without the faces whose centroid lies more than 0.8 of `radius` from `centre` along
+/// `side`: a sphere with a round opening there.
+Dlfl with_opening(const Dlfl& mesh, const glm::dvec3& centre, double radius,
+                  const glm::dvec3& side) {
+  const ExportedPolygons e = export_polygons(mesh);
+  PolygonMesh kept;
+  kept.positions = e.polygons.positions;
+  for (std::size_t f = 0; f < e.polygons.face_count(); ++f) {
+    const std::span<const std::uint32_t> face = e.polygons.face(f);
+    glm::dvec3 centroid(0.0);
+    for (const std::uint32_t v : face)
+      centroid += e.polygons.positions[v];
+    centroid /= static_cast<double>(face.size());
+    if (glm::dot(centroid - centre, side) > 0.8 * radius) continue;
+    kept.add_face(face);
+  }
+  return build_oriented_manifold(kept);
+}
+
+TEST_F(RenderFieldTest, AnEnclosedSolidShowsOnlyThroughAnOpeningOfItsEnclosure) {
+  // A green lesion of 8 mm inside an organ of 30 mm, 150 mm in front of the eyes. Closed, the
+  // organ hides it and it is not drawn; opened towards the eyes, it is drawn and seen through
+  // the opening; opened away from them, the opening is a portal no eye sees it through.
+  const glm::dvec3 centre{0.0, 0.0, -150.0};
+  const Dlfl closed = testing::sphere_mm(centre, 30.0);
+  struct Seen {
+    FrameStats stats;
+    int green = 0;
+  };
+  const auto look = [&](const Dlfl& organ, bool enclosed) -> std::optional<Seen> {
+    RendererOptions options;
+    auto* r = make(options, kSize);
+    if (r == nullptr) return std::nullopt;
+    const SolidId outer = r->add_solid(organ);
+    Material lesion;
+    lesion.colour = {0.05f, 0.8f, 0.05f};
+    lesion.interior_colour = lesion.colour;
+    const SolidId inner = r->add_solid(testing::sphere_mm(centre, 8.0), lesion);
+    if (enclosed) r->set_enclosed_by(inner, outer);
+    Capture frame;
+    r->set_sink(&frame);
+    Seen seen;
+    seen.stats = r->render(testing::at_origin());
+    r->flush();
+    for (int eye = 0; eye < 2; ++eye)
+      for (std::uint32_t y = 0; y < kSize; ++y)
+        for (std::uint32_t x = 0; x < kSize; ++x) {
+          const std::uint8_t* px = frame.at(eye, x, y);
+          if (px[1] > px[0] + 40 && px[1] > px[2] + 40) ++seen.green;
+        }
+    return seen;
+  };
+  const auto shut = look(closed, true);
+  if (!shut) GTEST_SKIP() << "no Vulkan device";
+  // What the lesion would cost drawn: the closed organ's frame without the enclosure.
+  const std::size_t lesion_triangles =
+      look(closed, false)->stats.triangles_drawn - shut->stats.triangles_drawn;
+  EXPECT_GT(lesion_triangles, 0u);
+  EXPECT_EQ(shut->green, 0);
+  EXPECT_EQ(shut->stats.triangles_culled_occlusion, lesion_triangles);
+  EXPECT_EQ(shut->stats.triangles_culled_portal, 0u);
+
+  const Dlfl front = with_opening(closed, centre, 30.0, {0.0, 0.0, 1.0});
+  const auto through = look(front, true);
+  const auto unculled = look(front, false);
+  EXPECT_EQ(through->stats.triangles_culled_occlusion, 0u);
+  EXPECT_EQ(through->stats.triangles_culled_portal, 0u);
+  EXPECT_GT(through->green, 100);
+  EXPECT_EQ(through->green, unculled->green);  // culling changed nothing that shows
+
+  const auto behind = look(with_opening(closed, centre, 30.0, {0.0, 0.0, -1.0}), true);
+  EXPECT_EQ(behind->green, 0);
+  EXPECT_EQ(behind->stats.triangles_culled_portal, lesion_triangles);
+  EXPECT_EQ(behind->stats.triangles_culled_occlusion, 0u);
+  std::printf("green pixels: closed %d, opened towards the eyes %d, opened behind %d\n",
+              shut->green, through->green, behind->green);
 }
 
 /// A square of 80 mm tilted away from the viewer: its lower edge at 170 mm, its upper at 330.

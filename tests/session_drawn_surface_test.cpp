@@ -1,4 +1,5 @@
-// A solid drawn finer than it is simulated ([solids.drawn]): the liver scene's drawn surface riding
+// A solid drawn finer than it is simulated ([solids.drawn]) and the structures inside it
+// ([[solids.inner]]): the liver scene's drawn surface riding
 // on its volume through the scripted procedure: it stays as close to the simulated surface as it
 // was at rest, and the procedure's cut opens it too.
 
@@ -51,8 +52,13 @@ TEST(LiverScene, TheDrawnLiverRidesOnTheVolumeAndIsCutWithIt) {
   const sim::VolumeBody* volume = sim.world().volume(0);
   ASSERT_NE(volume, nullptr);
   auto lattice = std::make_shared<const sim::HexLattice>(volume->volume().lattice());
-  DrawnSurface drawn(*build_drawn_surface(scene.solids[0], "liver.toml"), sim.world().body(0),
+  DrawnSurface drawn(*build_drawn_surface(scene.solids[0], "liver.toml"), &sim.world().body(0),
                      lattice);
+  // The structures inside it, riding on the same volume.
+  std::vector<DrawnSurface> inner;
+  for (const SolidDescription& d : scene.solids[0].inner)
+    inner.emplace_back(build_solid(d, "liver.toml"), nullptr, lattice);
+  ASSERT_EQ(inner.size(), 2u);  // the lesion and the vein
   // Tens of thousands of vertices drawn on the few hundred simulated.
   EXPECT_GT(drawn.vertices(), 10u * sim.world().body(0).mesh().num_vertices());
   EXPECT_GT(drawn.rest_gap_mm(), 0.0);
@@ -93,6 +99,8 @@ TEST(LiverScene, TheDrawnLiverRidesOnTheVolumeAndIsCutWithIt) {
       }
     }
     most_gap = std::max(most_gap, drawn.gap_mm(simulated_mm()));
+    for (DrawnSurface& structure : inner)
+      structure.follow(nodes());
     for (std::size_t v = 0; v < rest.size(); ++v)
       most_moved = std::max(most_moved, glm::length(drawn.mesh().positions()[v] - rest[v]));
   }
@@ -102,6 +110,20 @@ TEST(LiverScene, TheDrawnLiverRidesOnTheVolumeAndIsCutWithIt) {
   // two surfaces stayed as far apart as at rest, to a millimetre.
   EXPECT_GT(most_moved, 2.0);
   EXPECT_LT(most_gap, drawn.rest_gap_mm() + 1.0);
+  // The structures stayed inside, as deep as they were: no vertex of theirs came within 8 mm
+  // of the liver's drawn surface (the lesion lies 15 mm in, the vein 12 mm).
+  for (const DrawnSurface& structure : inner) {
+    double nearest = 1e9;
+    const auto& liver_x = drawn.mesh().positions();
+    for (std::uint32_t v = 0; v < structure.mesh().vertex_capacity(); ++v) {
+      if (!structure.mesh().alive(VertexId(v))) continue;
+      const glm::dvec3& p = structure.mesh().positions()[v];
+      for (std::uint32_t w = 0; w < drawn.mesh().vertex_capacity(); ++w)
+        if (drawn.mesh().alive(VertexId(w)))
+          nearest = std::min(nearest, glm::length(p - liver_x[w]));
+    }
+    EXPECT_GT(nearest, 8.0);
+  }
 }
 
 }  // namespace

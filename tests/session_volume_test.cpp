@@ -228,5 +228,21 @@ TEST(SceneFile, DrawnIsForVolumesAndDownsamplesLabelMapsOnly) {
             std::string::npos);
 }
 
+TEST(SceneFile, InnerStructuresAreShapesInsideAVolume) {
+  const std::string lesion =
+      "[[solids.inner]]\nname = 'lesion'\nphantom = 'sphere'\na_mm = 3.0\ncolour = [0.9, 0.8, "
+      "0.5]\n";
+  const SceneDescription scene = parse_scene(solid_with(lesion, "preset = 'liver'"), "scene.toml");
+  ASSERT_EQ(scene.solids[0].inner.size(), 1u);
+  EXPECT_EQ(scene.solids[0].inner[0].name, "lesion");
+  EXPECT_FALSE(scene.solids[0].inner[0].simulate);
+  EXPECT_DOUBLE_EQ(scene.solids[0].inner[0].material.colour[0], 0.9);
+  EXPECT_NE(
+      error(solid_with("model = 'surface'\n" + lesion, "preset = 'liver'")).find("only for model"),
+      std::string::npos);
+  EXPECT_NE(error(solid_with(lesion + "anchors = []\n", "preset = 'liver'")).find("anchors"),
+            std::string::npos);
+}
+
 }  // namespace
 }  // namespace bisturi::runtime

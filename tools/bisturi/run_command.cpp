@@ -309,6 +309,20 @@ int run_run(const RunOptions& options) {
     }
     solids.push_back(std::move(solid));
   }
+  const auto culling = [](const runtime::SessionReport::Culling& w) {
+    return nlohmann::json{{"frames", w.frames},
+                          {"draw_calls", w.draw_calls},
+                          {"triangles_submitted", w.triangles_submitted},
+                          {"culled",
+                           {{"frustum", w.culled_frustum},
+                            {"occlusion", w.culled_occlusion},
+                            {"portal", w.culled_portal}}},
+                          {"render_ms", summary_json(w.render_ms)}};
+  };
+  nlohmann::json inner = nlohmann::json::array();
+  for (const runtime::SessionReport::Inner& in : r.inner)
+    inner.push_back(
+        {{"name", in.name}, {"solid", in.solid}, {"vertices", in.vertices}, {"faces", in.faces}});
   nlohmann::json injected = nlohmann::json::array();
   for (const runtime::FaultOutcome& f : r.injected)
     injected.push_back(
@@ -360,6 +374,8 @@ int run_run(const RunOptions& options) {
         {"pulsing", pulsing},
         {"breathing_period_s", r.breathing_period_s},
         {"breathing", breathing}}},
+      {"inner", inner},
+      {"culling", {{"before_cut", culling(r.before_cut)}, {"after_cut", culling(r.after_cut)}}},
       {"ticks", r.ticks},
       {"frames", r.frames},
       {"images", r.images},

@@ -39,8 +39,51 @@ struct Solid {
   bool visible = true;
   std::vector<IndexBuffer> index_buffers;  ///< one per level
   int drawn_level = -1;
-  SolidBoundary boundary;  ///< open: drawn two-sided
+  SolidBoundary boundary;         ///< open: drawn two-sided
+  std::int32_t enclosed_by = -1;  ///< the solid whose closed surface it lies inside
 };
+
+/// A box as an eye sees it: its screen rectangle (normalised device coordinates, clamped to the
+/// view; the whole view when a corner is behind the eye) and its depth range (clip w).
+struct ScreenBox {
+  glm::dvec2 lo{std::numeric_limits<double>::infinity()};
+  glm::dvec2 hi{-std::numeric_limits<double>::infinity()};
+  double near = std::numeric_limits<double>::infinity();
+  double far = -std::numeric_limits<double>::infinity();
+};
+
+/// False when the box lies wholly beside the view.
+bool screen_box(const Aabb& box, const EyeView& eye, ScreenBox& out) {
+  out = ScreenBox{};
+  glm::dvec2& lo = out.lo;
+  glm::dvec2& hi = out.hi;
+  bool behind = false;
+  for (int c = 0; c < 8; ++c) {
+    const glm::dvec3 p((c & 1) ? box.hi.x : box.lo.x, (c & 2) ? box.hi.y : box.lo.y,
+                       (c & 4) ? box.hi.z : box.lo.z);
+    const glm::dvec4 clip = eye.view_projection * glm::dvec4(p, 1.0);
+    out.near = std::min(out.near, clip.w);
+    out.far = std::max(out.far, clip.w);
+    if (clip.w <= 1e-9) {
+      behind = true;
+      continue;
+    }
+    const glm::dvec2 ndc(clip.x / clip.w, clip.y / clip.w);
+    lo = glm::min(lo, ndc);
+    hi = glm::max(hi, ndc);
+  }
+  if (behind) {
+    lo = glm::dvec2(-1.0);
+    hi = glm::dvec2(1.0);
+    return true;
+  }
+  lo = glm::max(lo, glm::dvec2(-1.0));
+  hi = glm::min(hi, glm::dvec2(1.0));
+  return lo.x <= hi.x && lo.y <= hi.y;
+}
+
+/// How an enclosed solid can be seen (StereoRenderer::set_enclosed_by).
+enum class Enclosure : std::uint8_t { Seen, Occluded, BesidePortals };
 
 struct FrameSlot {
   VkCommandBuffer commands = VK_NULL_HANDLE;
@@ -299,6 +342,34 @@ struct StereoRenderer::Impl {
     }
   }
 
+  /// Whether `inner` (its box `bounds`) can be seen past the solid that encloses it.
+  Enclosure enclosure_test(const Solid& inner, const Aabb& bounds,
+                           const std::array<EyeView, 2>& eyes) const {
+    const Solid& outer = solids[static_cast<std::size_t>(inner.enclosed_by)];
+    if (!outer.visible) return Enclosure::Seen;
+    const Aabb& hull = outer.levels->bounds();
+    for (const EyeView& eye : eyes) {
+      const glm::dvec3& e = eye.position_mm;
+      if (glm::all(glm::greaterThanEqual(e, hull.lo)) && glm::all(glm::lessThanEqual(e, hull.hi)))
+        return Enclosure::Seen;  // an eye inside the enclosure's box: no claim
+    }
+    if (!outer.boundary.open()) return Enclosure::Occluded;
+    // Seen through a portal: their rectangles overlap, and some of the solid lies beyond the
+    // portal's nearest point (an opening behind the solid shows it to no eye in front).
+    for (const EyeView& eye : eyes) {
+      ScreenBox in;
+      if (!screen_box(bounds, eye, in)) continue;
+      for (const Aabb& portal : outer.boundary.portals()) {
+        ScreenBox p;
+        if (!screen_box(portal, eye, p)) continue;
+        if (p.lo.x <= in.hi.x && in.lo.x <= p.hi.x && p.lo.y <= in.hi.y && in.lo.y <= p.hi.y &&
+            in.far > p.near)
+          return Enclosure::Seen;
+      }
+    }
+    return Enclosure::BesidePortals;
+  }
+
   /// Chunks of `level` visible in either eye, as merged index ranges.
   void cull_chunks(const ChunkTree& tree, const std::array<Frustum, 2>& frusta,
                    const glm::dmat4* pose, FrameStats& stats) {
@@ -328,6 +399,8 @@ struct StereoRenderer::Impl {
       const Visibility v = combine(frusta[0].classify(box), frusta[1].classify(box));
       if (v == Visibility::Outside) {
         stats.chunks_culled += node.chunk_count;
+        for (std::uint32_t c = node.first_chunk; c < node.first_chunk + node.chunk_count; ++c)
+          stats.triangles_culled_frustum += tree.chunks[c].index_count / 3;
       } else if (v == Visibility::Inside || node.left < 0 || top + 2 > stack.size()) {
         emit(node.first_chunk, node.chunk_count);
       } else {
@@ -467,12 +540,23 @@ struct StereoRenderer::Impl {
       if (!s.visible) continue;
       const Aabb bounds =
           s.instrument ? s.levels->bounds().transformed(s.pose) : s.levels->bounds();
+      const std::size_t level_index = pick_level(*s.levels, bounds, eyes);
+      const std::size_t triangles = s.levels->level(level_index).triangle_count();
       if (options.frustum_culling &&
           combine(frusta[0].classify(bounds), frusta[1].classify(bounds)) == Visibility::Outside) {
         ++stats.solids_culled;
+        stats.triangles_culled_frustum += triangles;
         continue;
       }
-      const std::size_t level_index = pick_level(*s.levels, bounds, eyes);
+      if (s.enclosed_by >= 0) {
+        const Enclosure seen = enclosure_test(s, bounds, eyes);
+        if (seen != Enclosure::Seen) {
+          ++stats.solids_culled;
+          (seen == Enclosure::Occluded ? stats.triangles_culled_occlusion
+                                       : stats.triangles_culled_portal) += triangles;
+          continue;
+        }
+      }
       const SolidLevel& level = s.levels->refresh(level_index);
       const std::size_t first_range = ranges.size();
       cull_chunks(level.tree, frusta, s.instrument ? &s.pose : nullptr, stats);
@@ -641,6 +725,9 @@ void StereoRenderer::set_material(SolidId id, const Material& material) {
 }
 void StereoRenderer::set_visible(SolidId id, bool visible) {
   impl_->solid(id).visible = visible;
+}
+void StereoRenderer::set_enclosed_by(SolidId inner, SolidId enclosure) {
+  impl_->solid(inner).enclosed_by = static_cast<std::int32_t>(enclosure.index);
 }
 void StereoRenderer::set_shadow_plane(double z_mm) {
   impl_->shadow_plane_z_mm = z_mm;

@@ -15,12 +15,19 @@
 
 namespace bisturi::runtime {
 
-DrawnSurface::DrawnSurface(Dlfl drawn, const sim::SoftBody& simulated,
+DrawnSurface::DrawnSurface(Dlfl drawn, const sim::SoftBody* simulated,
                            std::shared_ptr<const sim::HexLattice> lattice)
-    : body_(std::move(drawn), simulated.material()), lattice_(std::move(lattice)) {
+    : body_(std::move(drawn), simulated != nullptr ? simulated->material() : sim::Material{}),
+      lattice_(std::move(lattice)) {
   if (!lattice_ || lattice_->cells.empty())
     throw std::invalid_argument("a drawn surface needs a volume lattice with cells");
   embed_all();
+  mesh_mm_ = body_.mesh();
+  follow(lattice_->rest);
+  if (simulated != nullptr) anchor_to(*simulated);
+}
+
+void DrawnSurface::anchor_to(const sim::SoftBody& simulated) {
   // Each drawn vertex's closest point on the simulated surface at rest.
   const sim::CollisionDevice device;
   const sim::SurfaceBvh bvh(device, simulated);
@@ -38,8 +45,6 @@ DrawnSurface::DrawnSurface(Dlfl drawn, const sim::SoftBody& simulated,
       a.slot[k] = triangles.indices[3 * p.triangle + k];
     a.weights = p.barycentric;
   }
-  mesh_mm_ = body_.mesh();
-  follow(lattice_->rest);
   rest_gap_mm_ = gap_mm(simulated_mm);
 }
 

@@ -28,9 +28,10 @@ namespace bisturi::runtime {
 
 class DrawnSurface {
  public:
-  /// `drawn` in scene millimetres; `simulated` the body it stands for, at rest; `lattice` the
-  /// body's volume lattice. Throws std::invalid_argument for a lattice without cells.
-  DrawnSurface(Dlfl drawn, const sim::SoftBody& simulated,
+  /// `drawn` in scene millimetres; `simulated` the body it stands for, at rest (null: a
+  /// structure inside it, which has no gap to it); `lattice` the body's volume lattice. Throws
+  /// std::invalid_argument for a lattice without cells.
+  DrawnSurface(Dlfl drawn, const sim::SoftBody* simulated,
                std::shared_ptr<const sim::HexLattice> lattice);
 
   /// The lattice the nodes now belong to (a new one after the refined box moved): every vertex
@@ -62,6 +63,8 @@ class DrawnSurface {
     glm::dvec3 weights{0.0};
   };
   void embed_all();
+  /// Each vertex's closest point on `simulated` (at rest), and the gap at rest.
+  void anchor_to(const sim::SoftBody& simulated);
 
   /// Only its mesh, rest and current positions are used: sim::cut_surface cuts it.
   sim::SoftBody body_;
@@ -71,6 +74,13 @@ class DrawnSurface {
   Dlfl mesh_mm_;
   std::uint64_t cuts_ = 0;
   double rest_gap_mm_ = 0.0;
+};
+
+/// A structure inside a volume solid ([[solids.inner]]), riding on its volume.
+struct InnerStructure {
+  std::size_t solid = 0;  ///< the solid it lies in
+  std::array<double, 3> colour{};
+  std::unique_ptr<DrawnSurface> surface;
 };
 
 }  // namespace bisturi::runtime

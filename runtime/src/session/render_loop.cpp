@@ -259,6 +259,26 @@ void follow_drawn(DrawnSurface& drawn, const SolidState& state,
   report.drawn_most_gap_mm = std::max(report.drawn_most_gap_mm, drawn.gap_mm(state.positions_mm));
 }
 
+/// A frame's draws and culled triangles into a window's sums.
+void add_culling(SessionReport::Culling& w, const render::FrameStats& stats, double render_ms) {
+  ++w.frames;
+  w.draw_calls += static_cast<double>(stats.draw_calls);
+  w.triangles_submitted += static_cast<double>(stats.triangles_drawn);
+  w.culled_frustum += static_cast<double>(stats.triangles_culled_frustum);
+  w.culled_occlusion += static_cast<double>(stats.triangles_culled_occlusion);
+  w.culled_portal += static_cast<double>(stats.triangles_culled_portal);
+  w.render_ms.record(render_ms);
+}
+
+/// The sums to per-frame means.
+void average_culling(SessionReport::Culling& w) {
+  if (w.frames == 0) return;
+  const auto n = static_cast<double>(w.frames);
+  for (double* x : {&w.draw_calls, &w.triangles_submitted, &w.culled_frustum, &w.culled_occlusion,
+                    &w.culled_portal})
+    *x /= n;
+}
+
 /// The background (linear RGB): a dark shade of surgical drape green, not a black void.
 constexpr glm::vec3 kFieldBackground{0.035f, 0.098f, 0.091f};
 /// The drape under the solids: the same green, lit (linear RGB, cloth: no highlight).
@@ -357,6 +377,17 @@ void run_render_loop(const RenderLoopContext& c) {
     m.colour = glm::vec3(static_cast<float>(rgb[0]), static_cast<float>(rgb[1]),
                          static_cast<float>(rgb[2]));
     ids.push_back(renderer.add_solid(drawn[b] != nullptr ? drawn[b]->mesh() : meshes[b].mesh, m));
+  }
+  // Structures inside the solids: drawn only where they can be seen past them.
+  std::vector<render::SolidId> inner_ids;
+  for (std::size_t k = 0; c.inner != nullptr && k < c.inner->size(); ++k) {
+    const InnerStructure& in = (*c.inner)[k];
+    render::Material m;
+    m.colour = glm::vec3(static_cast<float>(in.colour[0]), static_cast<float>(in.colour[1]),
+                         static_cast<float>(in.colour[2]));
+    m.interior_colour = m.colour;
+    inner_ids.push_back(renderer.add_solid(in.surface->mesh(), m));
+    renderer.set_enclosed_by(inner_ids.back(), ids[in.solid]);
   }
   // The drape the solids lie on, at the blood's tray: lit by the lamp, the floor of the field.
   glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
@@ -492,6 +523,13 @@ void run_render_loop(const RenderLoopContext& c) {
       }
     }
     incisions_seen = s.incisions.size();
+    for (std::size_t k = 0; k < inner_ids.size(); ++k) {
+      DrawnSurface& in = *(*c.inner)[k].surface;
+      const SolidState& st = s.solids[(*c.inner)[k].solid];
+      in.use_lattice(st.lattice);
+      in.follow(st.nodes_m);
+      renderer.update_solid(inner_ids[k], in.mesh());
+    }
     // The blood's surface is built again every other frame (45 Hz at 90): on two cores its
     // extraction at the display's rate took CPU the tissue and haptic threads missed.
     if (blood && (!s.blood_mm.empty() || blood_drawn) &&
@@ -535,7 +573,9 @@ void run_render_loop(const RenderLoopContext& c) {
       if (s.event_count - seen_events <= s.recent.size()) measuring.shows(stats.frame, seen_events);
     }
     const auto end = std::chrono::steady_clock::now();
-    report.render_ms.record(std::chrono::duration<double, std::milli>(end - begin).count());
+    const double render_ms = std::chrono::duration<double, std::milli>(end - begin).count();
+    report.render_ms.record(render_ms);
+    add_culling(incisions_seen == 0 ? report.before_cut : report.after_cut, stats, render_ms);
     if (!first) {
       const double gap = std::chrono::duration<double, std::milli>(begin - previous).count();
       report.frame_ms.record(gap);
@@ -556,6 +596,8 @@ void run_render_loop(const RenderLoopContext& c) {
     }
   }
   renderer.flush();
+  for (SessionReport::Culling* w : {&report.before_cut, &report.after_cut})
+    average_culling(*w);
   c.display_live.store(false);
   if (xr) {
     const std::string reason = xr->stop_reason();  // before finish() gives its own

@@ -71,6 +71,9 @@ struct RenderLoopContext {
   /// The loop moves them with their volumes, cuts them with the simulation's incisions and
   /// writes their figures into the report's solids.
   std::vector<std::unique_ptr<DrawnSurface>>* drawn = nullptr;
+  /// Structures inside the solids: moved with their volumes, each drawn only while it can be
+  /// seen past its solid (StereoRenderer::set_enclosed_by).
+  std::vector<InnerStructure>* inner = nullptr;
 };
 
 /// A headset's picture frozen this long stops the forces (18 frames at 90 Hz).

@@ -345,11 +345,12 @@ class SceneReader {
   }
 
   SolidDescription read_solid(const toml::table& t, const std::string& path) const {
-    only_keys(t, path, {"name",       "mesh",       "volume",        "phantom",      "dims",
-                        "spacing_mm", "a_mm",       "b_mm",          "iso",          "label",
-                        "downsample", "decimate",   "smooth",        "offset_mm",    "material",
-                        "anchors",    "simulate",   "model",         "cell_mm",      "refine",
-                        "supported",  "pulse_mmHg", "pressure_mmHg", "breathing_mm", "drawn"});
+    only_keys(t, path,
+              {"name",    "mesh",      "volume",    "phantom",    "dims",          "spacing_mm",
+               "a_mm",    "b_mm",      "iso",       "label",      "downsample",    "decimate",
+               "smooth",  "offset_mm", "material",  "anchors",    "simulate",      "model",
+               "cell_mm", "refine",    "supported", "pulse_mmHg", "pressure_mmHg", "breathing_mm",
+               "drawn",   "inner"});
     SolidDescription s;
     s.name = string_or(t, path, "name", path);
     const int sources = (t.contains("mesh") ? 1 : 0) + (t.contains("volume") ? 1 : 0) +
@@ -431,6 +432,21 @@ class SceneReader {
       drawn.smooth = static_cast<int>(integer(*d, at, "smooth", drawn.smooth, 0, 1000));
       s.drawn = drawn;
     }
+    for_each_table(t, "inner", [&](const toml::table& in, const std::string& sub) {
+      const std::string at = path + "." + sub;
+      if (s.model != SolidDescription::Model::Volume)
+        fail(t.get("inner"), t, at, "only for model = \"volume\" (it rides on the volume)");
+      only_keys(in, at,
+                {"name", "mesh", "volume", "phantom", "dims", "spacing_mm", "a_mm", "b_mm", "iso",
+                 "label", "downsample", "decimate", "smooth", "offset_mm", "colour"});
+      toml::table shape = in;
+      shape.erase("colour");
+      SolidDescription inner = read_solid(shape, at);
+      inner.simulate = false;
+      inner.model = SolidDescription::Model::Surface;
+      inner.material.colour = numbers<3>(in, at, "colour", {0.55, 0.45, 0.25});
+      s.inner.push_back(std::move(inner));
+    });
     s.supported = boolean(t, path, "supported", s.supported);
     if (t.contains("supported") && s.model != SolidDescription::Model::Volume) {
       fail(t.get("supported"), t, path + ".supported", "only for model = \"volume\"");

@@ -414,7 +414,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     const auto start = std::chrono::steady_clock::now();
     std::optional<Dlfl> mesh = build_drawn_surface(
         scene.solids[b], scene.file.empty() ? "default scene" : scene.file.string());
-    drawn[b] = std::make_unique<DrawnSurface>(std::move(*mesh), sim.world().body(b),
+    drawn[b] = std::make_unique<DrawnSurface>(std::move(*mesh), &sim.world().body(b),
                                               initial.solids[b].lattice);
     SolidReport& s = report.solids[b];
     s.drawn_build_ms =
@@ -423,6 +423,22 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     s.drawn_faces = drawn[b]->faces();
     s.drawn_rest_gap_mm = drawn[b]->rest_gap_mm();
     s.drawn_most_gap_mm = s.drawn_rest_gap_mm;
+  }
+  // The structures inside them ride on their volumes too, drawn only where they can be seen.
+  std::vector<InnerStructure> inner;
+  for (std::uint32_t b = 0; b < scene.solids.size(); ++b) {
+    if (scene.solids[b].inner.empty() || !initial.solids[b].lattice) continue;
+    stage("build inner structures");
+    for (const SolidDescription& d : scene.solids[b].inner) {
+      InnerStructure in{
+          b, d.material.colour,
+          std::make_unique<DrawnSurface>(
+              build_solid(d, scene.file.empty() ? "default scene" : scene.file.string()), nullptr,
+              initial.solids[b].lattice)};
+      report.inner.push_back(
+          {d.name, scene.solids[b].name, in.surface->vertices(), in.surface->faces()});
+      inner.push_back(std::move(in));
+    }
   }
   TripleBuffer<Snapshot> handoff(initial);
   TripleBuffer<render::HeadPose> head_handoff;
@@ -490,7 +506,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                            &faults.stall_swapchain,
                            &faults.headset_sink,
                            &display_deadline_ns,
-                           &drawn});
+                           &drawn,
+                           &inner});
         } catch (const std::exception& e) {
           render_error = e.what();
           render_ready.store(true);

@@ -82,6 +82,12 @@ struct FrameStats {
   std::size_t solids_culled = 0;
   std::size_t chunks_drawn = 0;
   std::size_t chunks_culled = 0;
+  /// Triangles of the levels picked that were not drawn, by the test that left them out: the
+  /// eyes' frusta (whole solids and chunks), a closed solid that hides what it encloses, and an
+  /// open one whose openings (portals) none of the eyes sees the enclosed solid through.
+  std::size_t triangles_culled_frustum = 0;
+  std::size_t triangles_culled_occlusion = 0;
+  std::size_t triangles_culled_portal = 0;
   std::size_t vertex_bytes_uploaded = 0;
   std::size_t index_buffers_rebuilt = 0;
   double cpu_ms = 0.0;   ///< culling, LOD, streaming, recording and submitting on the CPU
@@ -115,6 +121,11 @@ class StereoRenderer {
   void set_pose(SolidId id, const glm::dmat4& pose);
   void set_material(SolidId id, const Material& material);
   void set_visible(SolidId id, bool visible);
+  /// `inner` lies inside `enclosure`'s closed surface (a lesion in an organ): it is not drawn
+  /// while that surface is closed and the eyes are outside its box (it hides all of it), and
+  /// once it is open (an incision) only while an eye sees its box through an opening's box
+  /// (the incision as a portal, seed section 3.2). A hidden enclosure hides nothing.
+  void set_enclosed_by(SolidId inner, SolidId enclosure);
   /// A horizontal surface at z_mm (world millimetres, z up; a drape) takes the shadows of the
   /// solids and instruments under an overhead operating lamp: each is drawn again flattened
   /// onto it, dark, a little above it. NaN: no shadows (the default).

@@ -103,6 +103,11 @@ struct SolidDescription {
     int smooth = 0;
   };
   std::optional<Drawn> drawn;
+  /// Structures inside it (model volume only): drawn, not simulated, each riding on its volume
+  /// as a drawn surface does, hidden while its surface is closed and seen through its openings
+  /// (StereoRenderer::set_enclosed_by). Their source keys and offset as a solid's; their colour
+  /// in material.colour.
+  std::vector<SolidDescription> inner;
   /// The solid's weight is carried by the tissues around it, as in the scan it came from (an
   /// organ in situ is in equilibrium with them): no gravity on its volume (model volume only).
   bool supported = false;

@@ -196,6 +196,24 @@ struct SessionReport {
     std::uint64_t recycled = 0;
   } bleeding;
   TimingRecorder blood_step_ms{"ms"};
+  /// What the renderer drew and left out, per frame on average, in the frames before the first
+  /// cut and in those after it (render::FrameStats), with each window's render time.
+  struct Culling {
+    std::uint64_t frames = 0;
+    double draw_calls = 0.0;
+    double triangles_submitted = 0.0;
+    double culled_frustum = 0.0;
+    double culled_occlusion = 0.0;
+    double culled_portal = 0.0;
+    TimingRecorder render_ms{"ms"};
+  };
+  Culling before_cut, after_cut;
+  /// Structures inside the solids ([[solids.inner]]): name, the solid they lie in, size.
+  struct Inner {
+    std::string name, solid;
+    std::size_t vertices = 0, faces = 0;
+  };
+  std::vector<Inner> inner;
   /// The hands: the scene names of the haptic devices, in hand order (an event's hand indexes it).
   std::vector<std::string> hands;
 
