@@ -20,6 +20,7 @@
 #include "bisturi/scene/volume/phantoms.h"
 #include "orbit_framing.h"
 #include "progress_line.h"
+#include "render_scene.h"
 
 namespace bisturi::cli {
 
@@ -46,15 +47,33 @@ Dlfl load_solid(const RenderOptions& options, ProgressLine& line) {
 return import_polygons(file.polygons, file.has_vertex_list, import).mesh;
 }  // namespace
 
+bool is_scene(const std::string& input) {
+  return input.size() > 5 && input.substr(input.size() - 5) == ".toml";
+}
+
+/// What to draw: a scene's solids, or one solid from a mesh file or a phantom.
+std::vector<SceneSolid> load_solids(const RenderOptions& options, ProgressLine& line) {
+  if (is_scene(options.input)) {
+    line.show("scene", 0, 1);
+    return scene_solids(options.input, options.incision);
+  }
+  std::vector<SceneSolid> one(1);
+  one[0].name = options.phantom.empty() ? options.input : options.phantom;
+  one[0].mesh = load_solid(options, line);
+  return one;
+}
+
 }  // namespace bisturi::cli
 
 void add_render_command(CLI::App& app, RenderOptions& options, int (*&run)(const RenderOptions&)) {
   CLI::App* cmd = app.add_subcommand(
       "render",
       "render a stereo orbit around a solid (Vulkan, both eyes in one pass) and write PNG frames; "
-      "MESH is a mesh file (.obj .ply .stl .off) or --phantom NAME; a scene file's organs are "
-      "drawn by `bisturi run`");
-  auto* input = cmd->add_option("MESH", options.input, "mesh file (OBJ, PLY, STL, OFF)")
+      "MESH is a mesh file (.obj .ply .stl .off), a scene file (.toml) or --phantom NAME");
+  auto* input = cmd->add_option("MESH", options.input,
+                                "mesh file (OBJ, PLY, STL, OFF), or a scene file (.toml): its "
+                                "solids as a session draws them, the structures inside them "
+                                "hidden but where an incision shows them")
                     ->check(CLI::ExistingFile);
   auto* phantom = cmd->add_option("--phantom", options.phantom,
                                   "an analytic phantom's surface instead of a file (sphere, shell, "
@@ -76,9 +95,14 @@ void add_render_command(CLI::App& app, RenderOptions& options, int (*&run)(const
   cmd->add_flag("--validation", options.validation,
                 "enable the Vulkan validation layer and report its message count");
   cmd->add_flag("--json", options.json, "write the summary as one JSON object on stdout");
+  cmd->add_flag("--incision", options.incision,
+                "scene files: cut the first solid along the scene's [procedure] cut first (its "
+                "inner structures are then seen through the incision)");
   cmd->callback([&run, &options] {
     if (options.input.empty() && options.phantom.empty())
       throw CLI::ValidationError("a MESH file or --phantom NAME is required");
+    if (options.incision && !is_scene(options.input))
+      throw CLI::ValidationError("--incision is for scene files (.toml)");
     run = run_render;
   });
 }
@@ -86,7 +110,7 @@ void add_render_command(CLI::App& app, RenderOptions& options, int (*&run)(const
 int run_render(const RenderOptions& options) {
   ProgressLine line;
   auto t = Clock::now();
-  const Dlfl solid = load_solid(options, line);
+  const std::vector<SceneSolid> solids = load_solids(options, line);
   line.done(options.phantom.empty() ? "read " + options.input : "phantom " + options.phantom,
             std::chrono::duration<double, std::milli>(Clock::now() - t).count());
 
@@ -95,11 +119,13 @@ int run_render(const RenderOptions& options) {
   ro.headset.eye_height = options.eye_height;
   // The orbit: around the solid's vertical (y) axis, slightly from above, framed for its size.
   glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
-  for (std::size_t i = 0; i < solid.vertex_capacity(); ++i) {
-    const VertexId v{static_cast<std::uint32_t>(i)};
-    if (!solid.alive(v)) continue;
-    lo = glm::min(lo, glm::dvec3(solid.position(v)));
-    hi = glm::max(hi, glm::dvec3(solid.position(v)));
+  for (const SceneSolid& solid : solids) {
+    for (std::size_t i = 0; i < solid.mesh.vertex_capacity(); ++i) {
+      const VertexId v{static_cast<std::uint32_t>(i)};
+      if (!solid.mesh.alive(v)) continue;
+      lo = glm::min(lo, glm::dvec3(solid.mesh.position(v)));
+      hi = glm::max(hi, glm::dvec3(solid.mesh.position(v)));
+    }
   }
   if (!(lo.x <= hi.x)) throw std::invalid_argument("the solid has no vertices to render");
   const OrbitFraming framing = frame_orbit(lo, hi, ro.headset.fov[0], ro.headset.ipd_mm);
@@ -116,7 +142,13 @@ int run_render(const RenderOptions& options) {
   render::StereoRenderer renderer(ro);
   t = Clock::now();
   line.show("levels of detail", 0, 1);
-  const render::SolidId id = renderer.add_solid(solid);
+  std::vector<render::SolidId> ids;
+  for (const SceneSolid& solid : solids)
+    ids.push_back(renderer.add_solid(solid.mesh, solid.material));
+  for (std::size_t k = 0; k < solids.size(); ++k) {
+    if (solids[k].enclosed_by >= 0)
+      renderer.set_enclosed_by(ids[k], ids[static_cast<std::size_t>(solids[k].enclosed_by)]);
+  }
   const double levels_ms = std::chrono::duration<double, std::milli>(Clock::now() - t).count();
   line.done("levels of detail", levels_ms);
 
@@ -128,6 +160,7 @@ int run_render(const RenderOptions& options) {
   renderer.set_sink(&sink);
   std::vector<double> frame_ms;
   std::size_t draw_calls = 0, chunks_culled = 0, chunks_drawn = 0, triangles = 0;
+  std::size_t culled_frustum = 0, culled_occlusion = 0, culled_portal = 0;
   std::size_t empty_frames = 0;
   const auto start = Clock::now();
   auto previous = start;
@@ -141,6 +174,9 @@ int run_render(const RenderOptions& options) {
     chunks_culled += stats.chunks_culled;
     chunks_drawn += stats.chunks_drawn;
     triangles += stats.triangles_drawn;
+    culled_frustum += stats.triangles_culled_frustum;
+    culled_occlusion += stats.triangles_culled_occlusion;
+    culled_portal += stats.triangles_culled_portal;
     if (stats.triangles_drawn == 0) {
       if (empty_frames == 0)
         std::cerr << "bisturi render: frame " << i << " draws nothing: the solid is not in view\n";
@@ -176,7 +212,12 @@ int run_render(const RenderOptions& options) {
       {"chunks_culled_per_frame", static_cast<double>(chunks_culled) / n},
       {"culled_chunks", chunks_culled},
       {"triangles_per_frame", static_cast<double>(triangles) / n},
-      {"levels", renderer.levels(id).level_count()},
+      {"culled_triangles_per_frame",
+       {{"frustum", static_cast<double>(culled_frustum) / n},
+        {"occlusion", static_cast<double>(culled_occlusion) / n},
+        {"portal", static_cast<double>(culled_portal) / n}}},
+      {"solids", solids.size()},
+      {"levels", renderer.levels(ids.front()).level_count()},
       {"empty_frames", empty_frames},
       {"solid_size", {hi.x - lo.x, hi.y - lo.y, hi.z - lo.z}},
       {"near_mm", ro.headset.near_mm},
@@ -194,7 +235,11 @@ int run_render(const RenderOptions& options) {
               << summary["frame_ms_p99"].get<double>() << " ms (PNG writing included)\n  "
               << summary["draw_calls_per_frame"].get<double>() << " draw calls, "
               << summary["triangles_per_frame"].get<double>() << " triangles and "
-              << summary["chunks_culled_per_frame"].get<double>() << " culled chunks per frame\n";
+              << summary["chunks_culled_per_frame"].get<double>() << " culled chunks per frame\n  "
+              << "triangles culled per frame: " << static_cast<double>(culled_frustum) / n
+              << " by the frusta, " << static_cast<double>(culled_occlusion) / n
+              << " hidden inside closed solids, " << static_cast<double>(culled_portal) / n
+              << " seen through no opening\n";
   }
   if (empty_frames > 0)
     std::cerr << "bisturi render: " << empty_frames << " of " << options.frames

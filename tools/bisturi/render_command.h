@@ -3,7 +3,8 @@
 // renders a fixed orbit around a solid with the stereo renderer (both eyes, one multiview pass)
 // and writes the frames as PNG files with their head poses (frames.csv), for checking by eye.
 // The solid comes from a mesh file (OBJ, PLY, STL, OFF) or an analytic phantom (--phantom); a
-// scene file's organs are drawn by `bisturi run`.
+// scene file (.toml) gives its solids as a session draws them, with the structures inside them
+// culled where they cannot be seen (--incision: through the procedure's cut).
 
 #include <cstdint>
 #include <string>
@@ -27,6 +28,7 @@ struct RenderOptions {
   bool cpu = false;
   bool validation = false;
   bool json = false;
+  bool incision = false;  ///< scene files: cut the first solid along the procedure's cut
 };
 
 /// Adds the `render` command; `run` is set when it is the one parsed.

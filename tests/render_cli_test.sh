@@ -1,0 +1,25 @@
+#!/bin/sh
+# bisturi render SCENE as a user runs it: the liver scene's lesion and vein are culled as hidden
+# inside the closed liver (occlusion) and, with the procedure's incision, as seen through no
+# opening in the frames where the incision does not face the eyes (portal), never both.
+# $1: bisturi, $2: work folder, $3: the liver scene.
+set -u
+bisturi=$1
+work=$2
+scene=$3
+fail() { echo "render-scene: FAILED: $*"; exit 1; }
+rm -rf "$work" && mkdir -p "$work" || fail "no work folder $work"
+culled() { tr -d ' \n' < "$1" | grep -o "\"$2\":[0-9.e+-]*" | head -n 1 | cut -d: -f2; }
+"$bisturi" render "$scene" --out "$work/closed" --frames 8 --eye-width 64 --eye-height 64 \
+  --json > "$work/closed.json" || fail "bisturi render exited with $?"
+"$bisturi" render "$scene" --incision --out "$work/cut" --frames 8 --eye-width 64 \
+  --eye-height 64 --json > "$work/cut.json" || fail "bisturi render --incision exited with $?"
+grep -q '"solids": 4' "$work/closed.json" || fail "not the liver, the vessel and two inner structures"
+awk -v o="$(culled "$work/closed.json" occlusion)" -v p="$(culled "$work/closed.json" portal)" \
+  'BEGIN { exit !(o > 0 && p == 0) }' || fail "closed: occlusion $(culled "$work/closed.json" occlusion), portal $(culled "$work/closed.json" portal)"
+awk -v o="$(culled "$work/cut.json" occlusion)" -v p="$(culled "$work/cut.json" portal)" \
+  'BEGIN { exit !(o == 0 && p > 0) }' || fail "cut: occlusion $(culled "$work/cut.json" occlusion), portal $(culled "$work/cut.json" portal)"
+"$bisturi" render --phantom sphere --incision --out "$work/x" > "$work/bad.txt" 2>&1 &&
+  fail "--incision on a phantom was taken"
+grep -q "scene files" "$work/bad.txt" || { cat "$work/bad.txt"; fail "--incision on a phantom: no reason given"; }
+echo "render-scene: ok"
