@@ -1,6 +1,7 @@
 // Label-map surfaces against the true shape: analytic solids (sphere, tilted ellipsoid, tilted
-// torus) voxelised by sample centre at anisotropic spacing (0.6 x 0.6 x 1.3 mm, a CT series, and
-// 1 x 1 x 3 mm, a thick-slice one), their surfaces extracted by
+// torus, two ellipsoids one empty slice apart) voxelised by sample centre at anisotropic spacing
+// (0.6 x 0.6 x 1.3 mm, a CT series, and 1 x 1 x 3 mm, a thick-slice one), their surfaces extracted
+// by
 //   mc          marching cubes on the 0/1 indicator (what `bisturi extract --label` gave),
 //   mc+taubin10 the same with 10 unconstrained Taubin iterations (`--smooth 10`),
 //   shape-interp extract_label_surface_mesh without smoothing (shape-based interpolation only),
@@ -98,6 +99,31 @@ Shape ellipsoid(dvec3 a) {
           [=](const dvec3& p) {
             const dvec3 c = ellipsoid_closest(a, rt * (p - kCentre));
             return glm::normalize(r * (c / (a * a)));
+          }};
+}
+
+/// Two ellipsoids (semi-axes a, turned 20 deg about z) stacked along the slice axis with one
+/// empty slice between them: the slice of the grid `voxelise` makes at `spacing` nearest z = 0
+/// lies in a gap of 1.2 slices, the slices either side of it inside one ellipsoid each.
+Shape two_ellipsoids(dvec3 a, const dvec3& spacing) {
+  const glm::dmat3 r = rotation(0.0, 20.0);
+  const glm::dmat3 rt = glm::transpose(r);
+  const double gap = 0.6 * spacing.z;
+  const double bound = std::max({a.x, a.y, gap + 2.0 * a.z});
+  const double half = bound + 3.0 * std::max({spacing.x, spacing.y, spacing.z});
+  const double z0 = -half + std::round(half / spacing.z) * spacing.z;
+  const dvec3 ca(kCentre.x, kCentre.y, z0 - gap - a.z), cb(kCentre.x, kCentre.y, z0 + gap + a.z);
+  const auto signed_distance = [=](const dvec3& p, const dvec3& c) {
+    const dvec3 q = rt * (p - c);
+    const double d = glm::length(q - ellipsoid_closest(a, q));
+    return glm::dot(q / a, q / a) < 1.0 ? -d : d;
+  };
+  return {"two ellipsoids 16x11x6", bound,
+          [=](const dvec3& p) { return std::min(signed_distance(p, ca), signed_distance(p, cb)); },
+          [=](const dvec3& p) {
+            const dvec3 c = signed_distance(p, ca) < signed_distance(p, cb) ? ca : cb;
+            const dvec3 q = ellipsoid_closest(a, rt * (p - c));
+            return glm::normalize(r * (q / (a * a)));
           }};
 }
 
@@ -218,13 +244,15 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  const std::vector<Shape> shapes = {sphere(20.0), ellipsoid({25.0, 15.0, 10.0}), torus(16.0, 6.0)};
   const std::vector<std::pair<std::string, dvec3>> spacings = {{"0.6x0.6x1.3", {0.6, 0.6, 1.3}},
                                                                {"1x1x3", {1.0, 1.0, 3.0}}};
   std::vector<Row> rows;
   std::printf("%-20s %-12s %-13s %9s %9s %9s %9s %9s %8s\n", "shape", "spacing", "method", "rms_mm",
               "max_mm", "n_rms_deg", "n_max_deg", "ms", "tris");
   for (const auto& [sname, spacing] : spacings) {
+    const std::vector<Shape> shapes = {sphere(20.0), ellipsoid({25.0, 15.0, 10.0}),
+                                       torus(16.0, 6.0),
+                                       two_ellipsoids({16.0, 11.0, 6.0}, spacing)};
     for (const Shape& s : shapes) {
       const Grid<float> labels = voxelise(s, spacing);
       std::vector<dvec3> pts;

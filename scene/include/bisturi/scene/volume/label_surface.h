@@ -9,10 +9,13 @@
 //    interpolates to zero, so between slices the outline moves smoothly. Runs of identical
 //    slices (a map resampled from thicker slices by repetition) are interpolated between their
 //    middles;
-// 2. the windowed-sinc low-pass of Taubin, Zhang and Golub ("Optimal surface smoothing as
+// 2. caps: where the slice beyond a label's last one holds none of it (its ends, or a gap
+//    between two objects), the vertices on the edges into it go onto a cap fitted to how the
+//    region narrows over its last slices instead (scene/src/surface/label_caps.h);
+// 3. the windowed-sinc low-pass of Taubin, Zhang and Golub ("Optimal surface smoothing as
 //    filter design", 1996; the filter 3D Slicer applies through VTK), its cut set so that the
 //    gain at the pass band is 1 (the shape itself does not shrink);
-// 3. the band constraint: a vertex the filter carried out of the band of cells the outline runs
+// 4. the band constraint: a vertex the filter carried out of the band of cells the outline runs
 //    through (cells with inside and outside corners) goes back along the way it came to where
 //    the band ends, as constrained surface nets keep each vertex in its cell. Thin parts cannot
 //    melt away.
