@@ -7,6 +7,7 @@
 
 layout(location = 0) in vec3 v_normal;
 layout(location = 1) in vec3 v_world;
+layout(location = 2) in float v_open;  // ambient occlusion: 1 where the whole sky is open
 
 layout(set = 0, binding = 0) uniform Eyes {
   mat4 view_projection[2];
@@ -36,8 +37,11 @@ void main() {
   const vec3 h = normalize(l + v);
   // The ambient term never reaches black: the side away from the key light still gets the
   // light the field scatters back (a third of the sky's).
-  const float hemisphere = mix(0.35, 1.0, 0.5 + 0.5 * dot(n, l));
-  const float diffuse = max(dot(n, l), 0.0);
+  // Ambient occlusion dims the sky's light, and part of the key light (the lamp is wide: what
+  // hides much of the sky hides much of it too), a soft shadow where parts of the field meet.
+  const float open = clamp(v_open, 0.0, 1.0);
+  const float hemisphere = open * mix(0.35, 1.0, 0.5 + 0.5 * dot(n, l));
+  const float diffuse = mix(1.0, open, 0.6) * max(dot(n, l), 0.0);
   const float fill = 0.25 * max(dot(n, v), 0.0);
   const float specular = diffuse > 0.0 ? pow(max(dot(n, h), 0.0), draw.material.w) : 0.0;
   float pool = 1.0;

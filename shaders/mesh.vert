@@ -3,7 +3,7 @@
 #extension GL_EXT_multiview : require
 
 layout(location = 0) in vec3 in_position;  // world millimetres (solids) or model space
-layout(location = 1) in vec3 in_normal;
+layout(location = 1) in vec3 in_normal;  // its length: the vertex's ambient occlusion (1 open)
 
 layout(set = 0, binding = 0) uniform Eyes {
   mat4 view_projection[2];
@@ -21,10 +21,12 @@ layout(push_constant) uniform Draw {
 
 layout(location = 0) out vec3 v_normal;
 layout(location = 1) out vec3 v_world;
+layout(location = 2) out float v_open;
 
 void main() {
   const vec4 world = draw.model * vec4(in_position, 1.0);
   v_world = world.xyz;
   v_normal = mat3(draw.model) * in_normal;
+  v_open = length(in_normal);
   gl_Position = eyes.view_projection[gl_ViewIndex] * world;
 }

@@ -204,6 +204,46 @@ TEST_F(RenderFieldTest, AnEnclosedSolidShowsOnlyThroughAnOpeningOfItsEnclosure) 
               shut->green, through->green, behind->green);
 }
 
+TEST_F(RenderFieldTest, AnOccludedPartOfASheetIsDarker) {
+  // A sheet facing the viewer, its vertices left of x = 0 given an occlusion of 0.3: that half
+  // is darker than the open half, which is as bright as without any occlusion.
+  const auto mean_green = [&](bool occluded, bool left) -> double {
+    RendererOptions options;
+    auto* r = make(options, kSize);
+    if (r == nullptr) return -1.0;
+    const Dlfl sheet = drape_sheet({-40.0, -40.0, -298.0}, {40.0, 40.0, -290.0});
+    const SolidId id = r->add_solid(sheet);
+    if (occluded) {
+      std::vector<float> open(sheet.vertex_capacity(), 1.0f);
+      for (std::uint32_t v = 0; v < sheet.vertex_capacity(); ++v)
+        if (sheet.alive(VertexId(v)) && sheet.position(VertexId(v)).x < 0.0) open[v] = 0.3f;
+      r->set_occlusion(id, open);
+    }
+    Capture frame;
+    r->set_sink(&frame);
+    r->render(testing::at_origin());
+    r->flush();
+    double sum = 0.0;
+    int n = 0;
+    for (std::uint32_t y = kSize / 2 - 10; y < kSize / 2 + 10; ++y)
+      for (std::uint32_t x = left ? kSize / 8 : kSize * 5 / 8;
+           x < (left ? kSize * 3 / 8 : kSize * 7 / 8); ++x) {
+        sum += frame.at(0, x, y)[1];
+        ++n;
+      }
+    return sum / n;
+  };
+  const double plain_left = mean_green(false, true);
+  if (plain_left < 0.0) GTEST_SKIP() << "no Vulkan device";
+  const double dark_left = mean_green(true, true);
+  const double open_right = mean_green(true, false);
+  const double plain_right = mean_green(false, false);
+  std::printf("green: left %.1f plain, %.1f occluded; right %.1f plain, %.1f beside it\n",
+              plain_left, dark_left, plain_right, open_right);
+  EXPECT_LT(dark_left, 0.8 * plain_left);
+  EXPECT_NEAR(open_right, plain_right, 1.0);
+}
+
 /// A square of 80 mm tilted away from the viewer: its lower edge at 170 mm, its upper at 330.
 Dlfl receding_square() {
   PolygonMesh grid = grid_mesh(8, 8, 10.0, true);

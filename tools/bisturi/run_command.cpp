@@ -375,6 +375,7 @@ int run_run(const RunOptions& options) {
         {"breathing_period_s", r.breathing_period_s},
         {"breathing", breathing}}},
       {"inner", inner},
+      {"field_shading_ms", r.field_shading_ms},
       {"culling", {{"before_cut", culling(r.before_cut)}, {"after_cut", culling(r.after_cut)}}},
       {"ticks", r.ticks},
       {"frames", r.frames},

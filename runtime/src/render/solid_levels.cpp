@@ -14,8 +14,11 @@ namespace bisturi::render {
 namespace {
 
 /// Area-weighted vertex normals and the interleaved vertex array of a level.
+/// Interleaved positions and normals; a normal's length is its vertex's ambient occlusion (the
+/// shader normalises it and reads the length: 1 open, less where the field hides the sky).
 void write_vertices(const std::vector<glm::vec3>& positions,
-                    const std::vector<std::uint32_t>& indices, std::vector<float>& out) {
+                    const std::vector<std::uint32_t>& indices, const std::vector<float>& occlusion,
+                    std::vector<float>& out) {
   std::vector<glm::vec3> normals(positions.size(), glm::vec3(0.0f));
   for (std::size_t t = 0; t + 2 < indices.size(); t += 3) {
     const std::uint32_t a = indices[t], b = indices[t + 1], c = indices[t + 2];
@@ -27,7 +30,9 @@ void write_vertices(const std::vector<glm::vec3>& positions,
   out.resize(positions.size() * 6);
   for (std::size_t i = 0; i < positions.size(); ++i) {
     const float length = glm::length(normals[i]);
-    const glm::vec3 n = length > 0.0f ? normals[i] / length : glm::vec3(0.0f, 0.0f, 1.0f);
+    const float open = occlusion.empty() ? 1.0f : occlusion[i];
+    const glm::vec3 n =
+        open * (length > 0.0f ? normals[i] / length : glm::vec3(0.0f, 0.0f, 1.0f));
     float* v = out.data() + 6 * i;
     v[0] = positions[i].x;
     v[1] = positions[i].y;
@@ -202,6 +207,11 @@ void SolidLevels::update(const Dlfl& mesh) {
   }
 }
 
+void SolidLevels::set_occlusion(std::vector<float> by_vertex) {
+  occlusion_ = std::move(by_vertex);
+  ++revision_;  // every level's vertices written again
+}
+
 void SolidLevels::replace(const Dlfl& mesh) {
   topology_version_ = mesh.topology_version();
   copy_positions(mesh);
@@ -228,6 +238,14 @@ const SolidLevel& SolidLevels::refresh(std::size_t i) {
   SolidLevel& level = levels_[i];
   if (level.vertex_revision == revision_) return level;
   std::vector<glm::vec3> local(level.vertex_count);
+  std::vector<float> open;
+  if (!occlusion_.empty() && level.kind != LevelKind::Subdivided) {
+    open.resize(level.vertex_count);
+    for (std::size_t k = 0; k < level.vertex_count; ++k) {
+      const std::uint32_t v = level.source_vertex[k];
+      open[k] = v < occlusion_.size() ? occlusion_[v] : 1.0f;
+    }
+  }
   if (level.kind == LevelKind::Subdivided) {
     const auto fine = subdivision_->positions(1);
     for (std::size_t k = 0; k < level.vertex_count; ++k)
@@ -240,7 +258,7 @@ const SolidLevel& SolidLevels::refresh(std::size_t i) {
         local[k] += level.offset[k];
     }
   }
-  write_vertices(local, level.indices, level.vertices);
+  write_vertices(local, level.indices, open, level.vertices);
   level.tree.refit(local, level.indices);
   level.vertex_revision = revision_;
   return level;

@@ -726,6 +726,9 @@ void StereoRenderer::set_material(SolidId id, const Material& material) {
 void StereoRenderer::set_visible(SolidId id, bool visible) {
   impl_->solid(id).visible = visible;
 }
+void StereoRenderer::set_occlusion(SolidId id, std::vector<float> by_vertex) {
+  impl_->solid(id).levels->set_occlusion(std::move(by_vertex));
+}
 void StereoRenderer::set_enclosed_by(SolidId inner, SolidId enclosure) {
   impl_->solid(inner).enclosed_by = static_cast<std::int32_t>(enclosure.index);
 }

@@ -283,7 +283,6 @@ void average_culling(SessionReport::Culling& w) {
 constexpr glm::vec3 kFieldBackground{0.035f, 0.098f, 0.091f};
 /// The drape under the solids: the same green, lit (linear RGB, cloth: no highlight).
 constexpr glm::vec3 kDrapeColour{0.040f, 0.115f, 0.100f};
-constexpr double kDrapeBelow_mm = 2.0;  ///< the blood's tray (session_sim.cpp) is there too
 
 }  // namespace
 
@@ -376,6 +375,8 @@ void run_render_loop(const RenderLoopContext& c) {
     render::Material m;
     m.colour = glm::vec3(static_cast<float>(rgb[0]), static_cast<float>(rgb[1]),
                          static_cast<float>(rgb[2]));
+    // Its soft shadow is in the drape's shading: no hard one on a GPU besides.
+    m.casts_shadow = c.shading == nullptr;
     ids.push_back(renderer.add_solid(drawn[b] != nullptr ? drawn[b]->mesh() : meshes[b].mesh, m));
   }
   // Structures inside the solids: drawn only where they can be seen past them.
@@ -389,25 +390,36 @@ void run_render_loop(const RenderLoopContext& c) {
     inner_ids.push_back(renderer.add_solid(in.surface->mesh(), m));
     renderer.set_enclosed_by(inner_ids.back(), ids[in.solid]);
   }
-  // The drape the solids lie on, at the blood's tray: lit by the lamp, the floor of the field.
-  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
-  for (const auto& solid : initial.solids) {
-    for (const glm::dvec3& p : solid.positions_mm) {
-      lo = glm::min(lo, p);
-      hi = glm::max(hi, p);
-    }
-  }
-  if (lo.x <= hi.x) {
+  // The drape the solids lie on, at the blood's tray: lit by the lamp, the floor of the field,
+  // darkened where the solids hide its sky (field_occlusion.h).
+  if (c.shading != nullptr && c.shading->drape.num_faces() > 0) {
     render::Material drape;
     drape.colour = kDrapeColour;
     drape.interior_colour = kDrapeColour;
     drape.specular = 0.0f;
     drape.casts_shadow = false;
-    (void)renderer.add_solid(render::drape_sheet(lo, hi, kDrapeBelow_mm), drape);
-    // The solids' and instruments' shadows on it, on a GPU: on a CPU rasterizer (lavapipe)
-    // they cost about 3.5 ms a frame at 256 x 256 an eye, which takes the display below 90 Hz.
-    if (!renderer.device_is_cpu()) renderer.set_shadow_plane(lo.z - kDrapeBelow_mm);
+    const render::SolidId drape_id = renderer.add_solid(c.shading->drape, drape);
+    renderer.set_occlusion(drape_id, c.shading->drape_open);
+    // The instruments' shadows on it, on a GPU (the solids' soft shadows are in its shading): on
+    // a CPU rasterizer (lavapipe) they cost about 3.5 ms a frame at 256 x 256 an eye, which
+    // takes the display below 90 Hz.
+    if (!renderer.device_is_cpu()) renderer.set_shadow_plane(c.shading->drape_z_mm);
   }
+  // Each solid's occlusion, by the vertices it is drawn with.
+  const auto shade = [&](std::size_t b) {
+    if (c.shading == nullptr || b >= c.shading->solid_open.size()) return;
+    const std::vector<float>& open = c.shading->solid_open[b];
+    if (drawn[b] != nullptr) {
+      renderer.set_occlusion(ids[b], open);
+      return;
+    }
+    std::vector<float> by_vertex(meshes[b].mesh.vertex_capacity(), 1.0f);
+    for (const auto& [slot, v] : meshes[b].slot_to_vertex)
+      if (slot < open.size() && v.idx < by_vertex.size()) by_vertex[v.idx] = open[slot];
+    renderer.set_occlusion(ids[b], std::move(by_vertex));
+  };
+  for (std::size_t b = 0; b < ids.size(); ++b)
+    shade(b);
   double probe_radius = 1.5, probe_length = 60.0;
   for (const InstrumentDescription& in : scene.instruments) {
     if (in.kind == InstrumentDescription::Kind::Probe) {
@@ -517,6 +529,7 @@ void run_render_loop(const RenderLoopContext& c) {
         if (cut) {
           // Rebuilt here: its topology version counts this copy's edits, not the simulated one's.
           renderer.replace_solid(ids[b], meshes[b].mesh);
+          shade(b);  // renumbered
         } else {
           renderer.update_solid(ids[b], meshes[b].mesh);
         }

@@ -21,6 +21,7 @@
 #include "bisturi/runtime/session/session.h"
 #include "bisturi/runtime/session/triple_buffer.h"
 #include "drawn_surface.h"
+#include "field_occlusion.h"
 #include "session_snapshot.h"
 
 namespace bisturi::runtime {
@@ -74,6 +75,8 @@ struct RenderLoopContext {
   /// Structures inside the solids: moved with their volumes, each drawn only while it can be
   /// seen past its solid (StereoRenderer::set_enclosed_by).
   std::vector<InnerStructure>* inner = nullptr;
+  /// The drape and the field's ambient occlusion (null: no drape, no occlusion).
+  const FieldShading* shading = nullptr;
 };
 
 /// A headset's picture frozen this long stops the forces (18 frames at 90 Hz).

@@ -424,6 +424,13 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     s.drawn_rest_gap_mm = drawn[b]->rest_gap_mm();
     s.drawn_most_gap_mm = s.drawn_rest_gap_mm;
   }
+  // The drape under the field and how much of the sky each part sees (field_occlusion.h).
+  std::vector<const Dlfl*> drawn_meshes(scene.solids.size(), nullptr);
+  for (std::size_t b = 0; b < drawn.size(); ++b)
+    if (drawn[b]) drawn_meshes[b] = &drawn[b]->mesh();
+  stage("shading the field");
+  const FieldShading shading = shade_field(sim.world(), drawn_meshes, kDrapeBelow_mm);
+  report.field_shading_ms = shading.build_ms;
   // The structures inside them ride on their volumes too, drawn only where they can be seen.
   std::vector<InnerStructure> inner;
   for (std::uint32_t b = 0; b < scene.solids.size(); ++b) {
@@ -507,7 +514,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                            &faults.headset_sink,
                            &display_deadline_ns,
                            &drawn,
-                           &inner});
+                           &inner,
+                           &shading});
         } catch (const std::exception& e) {
           render_error = e.what();
           render_ready.store(true);

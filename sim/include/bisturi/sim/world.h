@@ -61,6 +61,7 @@ class SimWorld {
   void prepare_body(std::uint32_t i);
   [[nodiscard]] std::size_t body_count() const { return bodies_.size(); }
   SoftBody& body(std::uint32_t i) { return bodies_[i]; }
+  [[nodiscard]] const SoftBody& body(std::uint32_t i) const { return bodies_[i]; }
   /// Gives body i a volume (volume_body.h): from now on its steps are the volume's, not the
   /// spring integrator's. Throws SimInputError when the volume cannot be built.
   void set_volume(std::uint32_t i, const VolumeOptions& options);

@@ -85,6 +85,10 @@ class SolidLevels {
   /// cut's slit is below their error at the distances they are drawn from, and decimating the
   /// solid again would take a frame many times over.
   void recut(const Dlfl& mesh);
+  /// Each vertex's ambient occlusion (1: open sky; by the mesh's vertex index, as positions;
+  /// empty: none), drawn on the solid's own and decimated levels. Vertices a cut adds later
+  /// are open.
+  void set_occlusion(std::vector<float> by_vertex);
   /// Builds the decimated and subdivided levels again from the current mesh.
   void rebuild_derived_levels(const Dlfl& mesh);
 
@@ -108,6 +112,7 @@ class SolidLevels {
   std::vector<SolidLevel> levels_;
   std::size_t source_level_ = 0;
   std::vector<glm::vec3> positions_;  ///< the solid's positions by vertex index (float)
+  std::vector<float> occlusion_;       ///< by vertex index; empty: none
   std::unique_ptr<lod::SubdivisionLevels> subdivision_;
   Aabb bounds_;
   std::uint64_t topology_version_ = 0;

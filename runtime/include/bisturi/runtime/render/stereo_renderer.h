@@ -121,6 +121,9 @@ class StereoRenderer {
   void set_pose(SolidId id, const glm::dmat4& pose);
   void set_material(SolidId id, const Material& material);
   void set_visible(SolidId id, bool visible);
+  /// A solid's ambient occlusion by vertex (1: the whole sky open; SolidLevels::set_occlusion):
+  /// it dims the ambient light and part of the key light there, a soft contact shadow.
+  void set_occlusion(SolidId id, std::vector<float> by_vertex);
   /// `inner` lies inside `enclosure`'s closed surface (a lesion in an organ): it is not drawn
   /// while that surface is closed and the eyes are outside its box (it hides all of it), and
   /// once it is open (an incision) only while an eye sees its box through an opening's box

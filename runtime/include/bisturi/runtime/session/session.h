@@ -214,6 +214,8 @@ struct SessionReport {
     std::size_t vertices = 0, faces = 0;
   };
   std::vector<Inner> inner;
+  /// The drape and the field's ambient occlusion, computed at start (ms).
+  double field_shading_ms = 0.0;
   /// The hands: the scene names of the haptic devices, in hand order (an event's hand indexes it).
   std::vector<std::string> hands;
 
