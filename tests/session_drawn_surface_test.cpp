@@ -126,5 +126,45 @@ TEST(LiverScene, TheDrawnLiverRidesOnTheVolumeAndIsCutWithIt) {
   }
 }
 
+TEST(DrawnSurface, ItFollowsAnAffineMotionExactlyAndAgainOnANewLattice) {
+  // Trilinear weights carry an affine motion of the nodes exactly, for the vertices inside the
+  // cells and for those a fraction of a cell outside them (extrapolated) alike; a lattice handed
+  // over anew (as after the refined box moved) embeds every vertex again.
+  LiverProcedure liver;
+  const sim::VolumeBody* volume = liver.sim.world().volume(0);
+  ASSERT_NE(volume, nullptr);
+  auto lattice = std::make_shared<const sim::HexLattice>(volume->volume().lattice());
+  DrawnSurface drawn(*build_drawn_surface(liver.scene.solids[0], "liver.toml"),
+                     &liver.sim.world().body(0), lattice);
+  const std::vector<glm::dvec3> rest(drawn.mesh().positions().begin(),
+                                     drawn.mesh().positions().end());
+  const glm::dmat3 a(1.02, 0.01, 0.0, -0.015, 0.99, 0.02, 0.0, 0.01, 1.01);
+  const glm::dvec3 shift(0.003, -0.002, 0.001);  // metres
+  const auto moved = [&](const sim::HexLattice& l) {
+    std::vector<glm::dvec3> nodes;
+    for (const glm::dvec3& x : l.rest)
+      nodes.push_back(a * x + shift);
+    return nodes;
+  };
+  const auto largest_error = [&] {
+    double most = 0.0;
+    for (std::uint32_t v = 0; v < drawn.mesh().vertex_capacity(); ++v) {
+      if (!drawn.mesh().alive(VertexId(v))) continue;
+      const glm::dvec3 want = sim::sim_to_scene(a * sim::scene_to_sim(rest[v]) + shift);
+      most = std::max(most, glm::length(drawn.mesh().positions()[v] - want));
+    }
+    return most;
+  };
+  drawn.follow(moved(*lattice));
+  EXPECT_LT(largest_error(), 1e-6);
+  auto again = std::make_shared<const sim::HexLattice>(*lattice);
+  drawn.use_lattice(again);
+  drawn.follow(moved(*again));
+  EXPECT_LT(largest_error(), 1e-6);
+  // Nodes of another lattice (another count) leave the surface where it was.
+  drawn.follow(std::vector<glm::dvec3>(3, glm::dvec3(0.0)));
+  EXPECT_LT(largest_error(), 1e-6);
+}
+
 }  // namespace
 }  // namespace bisturi::runtime
