@@ -38,10 +38,8 @@ Dlfl incised(Dlfl mesh, const std::array<double, 3>& from_mm, const std::array<d
     points.push_back(sim::scene_to_sim(p));
   }
   (void)sim::cut_surface(body, points);
-  Dlfl out = body.mesh();
-  for (std::size_t v = 0; v < out.vertex_capacity(); ++v)
-    out.positions()[v] = sim::sim_to_scene(body.positions()[v]);
-  return out;
+  body.write_positions_to_scene();
+  return body.mesh();
 }
 
 }  // namespace

@@ -31,8 +31,7 @@ void write_vertices(const std::vector<glm::vec3>& positions,
   for (std::size_t i = 0; i < positions.size(); ++i) {
     const float length = glm::length(normals[i]);
     const float open = occlusion.empty() ? 1.0f : occlusion[i];
-    const glm::vec3 n =
-        open * (length > 0.0f ? normals[i] / length : glm::vec3(0.0f, 0.0f, 1.0f));
+    const glm::vec3 n = open * (length > 0.0f ? normals[i] / length : glm::vec3(0.0f, 0.0f, 1.0f));
     float* v = out.data() + 6 * i;
     v[0] = positions[i].x;
     v[1] = positions[i].y;
@@ -194,12 +193,11 @@ void SolidLevels::build_derived(const Dlfl& mesh) {
 }
 
 void SolidLevels::update(const Dlfl& mesh) {
-  copy_positions(mesh);
   if (mesh.topology_version() != topology_version_) {
-    topology_version_ = mesh.topology_version();
-    build_source(mesh);
+    replace(mesh);
     return;
   }
+  copy_positions(mesh);
   if (subdivision_) subdivision_->update(mesh);
   bounds_ = Aabb{};
   for (const std::uint32_t v : levels_[source_level_].source_vertex) {

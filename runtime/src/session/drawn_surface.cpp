@@ -94,9 +94,8 @@ bool DrawnSurface::cut(std::span<const glm::dvec3> points_m) {
       break;
     }
   }
+  body_.write_positions_to_scene();
   mesh_mm_ = body_.mesh();
-  for (std::size_t v = 0; v < slots; ++v)
-    mesh_mm_.positions()[v] = sim::sim_to_scene(body_.positions()[v]);
   ++cuts_;
   return true;
 }

@@ -12,6 +12,7 @@
 #include <glm/geometric.hpp>
 
 #include "bisturi/runtime/render/drape_mesh.h"
+#include "bisturi/runtime/render/frustum.h"
 #include "bisturi/sim/collision.h"
 #include "bisturi/sim/units.h"
 
@@ -57,14 +58,27 @@ std::vector<glm::dvec3> hemisphere(int count) {
   return out;
 }
 
-struct Box {
-  glm::dvec3 lo{std::numeric_limits<double>::infinity()},
-      hi{-std::numeric_limits<double>::infinity()};
-  [[nodiscard]] bool near(const glm::dvec3& p, double reach) const {
-    const glm::dvec3 gap = glm::max(glm::max(lo - p, p - hi), glm::dvec3(0.0));
-    return glm::dot(gap, gap) <= reach * reach;
-  }
-};
+/// Body b's box at its positions now (mm).
+render::Aabb body_box(const sim::SimWorld& world, std::uint32_t b) {
+  render::Aabb box;
+  for (const glm::dvec3& x : world.body(b).positions())
+    box.extend(sim::sim_to_scene(x));
+  return box;
+}
+
+/// All the bodies' box (mm).
+render::Aabb world_box(const sim::SimWorld& world) {
+  render::Aabb box;
+  for (std::uint32_t b = 0; b < world.body_count(); ++b)
+    box.extend(body_box(world, b));
+  return box;
+}
+
+/// Whether p lies within `reach` of the box.
+bool within(const render::Aabb& box, const glm::dvec3& p, double reach) {
+  const glm::dvec3 gap = glm::max(glm::max(box.lo - p, p - box.hi), glm::dvec3(0.0));
+  return glm::dot(gap, gap) <= reach * reach;
+}
 
 }  // namespace
 
@@ -73,22 +87,21 @@ std::vector<float> field_occlusion(const Dlfl& receiver, const sim::SimWorld& wo
                                    const OcclusionOptions& options) {
   const std::vector<glm::dvec3> normals = vertex_normals(receiver);
   const std::vector<glm::dvec3> dirs = hemisphere(options.rays);
-  std::vector<Box> boxes(world.body_count());
+  std::vector<render::Aabb> boxes;
   for (std::uint32_t b = 0; b < world.body_count(); ++b)
-    for (const glm::dvec3& x : world.body(b).positions())
-      boxes[b].lo = glm::min(boxes[b].lo, sim::sim_to_scene(x)),
-      boxes[b].hi = glm::max(boxes[b].hi, sim::sim_to_scene(x));
+    boxes.push_back(body_box(world, b));
   const double reach = options.reach_mm;
   std::vector<float> open(receiver.vertex_capacity(), 1.0f);
+  std::vector<std::uint32_t> near;  // the bodies within reach of a vertex
   for (std::uint32_t v = 0; v < receiver.vertex_capacity(); ++v) {
     if (!receiver.alive(VertexId(v))) continue;
     const double len = glm::length(normals[v]);
     if (!(len > 0.0)) continue;
     const glm::dvec3 n = normals[v] / len;
     const glm::dvec3 p = receiver.position(VertexId(v));
-    std::vector<std::uint32_t> near;
+    near.clear();
     for (std::uint32_t b = 0; b < world.body_count(); ++b)
-      if (static_cast<std::int32_t>(b) != own_body && boxes[b].near(p, reach)) near.push_back(b);
+      if (static_cast<std::int32_t>(b) != own_body && within(boxes[b], p, reach)) near.push_back(b);
     const bool drape_near = p.z - drape_z_mm < reach;
     if (near.empty() && !drape_near) continue;
     // A frame about the normal.
@@ -122,15 +135,9 @@ std::vector<float> lamp_light(const Dlfl& receiver, const sim::SimWorld& world,
   std::vector<glm::dvec3> dirs;
   for (const glm::dvec3& d : hemisphere(options.rays))
     dirs.push_back(glm::normalize(glm::dvec3(d.x * spread, d.y * spread, 1.0)));
-  Box all;
-  for (std::uint32_t b = 0; b < world.body_count(); ++b) {
-    for (const glm::dvec3& x : world.body(b).positions()) {
-      all.lo = glm::min(all.lo, sim::sim_to_scene(x));
-      all.hi = glm::max(all.hi, sim::sim_to_scene(x));
-    }
-  }
+  const render::Aabb all = world_box(world);
   std::vector<float> lit(receiver.vertex_capacity(), 1.0f);
-  if (!(all.lo.x <= all.hi.x)) return lit;
+  if (all.empty()) return lit;
   const double height = all.hi.z;  // above it nothing hides the lamp
   for (std::uint32_t v = 0; v < receiver.vertex_capacity(); ++v) {
     if (!receiver.alive(VertexId(v))) continue;
@@ -162,14 +169,10 @@ FieldShading shade_field(const sim::SimWorld& world, const std::vector<const Dlf
                          double below_mm, const OcclusionOptions& options) {
   const auto begin = std::chrono::steady_clock::now();
   FieldShading out;
-  glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
-  for (std::uint32_t b = 0; b < world.body_count(); ++b) {
-    for (const glm::dvec3& x : world.body(b).positions()) {
-      lo = glm::min(lo, sim::sim_to_scene(x));
-      hi = glm::max(hi, sim::sim_to_scene(x));
-    }
-  }
-  if (!(lo.x <= hi.x)) return out;
+  const render::Aabb all = world_box(world);
+  if (all.empty()) return out;
+  const glm::dvec3& lo = all.lo;
+  const glm::dvec3& hi = all.hi;
   // 24 x 24 quads (about 26 mm for the liver scene): the shading is soft at that scale, and on
   // lavapipe each finer step of the sheet cost the frame about a millisecond (72 x 72: 4.5 ms).
   out.drape = render::drape_sheet(lo, hi, below_mm, 1.0, 24);

@@ -407,13 +407,13 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   // ---- The hand-off ----
   const Snapshot initial = initial_snapshot(sim);
   // Solids drawn finer than they are simulated ride on their volumes (drawn_surface.h).
+  const std::string scene_name = scene.file.empty() ? "default scene" : scene.file.string();
   std::vector<std::unique_ptr<DrawnSurface>> drawn(scene.solids.size());
   for (std::uint32_t b = 0; b < scene.solids.size(); ++b) {
     if (!scene.solids[b].drawn || !initial.solids[b].lattice) continue;
     stage("build drawn surface");
     const auto start = std::chrono::steady_clock::now();
-    std::optional<Dlfl> mesh = build_drawn_surface(
-        scene.solids[b], scene.file.empty() ? "default scene" : scene.file.string());
+    std::optional<Dlfl> mesh = build_drawn_surface(scene.solids[b], scene_name);
     drawn[b] = std::make_unique<DrawnSurface>(std::move(*mesh), &sim.world().body(b),
                                               initial.solids[b].lattice);
     SolidReport& s = report.solids[b];
@@ -437,11 +437,9 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     if (scene.solids[b].inner.empty() || !initial.solids[b].lattice) continue;
     stage("build inner structures");
     for (const SolidDescription& d : scene.solids[b].inner) {
-      InnerStructure in{
-          b, d.material.colour,
-          std::make_unique<DrawnSurface>(
-              build_solid(d, scene.file.empty() ? "default scene" : scene.file.string()), nullptr,
-              initial.solids[b].lattice)};
+      InnerStructure in{b, d.material.colour,
+                        std::make_unique<DrawnSurface>(build_solid(d, scene_name), nullptr,
+                                                       initial.solids[b].lattice)};
       report.inner.push_back(
           {d.name, scene.solids[b].name, in.surface->vertices(), in.surface->faces()});
       inner.push_back(std::move(in));
