@@ -4,10 +4,14 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
+
+#include <glm/common.hpp>
+#include <glm/geometric.hpp>
 
 #include "bisturi/runtime/render/errors.h"
 #include "bisturi/runtime/render/stereo_renderer.h"
@@ -58,6 +62,26 @@ inline HeadPose at_origin() {
   HeadPose pose;  // looking down -z, y up
   pose.sample_time = PoseClock::now();
   return pose;
+}
+
+/// Projects a world point into an eye's pixels (x right, y down) seen from `pose`.
+inline glm::dvec2 project(const HeadsetDescription& h, const HeadPose& pose, int eye,
+                          const glm::dvec3& p) {
+  const auto views = eye_views(h, pose);
+  const glm::dvec4 clip = views[static_cast<std::size_t>(eye)].view_projection * glm::dvec4(p, 1.0);
+  return {(clip.x / clip.w * 0.5 + 0.5) * h.eye_width,
+          (clip.y / clip.w * 0.5 + 0.5) * h.eye_height};
+}
+
+/// Distance (pixels) from q to the nearest point of a polyline.
+inline double distance_to_polyline(const std::vector<glm::dvec2>& line, const glm::dvec2& q) {
+  double best = 1e30;
+  for (std::size_t i = 0; i + 1 < line.size(); ++i) {
+    const glm::dvec2 a = line[i], d = line[i + 1] - line[i];
+    const double t = glm::clamp(glm::dot(q - a, d) / std::max(glm::dot(d, d), 1e-12), 0.0, 1.0);
+    best = std::min(best, glm::length(q - (a + t * d)));
+  }
+  return best;
 }
 
 /// Renderers with validation on; each test ends with no validation message.

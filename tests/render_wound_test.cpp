@@ -27,8 +27,10 @@ constexpr double kRadius = 40.0;
 void open_lips(Dlfl& mesh, const sim::CutResult& cut, double gap_mm) {
   std::vector<double> side(mesh.vertex_capacity(), 0.0);
   std::vector<char> lip(mesh.vertex_capacity(), 0);
-  for (const VertexId v : cut.path) lip[v.idx] = 1;
-  for (const VertexId v : cut.new_vertices) lip[v.idx] = 1;
+  for (const VertexId v : cut.path)
+    lip[v.idx] = 1;
+  for (const VertexId v : cut.new_vertices)
+    lip[v.idx] = 1;
   for (std::uint32_t f = 0; f < mesh.face_capacity(); ++f) {
     const FaceId face{f};
     if (!mesh.alive(face) || mesh.is_bounding(face)) continue;
@@ -55,24 +57,6 @@ void open_lips(Dlfl& mesh, const sim::CutResult& cut, double gap_mm) {
     p.y += (side[v] > 0.0 ? 0.5 : -0.5) * gap_mm;
     mesh.set_position(VertexId{v}, p);
   }
-}
-
-/// Projects a world point into an eye's pixels (x right, y down).
-glm::dvec2 project(const HeadsetDescription& h, int eye, const glm::dvec3& p) {
-  const auto views = eye_views(h, testing::at_origin());
-  const glm::dvec4 clip = views[static_cast<std::size_t>(eye)].view_projection * glm::dvec4(p, 1.0);
-  const glm::dvec2 ndc(clip.x / clip.w, clip.y / clip.w);
-  return {(ndc.x * 0.5 + 0.5) * h.eye_width, (ndc.y * 0.5 + 0.5) * h.eye_height};
-}
-
-double distance_to_polyline(const std::vector<glm::dvec2>& line, const glm::dvec2& q) {
-  double best = 1e30;
-  for (std::size_t i = 0; i + 1 < line.size(); ++i) {
-    const glm::dvec2 a = line[i], d = line[i + 1] - line[i];
-    const double t = glm::clamp(glm::dot(q - a, d) / std::max(glm::dot(d, d), 1e-12), 0.0, 1.0);
-    best = std::min(best, glm::length(q - (a + t * d)));
-  }
-  return best;
 }
 
 bool background(const std::uint8_t* px) {
@@ -122,18 +106,18 @@ TEST_F(RenderWoundTest, AnOpenedIncisionShowsTheInteriorMaterialAlongItsPathOnly
   for (int e = 0; e < 2; ++e) {
     std::vector<glm::dvec2> path;
     for (const VertexId v : cut.path)
-      path.push_back(project(h, e, body.mesh().position(v)));
+      path.push_back(testing::project(h, testing::at_origin(), e, body.mesh().position(v)));
     std::size_t changed = 0, changed_far = 0, interior = 0, see_through = 0, interior_before = 0;
     for (std::uint32_t y = 0; y < kSize; ++y) {
       for (std::uint32_t x = 0; x < kSize; ++x) {
         const std::uint8_t* a = before.at(e, x, y);
         const std::uint8_t* b = after.at(e, x, y);
         interior_before += interior_hue(a);
-        const bool differs = std::abs(a[0] - b[0]) + std::abs(a[1] - b[1]) +
-                                 std::abs(a[2] - b[2]) > 6;
+        const bool differs =
+            std::abs(a[0] - b[0]) + std::abs(a[1] - b[1]) + std::abs(a[2] - b[2]) > 6;
         if (!differs) continue;
         ++changed;
-        const double d = distance_to_polyline(path, {x + 0.5, y + 0.5});
+        const double d = testing::distance_to_polyline(path, {x + 0.5, y + 0.5});
         if (d > 14.0) ++changed_far;  // the lips moved 4 mm, about 3 pixels at 160 mm
         interior += interior_hue(b);
         see_through += !background(a) && background(b);

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include <glm/geometric.hpp>
@@ -273,6 +274,102 @@ TEST(SimVolumeBody, ACutKeepsEveryVertexEmbeddedAndTheRunsAreIdentical) {
     hash = world.body(0).state_hash();
   }
   EXPECT_EQ(hashes[0], hashes[1]);
+}
+
+/// The widest gap between an opened path vertex and its copy (metres), with the part of it
+/// along y (the blade's sheet is the plane y = centre).
+struct Gap {
+  double width_m = 0.0;
+  double across_m = 0.0;
+};
+Gap widest_gap(const SoftBody& body, const CutResult& cut) {
+  Gap gap;
+  const std::size_t opened = cut.new_vertices.size();
+  for (std::size_t k = 0; k < opened; ++k) {
+    // An incision inside the surface opens every path vertex but its two ends, in order.
+    const glm::dvec3 d = body.position(cut.new_vertices[k]) - body.position(cut.path[k + 1]);
+    if (glm::length(d) <= gap.width_m) continue;
+    gap.width_m = glm::length(d);
+    gap.across_m = std::abs(d.y);
+  }
+  return gap;
+}
+
+/// The anchored sphere (no gravity) with a resting tension, cut 6 mm deep across its top
+/// along x by a blade standing in the plane y = centre.
+struct Wound {
+  SimWorld world;
+  CutResult cut;
+  std::size_t separated = 0;
+};
+Wound cut_sphere(double tension_Pa) {
+  WorldOptions options;
+  options.integrator.gravity_m_s2 = glm::dvec3(0.0);
+  Wound w{SimWorld(options), {}, 0};
+  w.world.add_body(anchored_sphere());
+  VolumeOptions volume = liver_cells();
+  volume.resting_tension_Pa = tension_Pa;
+  w.world.set_volume(0, volume);
+  w.world.prepare();
+  std::vector<glm::dvec3> entry, tip;
+  for (int k = 0; k <= 16; ++k) {
+    const double x = -0.008 + 0.001 * k;
+    const double z = std::sqrt(kRadius_m * kRadius_m - x * x);
+    entry.push_back(kCentre_m + glm::dvec3(x, 0.0, z));
+    tip.push_back(kCentre_m + glm::dvec3(x, 0.0, z - 0.006));
+  }
+  w.cut = w.world.cut(0, entry, {}, tip);
+  w.separated = w.world.separated_faces(0);
+  return w;
+}
+
+TEST(SimVolumeBody, AWoundOpensUnderTheTissuesTensionAndWidensOverASecond) {
+  {
+    // At rest the surroundings hold the tension: the uncut sphere does not move.
+    WorldOptions options;
+    options.integrator.gravity_m_s2 = glm::dvec3(0.0);
+    SimWorld world(options);
+    world.add_body(anchored_sphere());
+    VolumeOptions volume = liver_cells();
+    volume.resting_tension_Pa = 300.0;
+    world.set_volume(0, volume);
+    world.prepare();
+    for (int s = 0; s < 200; ++s)
+      world.step({1.0, 1.0, 1.0});
+    double moved = 0.0;
+    const SoftBody& body = world.body(0);
+    for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i)
+      if (body.mesh().alive(VertexId(i)))
+        moved = std::max(moved,
+                         glm::length(body.position(VertexId(i)) - body.rest_position(VertexId(i))));
+    EXPECT_LT(moved, 1e-6);
+  }
+  Wound tense = cut_sphere(300.0);
+  ASSERT_GT(tense.separated, 0u);
+  ASSERT_FALSE(tense.cut.new_vertices.empty());
+  ASSERT_EQ(tense.cut.path.size(), tense.cut.new_vertices.size() + 2);
+  ASSERT_TRUE(validate(tense.world.body(0).mesh()).ok());
+  const glm::dvec3 away{1.0, 1.0, 1.0};
+  EXPECT_LT(widest_gap(tense.world.body(0), tense.cut).width_m, 1e-6);  // closed at the cut
+  for (int s = 0; s < 100; ++s)
+    tense.world.step(away);
+  const Gap early = widest_gap(tense.world.body(0), tense.cut);
+  for (int s = 0; s < 900; ++s)
+    tense.world.step(away);
+  const Gap late = widest_gap(tense.world.body(0), tense.cut);
+  EXPECT_TRUE(tense.world.take_events().empty());
+  // It opens as the walls let go of the tension (0.3 s): a quarter of the way at 0.1 s.
+  EXPECT_GT(early.width_m, 2e-4);
+  EXPECT_GT(late.width_m, 2.0 * early.width_m);
+  EXPECT_GT(late.across_m, 0.8 * late.width_m);  // the lips part across the blade's sheet
+  std::printf("wound: %zu faces separated, gap %.3f mm at 0.1 s, %.3f mm at 1 s\n", tense.separated,
+              early.width_m * 1e3, late.width_m * 1e3);
+
+  // Without a tension the lips part no more than the solve's error.
+  Wound slack = cut_sphere(0.0);
+  for (int s = 0; s < 200; ++s)
+    slack.world.step(away);
+  EXPECT_LT(widest_gap(slack.world.body(0), slack.cut).width_m, 1e-5);
 }
 
 }  // namespace

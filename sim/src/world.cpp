@@ -201,10 +201,19 @@ void SimWorld::tissue_contacts() {
 }
 
 CutResult SimWorld::cut(std::uint32_t i, std::span<const glm::dvec3> points_m,
-                        const CutOptions& options) {
+                        const CutOptions& options, std::span<const glm::dvec3> blade_tips_m) {
   CutResult r = cut_surface(bodies_[i], points_m, options);
+  if (volumes_[i] && blade_tips_m.size() == points_m.size()) {
+    const BladeSheet sheet{{points_m.begin(), points_m.end()},
+                           {blade_tips_m.begin(), blade_tips_m.end()}};
+    volumes_[i]->cut(bodies_[i], r, sheet);
+  }
   prepare_body(i);  // the solver structure and BVH copies now, not in the next step
   return r;
+}
+
+std::size_t SimWorld::separated_faces(std::uint32_t i) const {
+  return volumes_.at(i) ? volumes_[i]->separated_faces() : 0;
 }
 
 std::vector<SimEvent> SimWorld::take_events() {

@@ -300,6 +300,7 @@ int run_run(const RunOptions& options) {
       solid["volume_build_ms"] = s.volume_build_ms;
       solid["volume_refocuses"] = s.volume_refocuses;
       solid["volume_longest_refocus_ms"] = s.volume_longest_refocus_ms;
+      solid["volume_separated_faces"] = s.volume_separated_faces;
     }
     if (s.drawn_vertices > 0) {
       solid["drawn"] = {{"vertices", s.drawn_vertices},       {"faces", s.drawn_faces},

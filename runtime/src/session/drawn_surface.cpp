@@ -12,6 +12,8 @@
 #include "bisturi/sim/cutting.h"
 #include "bisturi/sim/errors.h"
 #include "bisturi/sim/units.h"
+#include "bisturi/sim/volume/lattice_cut.h"
+#include "bisturi/sim/volume/volume_body.h"
 
 namespace bisturi::runtime {
 
@@ -54,7 +56,8 @@ void DrawnSurface::embed_all() {
   for (std::size_t v = 0; v < x.size(); ++v) {
     const VertexId id{static_cast<std::uint32_t>(v)};
     if (!body_.mesh().alive(id)) continue;
-    embedding_[v] = *sim::embed_point_nearest(*lattice_, body_.rest_position(id));
+    embedding_[v] = *sim::embed_point_on_side(*lattice_, body_.rest_position(id),
+                                              v < side_.size() ? side_[v] : 0);
   }
 }
 
@@ -81,8 +84,9 @@ bool DrawnSurface::cut(std::span<const glm::dvec3> points_m) {
   } catch (const sim::CutError&) {
     return false;
   }
-  // The far lip's copies stand where their originals stand, in the same cells, and keep their
-  // closest points on the simulated surface.
+  // The far lip's copies keep their originals' closest points on the simulated surface. Where
+  // the volume was separated along the cut each lip follows the cells on its side; elsewhere
+  // the copies stand in their originals' cells.
   const std::size_t slots = body_.positions().size();
   embedding_.resize(slots);
   anchor_.resize(slots);
@@ -91,13 +95,29 @@ bool DrawnSurface::cut(std::span<const glm::dvec3> points_m) {
       if (body_.rest_position(original) != body_.rest_position(copy)) continue;
       embedding_[copy.idx] = embedding_[original.idx];
       anchor_[copy.idx] = anchor_[original.idx];
+      lips_.emplace_back(original.idx, copy.idx);
       break;
     }
+  }
+  if (!lattice_->cut_sheet.empty()) {
+    const std::vector<std::int8_t> lips = sim::lip_sides(body_, result, *lattice_);
+    side_.resize(slots, 0);
+    for (std::size_t v = 0; v < slots; ++v)
+      if (lips[v] != 0) side_[v] = lips[v];
+    embed_all();
   }
   body_.write_positions_to_scene();
   mesh_mm_ = body_.mesh();
   ++cuts_;
   return true;
+}
+
+double DrawnSurface::opening_mm() const {
+  double widest = 0.0;
+  const auto& x = mesh_mm_.positions();
+  for (const auto& [a, b] : lips_)
+    widest = std::max(widest, glm::length(x[a] - x[b]));
+  return widest;
 }
 
 double DrawnSurface::gap_mm(std::span<const glm::dvec3> simulated_mm) const {

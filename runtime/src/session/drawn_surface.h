@@ -53,6 +53,9 @@ class DrawnSurface {
   [[nodiscard]] const Dlfl& mesh() const { return mesh_mm_; }
   /// Cuts made on it so far.
   [[nodiscard]] std::uint64_t cuts() const { return cuts_; }
+  /// How far the cuts have opened (mm): the widest distance now between a vertex on a cut's
+  /// path and its copy on the other lip. 0 before any cut.
+  [[nodiscard]] double opening_mm() const;
   [[nodiscard]] std::size_t vertices() const { return body_.mesh().num_vertices(); }
   [[nodiscard]] std::size_t faces() const { return body_.mesh().num_faces(); }
 
@@ -70,7 +73,11 @@ class DrawnSurface {
   sim::SoftBody body_;
   std::shared_ptr<const sim::HexLattice> lattice_;
   std::vector<sim::EmbeddedPoint> embedding_;  ///< by vertex slot
-  std::vector<SurfaceAnchor> anchor_;          ///< by vertex slot
+  /// By vertex slot: the side of the lattice's cuts a lip of a cut belongs to (0: not a lip).
+  std::vector<std::int8_t> side_;
+  /// Each cut's opened path vertices and their copies (vertex slots).
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> lips_;
+  std::vector<SurfaceAnchor> anchor_;  ///< by vertex slot
   Dlfl mesh_mm_;
   std::uint64_t cuts_ = 0;
   double rest_gap_mm_ = 0.0;

@@ -350,7 +350,7 @@ class SceneReader {
                "a_mm",    "b_mm",      "iso",       "label",      "downsample",    "decimate",
                "smooth",  "offset_mm", "material",  "anchors",    "simulate",      "model",
                "cell_mm", "refine",    "supported", "pulse_mmHg", "pressure_mmHg", "breathing_mm",
-               "drawn",   "inner"});
+               "drawn",   "inner",     "tension_Pa"});
     SolidDescription s;
     s.name = string_or(t, path, "name", path);
     const int sources = (t.contains("mesh") ? 1 : 0) + (t.contains("volume") ? 1 : 0) +
@@ -450,6 +450,13 @@ class SceneReader {
     s.supported = boolean(t, path, "supported", s.supported);
     if (t.contains("supported") && s.model != SolidDescription::Model::Volume) {
       fail(t.get("supported"), t, path + ".supported", "only for model = \"volume\"");
+    }
+    if (t.contains("tension_Pa")) {
+      s.tension_Pa = number(t, path, "tension_Pa", 0.0);
+      if (s.model != SolidDescription::Model::Volume)
+        fail(t.get("tension_Pa"), t, path + ".tension_Pa", "only for model = \"volume\"");
+      if (!(s.tension_Pa >= 0.0 && s.tension_Pa <= 1e5))
+        fail(t.get("tension_Pa"), t, path + ".tension_Pa", "must be from 0 to 100000 Pa");
     }
     if (t.contains("pulse_mmHg")) {
       const std::array<double, 2> p = numbers<2>(t, path, "pulse_mmHg", {0.0, 0.0});

@@ -663,6 +663,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     if (const sim::VolumeBody* volume = sim.world().volume(b)) {
       report.solids[b].volume_refocuses = volume->refocus_count();
       report.solids[b].volume_longest_refocus_ms = volume->longest_refocus_ms();
+      report.solids[b].volume_separated_faces = volume->separated_faces();
     }
   }
   {

@@ -147,6 +147,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
       sim::VolumeOptions volume;
       volume.cell_m = d.cell_mm * sim::kMetresPerMillimetre;
       volume.weight_supported = d.supported;
+      volume.resting_tension_Pa = d.tension_Pa;
       if (d.refine) {
         volume.refine_factor = static_cast<std::uint32_t>(d.refine->factor);
         volume.refine_centre_m = sim::scene_to_sim(
@@ -291,9 +292,9 @@ const TickOutput& SessionSim::tick(std::span<const devices::HapticState> states,
     hand.blade_to_mm =
         hand.tip_mm + hand.orientation * glm::dvec3(0.0, 0.0, options_.blade_length_mm);
     update_grasp(i, states[i], tips_m_[i]);
-    // While the scalpel cuts, the blade parts the tissue instead of pushing it (no reaction on
-    // the surface; the hand still feels it).
-    world_.set_probe(i, {hand.grasp_body, hand.cut_body < 0});
+    // While the scalpel cuts, and as it leaves the incision, the blade parts the tissue instead
+    // of pushing it (no reaction on the surface; the hand still feels it).
+    world_.set_probe(i, {hand.grasp_body, hand.cut_body < 0 && !hand.withdrawing});
   }
 
   apply_physiology(ticks);
@@ -312,6 +313,7 @@ const TickOutput& SessionSim::tick(std::span<const devices::HapticState> states,
       add_event(SessionEventKind::Contact, i, h.body, "");
     if (h.contact) hand.last_contact_tick = ticks_;
     hand.contact = h.contact;
+    if (!h.contact) hand.withdrawing = false;
   }
   for (const sim::SimEvent& e : world_.take_events()) {
     (void)e;
@@ -468,6 +470,7 @@ void SessionSim::update_scalpel(std::size_t i, const devices::HapticState& state
   if (button && !hand.button) {
     hand.cut_body = nearest_body(tip_m);
     hand.cut_points_m.assign(world_.body_count(), {});
+    hand.cut_tips_m.assign(world_.body_count(), {});
     add_event(SessionEventKind::CutStarted, i, hand.cut_body, "");
   }
   if (button && hand.cut_body >= 0) {
@@ -476,8 +479,10 @@ void SessionSim::update_scalpel(std::size_t i, const devices::HapticState& state
     for (std::uint32_t b = 0; b < world_.body_count(); ++b) {
       if (world_.body(b).frozen()) continue;
       sim::ScalpelSweep sweep;
-      if (sweep.sample(world_.body(b), world_.bvh(b), tip_m, sim::scene_to_sim(hand.blade_to_mm)))
+      if (sweep.sample(world_.body(b), world_.bvh(b), tip_m, sim::scene_to_sim(hand.blade_to_mm))) {
         hand.cut_points_m[b].push_back(sweep.points().back());
+        hand.cut_tips_m[b].push_back(tip_m);
+      }
     }
   }
   if (!button && hand.button && hand.cut_body >= 0) {
@@ -489,6 +494,7 @@ void SessionSim::update_scalpel(std::size_t i, const devices::HapticState& state
         cut_along_sweep(i, b);
     }
     hand.cut_body = -1;
+    hand.withdrawing = true;
   }
   hand.button = button;
 }
@@ -508,14 +514,14 @@ void SessionSim::cut_along_sweep(std::size_t i, std::uint32_t b) {
       hands_[o].grasp_body = -1;
       if (o != i) regrasp.push_back(o);
     }
-    const sim::CutResult cut = world_.cut(b, points);
+    const sim::CutResult cut = world_.cut(b, points, {}, hands_[i].cut_tips_m[b]);
     detail = "incision through " + std::to_string(cut.path.size()) + " vertices";
     incisions_.push_back({b, points});
     out_.topology_changed = true;
     open_vessel(body, points);
     for (const std::size_t o : regrasp) {
       (void)close_jaws(hands_[o], tips_m_[o]);
-      world_.set_probe(o, {hands_[o].grasp_body, hands_[o].cut_body < 0});
+      world_.set_probe(o, {hands_[o].grasp_body, hands_[o].cut_body < 0 && !hands_[o].withdrawing});
     }
   } catch (const sim::CutError& e) {
     detail = std::string("no cut: ") + e.what();

@@ -55,7 +55,7 @@ SnapshotPublisher::SnapshotPublisher(SessionSim& sim, const Snapshot& initial,
     topology_.push_back(initial.solids[b].topology);
     lattice_.push_back(initial.solids[b].lattice);
     const sim::VolumeBody* volume = sim.world().volume(static_cast<std::uint32_t>(b));
-    lattice_refocuses_.push_back(volume != nullptr ? volume->refocus_count() : 0);
+    lattice_versions_.push_back(volume != nullptr ? volume->lattice_version() : 0);
   }
 }
 
@@ -75,9 +75,10 @@ void SnapshotPublisher::publish(const TickOutput& out,
     for (std::size_t i = 0; i < x.size(); ++i)
       st.positions_mm[i] = sim::sim_to_scene(x[i]);
     if (const sim::VolumeBody* volume = sim_.world().volume(static_cast<std::uint32_t>(b))) {
-      if (volume->refocus_count() != lattice_refocuses_[b]) {
-        // The refined box moved (between steps, on this thread; it allocated already).
-        lattice_refocuses_[b] = volume->refocus_count();
+      if (volume->lattice_version() != lattice_versions_[b]) {
+        // The refined box moved or a cut separated cells (between steps, on this thread; it
+        // allocated already).
+        lattice_versions_[b] = volume->lattice_version();
         lattice_[b] = std::make_shared<const sim::HexLattice>(volume->volume().lattice());
       }
       st.lattice = lattice_[b];

@@ -42,8 +42,8 @@ std::shared_ptr<const Topology> make_topology(const Dlfl& mesh);
 struct SolidState {
   std::vector<glm::dvec3> positions_mm;  ///< by body vertex slot
   std::shared_ptr<const Topology> topology;
-  /// A volume body's lattice (a new one after its refined box moved; null for a membrane) and
-  /// its nodes now (metres): what a finer drawn surface follows (drawn_surface.h).
+  /// A volume body's lattice (a new one after its refined box moved or a cut separated it; null for
+  /// a membrane) and its nodes now (metres): what a finer drawn surface follows (drawn_surface.h).
   std::shared_ptr<const sim::HexLattice> lattice;
   std::vector<glm::dvec3> nodes_m;
 };
@@ -94,7 +94,7 @@ class SnapshotPublisher {
   std::vector<devices::Nanoseconds>& event_times_;
   std::vector<std::shared_ptr<const Topology>> topology_;
   std::vector<std::shared_ptr<const sim::HexLattice>> lattice_;
-  std::vector<std::uint64_t> lattice_refocuses_;
+  std::vector<std::uint64_t> lattice_versions_;
   std::uint64_t published_events_ = 0;
   std::array<EventStamp, 16> recent_{};
   std::atomic<std::size_t> event_count_{0};

@@ -163,6 +163,11 @@ DynamicResult ElasticVolume::advance(std::span<const PointLoad> loads, const Dyn
     v_[i] += s.step[i];
     x_[i] += h * v_[i];
   }
+  if (!releasing_.empty()) {
+    const double kept = std::exp(-h / release_s_);
+    for (glm::dvec3& r : releasing_)
+      r *= kept;
+  }
   return {cg.iterations, cg.relative_residual};
 }
 
@@ -313,10 +318,18 @@ void ElasticVolume::assemble_elements(bool with_matrix, double warp_tolerance, d
     // Cells mostly outside the surface stay corotated: they are little tissue and may be
     // crushed flat, which neo-Hookean cannot take.
     const bool hyper = law_ == ElasticLaw::NeoHookean && lattice_.fill[c] >= 0.5;
+    glm::dmat3 r(1.0);
+    if (with_matrix || !hyper || tension_Pa_ != 0.0) r = polar_rotation(f);
+    if (tension_Pa_ != 0.0) {
+      // The resting tension pulls the corners towards the centre: -integral of sigma grad N_a,
+      // sigma = t I turned with the cell (grad N_a's mean over the box is its centre value).
+      const double pull = tension_Pa_ * h.x * h.y * h.z * lattice_.fill[c];
+      for (std::size_t a = 0; a < 8; ++a)
+        s.force[cell[a]] -= pull * (r * g[a]);
+    }
     if (with_matrix || !hyper) {
       const HexStiffness& k = s.shapes[s.cell_shape[c]];
       const double fill = lattice_.fill[c];
-      const glm::dmat3 r = polar_rotation(f);
       const glm::dmat3 rt = glm::transpose(r);
       const glm::dmat3 r_fill = fill * r;
       std::array<glm::dvec3, 8> u;
@@ -350,6 +363,52 @@ void ElasticVolume::assemble_elements(bool with_matrix, double warp_tolerance, d
         s.force[cell[a]] -= p * g[a];
     }
   }
+  if (!surroundings_.empty())
+    for (std::size_t i = 0; i < surroundings_.size(); ++i)
+      s.force[i] += surroundings_[i];
+  if (!releasing_.empty())
+    for (std::size_t i = 0; i < releasing_.size(); ++i)
+      s.force[i] += releasing_[i];
+}
+
+std::vector<glm::dvec3> ElasticVolume::node_forces() {
+  assemble_elements(false, 0.0, 1.0);
+  return solver_->force;
+}
+
+void ElasticVolume::fade_in_from(std::span<const glm::dvec3> before, double time_s) {
+  if (before.size() != x_.size())
+    throw std::invalid_argument("ElasticVolume::fade_in_from: one force per node");
+  releasing_.clear();
+  if (!(time_s > 0.0)) return;
+  release_s_ = time_s;
+  std::vector<glm::dvec3> now = node_forces();
+  for (std::size_t i = 0; i < now.size(); ++i)
+    now[i] = before[i] - now[i];
+  releasing_ = std::move(now);
+}
+
+void ElasticVolume::set_resting_tension(double tension_Pa) {
+  if (!std::isfinite(tension_Pa) || tension_Pa < 0.0)
+    throw std::invalid_argument("resting tension must be finite and >= 0 Pa");
+  tension_Pa_ = tension_Pa;
+  surroundings_.assign(tension_Pa > 0.0 ? x_.size() : 0, glm::dvec3(0.0));
+  if (tension_Pa <= 0.0) return;
+  // What the cells pull on the nodes at rest, taken by the surroundings: zero inside the
+  // tissue, where neighbouring cells pull each node both ways.
+  for (std::size_t c = 0; c < lattice_.cells.size(); ++c) {
+    const glm::dvec3 h = lattice_.cell_sides(c);
+    const std::array<glm::dvec3, 8> g = centre_gradients(h);
+    const double pull = tension_Pa * h.x * h.y * h.z * lattice_.fill[c];
+    for (std::size_t a = 0; a < 8; ++a)
+      surroundings_[lattice_.cells[c][a]] += pull * g[a];
+  }
+}
+
+void ElasticVolume::set_surroundings_load(std::vector<glm::dvec3> load) {
+  if (!load.empty() && load.size() != x_.size())
+    throw std::invalid_argument("ElasticVolume::set_surroundings_load: one load per node");
+  surroundings_ = std::move(load);
 }
 
 void ElasticVolume::assemble(std::span<const EmbeddedPoint> points, const glm::dvec3& centre,

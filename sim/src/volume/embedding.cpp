@@ -61,6 +61,11 @@ std::optional<EmbeddedPoint> embed_point_nearest(const HexLattice& lattice,
   return weights_in(lattice, best, point, false);
 }
 
+EmbeddedPoint embed_point_in(const HexLattice& lattice, std::uint32_t cell,
+                             const glm::dvec3& point) {
+  return weights_in(lattice, static_cast<std::int32_t>(cell), point, false);
+}
+
 std::vector<EmbeddedPoint> embed_points(const HexLattice& lattice,
                                         std::span<const glm::dvec3> points) {
   std::vector<EmbeddedPoint> out;

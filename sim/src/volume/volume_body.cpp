@@ -9,6 +9,7 @@
 #include <glm/gtx/norm.hpp>
 
 #include "bisturi/sim/errors.h"
+#include "bisturi/sim/volume/lattice_cut.h"
 #include "block_matrix.h"
 
 namespace bisturi::sim {
@@ -94,14 +95,17 @@ ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options) {
     lattice.coarse_m = options.cell_m;
     lattice.factor = options.refine_factor;
     lattice.refine = {{options.refine_centre_m - half, options.refine_centre_m + half}};
-    return ElasticVolume(build_two_level_lattice(vertices, triangles, lattice), options.material,
+    ElasticVolume volume(build_two_level_lattice(vertices, triangles, lattice), options.material,
                          options.law);
+    volume.set_resting_tension(options.resting_tension_Pa);
+    return volume;
   }
   LatticeOptions lattice;
   lattice.finest_m = options.cell_m;
   lattice.coarsest_m = options.cell_m;
   ElasticVolume volume(build_hex_lattice(vertices, triangles, lattice), options.material,
                        options.law);
+  volume.set_resting_tension(options.resting_tension_Pa);
   return volume;
 }
 
@@ -160,6 +164,7 @@ void VolumeBody::refocus(SoftBody& body, const glm::dvec3& centre_m) {
   volume_.set_held_velocity(held_velocity);
   write_surface(body);
   ++refocus_count_;
+  ++lattice_version_;
   longest_refocus_ms_ = std::max(
       longest_refocus_ms_,
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin).count());
@@ -193,6 +198,129 @@ void VolumeBody::sync_topology(const SoftBody& body) {
   for (std::size_t i = 0; i < embedded_.size(); ++i)
     if (embedded_[i] && !mesh.alive(VertexId(static_cast<std::uint32_t>(i)))) embedded_[i] = 0;
   embed_slots(body);
+}
+
+std::vector<std::int8_t> lip_sides(const SoftBody& body, const CutResult& cut,
+                                   const HexLattice& lattice) {
+  const std::size_t slots = body.mesh().vertex_capacity();
+  std::vector<std::int8_t> side(slots, 0);
+  std::vector<double> lean(slots, 0.0);
+  std::vector<std::uint8_t> lip(slots, 0);
+  for (const VertexId v : cut.path)
+    lip[v.idx] = 1;
+  for (const VertexId v : cut.new_vertices)
+    lip[v.idx] = 1;
+  // Each lip leans to the side of the sheet its faces' other corners lie on.
+  const auto& indices = body.triangles().indices;
+  for (std::size_t t = 0; t + 2 < indices.size(); t += 3)
+    for (std::size_t a = 0; a < 3; ++a) {
+      if (!lip[indices[t + a]]) continue;
+      for (std::size_t b = 0; b < 3; ++b)
+        if (!lip[indices[t + b]])
+          lean[indices[t + a]] += sheet_side(lattice, body.rest_position(VertexId(indices[t + b])));
+    }
+  for (std::size_t i = 0; i < slots; ++i)
+    side[i] = lean[i] > 0.0 ? 1 : lean[i] < 0.0 ? -1 : 0;
+  return side;
+}
+
+std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeSheet& sheet) {
+  const HexLattice& old = volume_.lattice();
+  if (!old.hanging.empty() || !old.cell_span.empty() || sheet.entry_m.size() < 2) {
+    sync_topology(body);
+    return 0;
+  }
+  const Dlfl& mesh = body.mesh();
+  const auto x = body.positions();
+  // The sheet in the rest frame: each point moved back by the nearest vertex's displacement.
+  const auto to_rest = [&](const glm::dvec3& p) {
+    double best = INFINITY;
+    glm::dvec3 shift(0.0);
+    for (std::uint32_t i = 0; i < mesh.vertex_capacity(); ++i) {
+      if (!mesh.alive(VertexId(i))) continue;
+      const double d = glm::length2(x[i] - p);
+      if (d >= best) continue;
+      best = d;
+      shift = x[i] - body.rest_position(VertexId(i));
+    }
+    return p - shift;
+  };
+  BladeSheet rest_sheet;
+  for (std::size_t k = 0; k < sheet.entry_m.size(); ++k) {
+    rest_sheet.entry_m.push_back(to_rest(sheet.entry_m[k]));
+    rest_sheet.tip_m.push_back(to_rest(sheet.tip_m[k]));
+  }
+  HexLattice lattice = old;
+  const LatticeSeparation separation =
+      separate_along_sheet(lattice, rest_sheet, volume_.finest_cell_m());
+  if (separation.new_nodes == 0) {
+    sync_topology(body);
+    return 0;
+  }
+  // The nodes' motion and loads: a copy moves as its node did and takes the share of its load
+  // from the surroundings that its cells' tissue holds.
+  const std::size_t nodes = lattice.rest.size();
+  std::vector<glm::dvec3> nx(nodes), nv(nodes), load;
+  std::vector<double> tissue(nodes, 0.0), tissue_of_origin(old.rest.size(), 0.0);
+  for (std::size_t c = 0; c < lattice.cells.size(); ++c) {
+    const glm::dvec3 h = lattice.cell_sides(c);
+    for (const std::uint32_t n : lattice.cells[c])
+      tissue[n] += h.x * h.y * h.z * lattice.fill[c];
+  }
+  for (std::size_t n = 0; n < nodes; ++n) {
+    const std::uint32_t o = separation.origin[n];
+    nx[n] = volume_.positions()[o];
+    nv[n] = volume_.velocities()[o];
+    tissue_of_origin[o] += tissue[n];
+  }
+  const auto old_load = volume_.surroundings_load();
+  if (!old_load.empty()) {
+    load.resize(nodes);
+    for (std::size_t n = 0; n < nodes; ++n) {
+      const std::uint32_t o = separation.origin[n];
+      load[n] = tissue_of_origin[o] > 0.0 ? old_load[o] * (tissue[n] / tissue_of_origin[o])
+                                          : glm::dvec3(0.0);
+    }
+  }
+  const glm::dvec3 held_velocity = volume_.held_velocity();
+  const double tension = volume_.resting_tension_Pa();
+  ElasticVolume next(std::move(lattice), options_.material, options_.law);
+  next.set_resting_tension(tension);
+  next.set_surroundings_load(std::move(load));
+  // What each node felt before the cut, shared among its copies: the cut changes nothing at
+  // once and lets go over the release time.
+  next.set_state(nx, nv);
+  std::vector<glm::dvec3> before = volume_.node_forces();
+  std::vector<glm::dvec3> shared(nodes);
+  for (std::size_t n = 0; n < nodes; ++n) {
+    const std::uint32_t o = separation.origin[n];
+    shared[n] =
+        tissue_of_origin[o] > 0.0 ? before[o] * (tissue[n] / tissue_of_origin[o]) : glm::dvec3(0.0);
+  }
+  next.fade_in_from(shared, options_.tension_release_s);
+  volume_ = std::move(next);
+  separated_faces_ += separation.separated_faces;
+
+  // Every vertex embedded again on its side: the lips by the surface's side of the incision,
+  // the rest by where they are.
+  const std::vector<std::int8_t> sides = lip_sides(body, cut, volume_.lattice());
+  embedding_.resize(mesh.vertex_capacity());
+  embedded_.assign(mesh.vertex_capacity(), 0);
+  loaded_.resize(mesh.vertex_capacity(), 0);
+  for (std::uint32_t i = 0; i < mesh.vertex_capacity(); ++i) {
+    if (!mesh.alive(VertexId(i))) continue;
+    const auto e =
+        embed_point_on_side(volume_.lattice(), body.rest_position(VertexId(i)), sides[i]);
+    if (!e) continue;
+    embedding_[i] = *e;
+    embedded_[i] = 1;
+  }
+  ++lattice_version_;
+  hold_anchored(body);
+  volume_.set_state(nx, nv);
+  volume_.set_held_velocity(held_velocity);
+  write_surface(body);
+  return separation.separated_faces;
 }
 
 std::size_t VolumeBody::embedded_vertices() const {

@@ -90,9 +90,13 @@ class SimWorld {
   [[nodiscard]] ProbeState probe_state(std::size_t probe) const {
     return probe < probe_states_.size() ? probe_states_[probe] : ProbeState{};
   }
-  /// Cuts body i along blade contact points and rebuilds its BVH.
+  /// Cuts body i along blade contact points and rebuilds its BVH. With the blade's tip at each
+  /// point (`blade_tips_m`, as many), a solid's volume is separated along the blade's sheet
+  /// too (VolumeBody::cut): the wound opens.
   CutResult cut(std::uint32_t i, std::span<const glm::dvec3> points_m,
-                const CutOptions& options = {});
+                const CutOptions& options = {}, std::span<const glm::dvec3> blade_tips_m = {});
+  /// Lattice faces the cuts separated in body i's volume (0 for a surface model).
+  [[nodiscard]] std::size_t separated_faces(std::uint32_t i) const;
 
   /// Vertex contacts made by the last step's tissue-tissue phase (one per vertex pushed out).
   [[nodiscard]] std::size_t last_contacts() const { return last_contacts_; }

@@ -111,6 +111,9 @@ struct SolidDescription {
   /// The solid's weight is carried by the tissues around it, as in the scan it came from (an
   /// organ in situ is in equilibrium with them): no gravity on its volume (model volume only).
   bool supported = false;
+  /// The tissue's resting tension (Pa; model volume only): what pulls a wound open once a cut
+  /// separates the volume. 0: a cut stays closed.
+  double tension_Pa = 0.0;
   /// A vessel's lumen pressure over the heartbeat, diastolic and systolic (mmHg): the wall is at
   /// rest at diastole and the pressure above it pushes the wall out (sim/pulse.h). Both equal: a
   /// vein's steady pressure (the scene's pressure_mmHg), which moves no wall. None: no lumen.

@@ -245,7 +245,12 @@ class SessionSim {
     bool hand_closed = false;
     /// Per body: where the blade crossed its surface during this sweep.
     std::vector<std::vector<glm::dvec3>> cut_points_m;
+    /// Per body: where the blade's tip was at each of those points (the sheet it swept).
+    std::vector<std::vector<glm::dvec3>> cut_tips_m;
     std::int32_t cut_body = -1;  ///< the body the sweep began on; -1: not cutting
+    /// After a cut, until the tip is out of the tissue: the blade leaves along its incision and
+    /// parts the tissue as it did while cutting.
+    bool withdrawing = false;
     bool button = false;
     bool contact = false;
     std::uint64_t last_contact_tick = 0;

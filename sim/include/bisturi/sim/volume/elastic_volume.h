@@ -132,6 +132,24 @@ class ElasticVolume {
   [[nodiscard]] std::span<const double> masses() const { return mass_; }
   /// Restores a state saved from positions() and velocities() (a rolled-back step).
   void set_state(std::span<const glm::dvec3> positions, std::span<const glm::dvec3> velocities);
+  /// The tissue's resting tension (Pa, isotropic; 0: none, the default): each cell pulls its
+  /// corners towards its centre with it, turning with the cell, and the pull on the nodes at
+  /// rest is taken by a constant load from the surroundings (what holds an organ's tissue
+  /// stretched in the body), so the uncut volume stays at rest and a cut that separates cells
+  /// (lattice_cut.h) opens.
+  void set_resting_tension(double tension_Pa);
+  [[nodiscard]] double resting_tension_Pa() const { return tension_Pa_; }
+  /// Per node, the surroundings' load (N; empty without a tension).
+  [[nodiscard]] std::span<const glm::dvec3> surroundings_load() const { return surroundings_; }
+  /// Replaces it (one per node, or empty): after a cut, the copies of a node share its load.
+  void set_surroundings_load(std::vector<glm::dvec3> load);
+  /// The forces on the nodes in the current state: the elements', the tension's, the
+  /// surroundings' and any fading load (no gravity, no step's loads).
+  [[nodiscard]] std::vector<glm::dvec3> node_forces();
+  /// Adds a load that makes the node forces `before` now and fades over `time_s` (the share
+  /// left after t is exp(-t / time_s)): after a cut, the wound's walls let go of what held them
+  /// as tissue relaxes, over a second rather than at once. 0: at once.
+  void fade_in_from(std::span<const glm::dvec3> before, double time_s);
   [[nodiscard]] double finest_cell_m() const { return finest_cell_m_; }
   [[nodiscard]] double youngs_modulus_Pa() const { return youngs_Pa_; }
 
@@ -158,6 +176,10 @@ class ElasticVolume {
   std::vector<std::uint8_t> held_;
   std::vector<std::int32_t> hanging_index_;  ///< per node: its entry in lattice_.hanging, or -1
   glm::dvec3 held_velocity_{0.0};
+  double tension_Pa_ = 0.0;
+  std::vector<glm::dvec3> surroundings_;  ///< per node, N
+  std::vector<glm::dvec3> releasing_;     ///< per node, N: fading (release_gradually)
+  double release_s_ = 0.0;
   std::vector<double> multipliers_;  ///< per surface point, N
   std::unique_ptr<Solver> solver_;
 };

@@ -31,6 +31,10 @@ std::optional<EmbeddedPoint> embed_point(const HexLattice& lattice, const glm::d
 std::optional<EmbeddedPoint> embed_point_nearest(const HexLattice& lattice,
                                                  const glm::dvec3& point);
 
+/// The point's weights in kept cell `cell`, extrapolated past its faces when it lies outside.
+EmbeddedPoint embed_point_in(const HexLattice& lattice, std::uint32_t cell,
+                             const glm::dvec3& point);
+
 /// Each point's cell and weights at rest. Throws std::invalid_argument naming the first point
 /// that lies in no kept cell.
 std::vector<EmbeddedPoint> embed_points(const HexLattice& lattice,

@@ -59,6 +59,11 @@ struct HexLattice {
   std::vector<std::uint32_t> cell_span;
   /// The nodes that follow a coarser neighbour's face or edge (a two-level lattice's).
   std::vector<HangingNode> hanging;
+  /// Per cell, the faces a cut separated it from its neighbour along (bit 2a: its face at the
+  /// low end of axis a, bit 2a + 1: at the high end; lattice_cut.h); empty: no cut.
+  std::vector<std::uint8_t> separated;
+  /// The cuts' sheets as triangles (rest, metres), each wound as its blade went.
+  std::vector<std::array<glm::dvec3, 3>> cut_sheet;
 
   [[nodiscard]] std::uint32_t span(std::size_t cell) const {
     return cell_span.empty() ? 1u : cell_span[cell];

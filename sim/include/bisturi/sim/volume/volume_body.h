@@ -7,16 +7,20 @@
 // volume takes one implicit step, and the vertices' positions and velocities are read back from
 // it. Anchored vertices hold the nodes of their cells.
 //
-// A cut changes the surface only: the new vertices (copies along the cut) are embedded where
-// their originals are, so both lips follow the same elements and the wound does not open yet.
+// A cut with the blade's sheet (cut()) separates the lattice along it (lattice_cut.h) and embeds
+// each lip of the surface on its own side, so the wound opens as far as the tissue's resting
+// tension pulls it. A cut without one changes the surface only: the new vertices are embedded
+// where their originals are and both lips follow the same cells.
 
 #include <cstdint>
 #include <vector>
 
+#include "bisturi/sim/cutting.h"
 #include "bisturi/sim/integrator.h"
 #include "bisturi/sim/soft_body.h"
 #include "bisturi/sim/tissue.h"
 #include "bisturi/sim/volume/elastic_volume.h"
+#include "bisturi/sim/volume/lattice_cut.h"
 
 namespace bisturi::sim {
 
@@ -41,10 +45,22 @@ struct VolumeOptions {
   /// The step's solve: relative residual (warm started from the last step's velocity change).
   double cg_tolerance = 1e-3;
   int max_cg = 100;
+  /// The tissue's resting tension (Pa; ElasticVolume::set_resting_tension): what opens a
+  /// wound. 0: none, a cut stays closed.
+  double resting_tension_Pa = 0.0;
+  /// How long a cut's walls take to let that tension go (s; ElasticVolume::release_gradually):
+  /// the share still held after t is exp(-t / this). 0: at once.
+  double tension_release_s = 0.3;
   /// The body's weight is carried by what surrounds it (a scanned organ is at rest in its scan
   /// under its supports): its steps take no gravity.
   bool weight_supported = false;
 };
+
+/// Per vertex slot of `body` just cut by `cut`, the side of `lattice`'s cut sheets each lip
+/// belongs to (+1 or -1: where the surface's faces around it lie), 0 for every other vertex
+/// (embed_point_on_side takes where it lies then).
+std::vector<std::int8_t> lip_sides(const SoftBody& body, const CutResult& cut,
+                                   const HexLattice& lattice);
 
 class VolumeBody {
  public:
@@ -61,6 +77,19 @@ class VolumeBody {
                  std::uint32_t body_index, std::uint64_t step);
   /// After a topology change: embeds the vertices the body gained (at their rest positions).
   void sync_topology(const SoftBody& body);
+  /// After `cut` was made on the body's surface by a blade whose sheet (where it entered the
+  /// surface and where its tip was, per sample, in the world now) is `sheet`: separates the
+  /// lattice along the sheet and embeds every vertex again, each lip on its own side. The
+  /// nodes keep their motion; a node's copies share its load from the surroundings. Returns
+  /// the count of lattice faces separated: 0 when the sheet parts no cells, or the lattice has
+  /// two levels (then only the new vertices are embedded, as sync_topology does). Allocates:
+  /// between steps, on the tissue's thread.
+  std::size_t cut(SoftBody& body, const CutResult& cut, const BladeSheet& sheet);
+  /// Lattice faces separated by cuts so far.
+  [[nodiscard]] std::size_t separated_faces() const { return separated_faces_; }
+  /// Counts the lattice's rebuilds (a refocus or a cut that separated cells): what was
+  /// embedded in the lattice must be embedded again when it moves.
+  [[nodiscard]] std::uint64_t lattice_version() const { return lattice_version_; }
 
   /// Builds the lattice again with its refined box about `centre_m` (a two-level lattice
   /// only): the new nodes take the old lattice's motion where they are (positions and
@@ -124,6 +153,8 @@ class VolumeBody {
   std::vector<double> probe_speed_;
   std::vector<std::uint8_t> loaded_;  // scratch: per vertex slot
   std::vector<glm::dvec3> saved_x_, saved_v_;
+  std::size_t separated_faces_ = 0;
+  std::uint64_t lattice_version_ = 0;
   std::uint64_t refocus_count_ = 0;
   double longest_refocus_ms_ = 0.0;
 };
