@@ -675,6 +675,10 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
                        sim.blood().emitted_ml(),
                        sim.blood_most_particles(),
                        c.recycled};
+    const SessionSim::BloodLag behind = sim.blood_lag();
+    report.bleeding.most_behind_steps = behind.most_behind_steps;
+    report.bleeding.tissue_waits = behind.tissue_waits;
+    report.bleeding.tissue_waited_ms = behind.tissue_waited_ms;
     for (const double step : sim.blood_step_ms())
       report.blood_step_ms.record(step);
   }

@@ -2,6 +2,8 @@
 
 #include "bisturi/runtime/session/session_sim.h"
 
+#include "blood_worker.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -72,6 +74,10 @@ HandSetup hand_of(const SceneDescription& scene, std::vector<devices::ForceChann
 }
 
 }  // namespace
+
+SessionSim::~SessionSim() = default;
+SessionSim::SessionSim(SessionSim&&) noexcept = default;
+SessionSim& SessionSim::operator=(SessionSim&&) noexcept = default;
 
 SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> solids,
                        std::vector<devices::ForceChannel> channels,
@@ -173,14 +179,13 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   world_.prepare();
   // The blood runs on every solid and on a tray 2 mm below the lowest (the table's drapes), and
   // drains off the field: the solids' box across, widened by its size each way.
-  sim::BloodOptions blood;
+  sim::BloodOptions& blood = blood_options_;
   blood.density_kg_per_m3 = scene.physiology.blood_density_kg_per_m3;
   blood.viscosity = scene.physiology.blood_viscosity;
   blood.max_particles = static_cast<std::size_t>(scene.physiology.blood_max_particles);
   glm::dvec3 lo(std::numeric_limits<double>::infinity()), hi(-lo);
   for (std::size_t b = 0; b < world_.body_count(); ++b) {
     const sim::SoftBody& body = world_.body(static_cast<std::uint32_t>(b));
-    blood_surfaces_.push_back({&body, &world_.bvh(static_cast<std::uint32_t>(b))});
     for (const glm::dvec3& p : body.positions()) {
       lo = glm::min(lo, p);
       hi = glm::max(hi, p);
@@ -191,7 +196,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
     blood.field_min_m = lo - (hi - lo);
     blood.field_max_m = hi + (hi - lo);
   }
-  blood_ = sim::Blood(blood);
+  no_blood_ = sim::Blood(blood);
   out_.other_hands.resize(hands.size() - 1);
   for (std::size_t i = 0; i < hands.size(); ++i) {
     Hand h;
@@ -386,10 +391,10 @@ void SessionSim::bleed(std::uint32_t ticks) {
   if (openings_.empty()) return;
   blood_due_s_ += static_cast<double>(ticks) / haptic_hz_;
   if (blood_due_s_ < kBloodStep_s) return;
-  const auto begin = std::chrono::steady_clock::now();  // the cost only: never the state
+  std::size_t used = 0;
   const double t_s = static_cast<double>(ticks_) / haptic_hz_;
   const double beat = sim::cardiac_waveform(t_s * heart_rate_hz_);
-  const double density = blood_.options().density_kg_per_m3;
+  const double density = blood_options_.density_kg_per_m3;
   blood_flow_m3_s_ = 0.0;
   for (const Opening& o : openings_) {
     const auto b = static_cast<std::size_t>(o.body);
@@ -408,13 +413,46 @@ void SessionSim::bleed(std::uint32_t ticks) {
         kJet_m_s * std::sqrt(std::max(pressure_Pa, 0.0) / density / kJetHead_m2_s2), kJet_m_s);
     const double flow = o.area_m2 * speed;
     blood_flow_m3_s_ += flow;
-    (void)blood_.emit(o.sources, flow, speed, blood_due_s_);
+    if (used == emissions_.size()) emissions_.emplace_back();
+    BloodEmission& e = emissions_[used++];
+    e.sources.assign(o.sources.begin(), o.sources.end());
+    e.flow_m3_s = flow;
+    e.speed_m_s = speed;
   }
-  blood_.step(blood_due_s_, blood_surfaces_);
+  if (!blood_worker_) blood_worker_ = std::make_unique<BloodWorker>(blood_options_, world_);
+  blood_worker_->queue(blood_due_s_, std::span(emissions_).first(used), world_);
   blood_due_s_ = 0.0;
-  blood_most_particles_ = std::max<std::uint64_t>(blood_most_particles_, blood_.positions().size());
-  blood_step_ms_.push_back(
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin).count());
+}
+
+const sim::Blood& SessionSim::blood() const {
+  return blood_worker_ ? blood_worker_->settled() : no_blood_;
+}
+
+void SessionSim::newest_blood_mm(std::vector<glm::dvec3>& out) const {
+  if (blood_worker_) {
+    blood_worker_->newest_positions_mm(out);
+  } else {
+    out.clear();
+  }
+}
+
+const std::vector<double>& SessionSim::blood_step_ms() const {
+  static const std::vector<double> none;
+  if (!blood_worker_) return none;
+  (void)blood_worker_->settled();
+  return blood_worker_->step_ms();
+}
+
+SessionSim::BloodLag SessionSim::blood_lag() const {
+  if (!blood_worker_) return {};
+  return {blood_worker_->most_behind(), blood_worker_->tissue_waits(),
+          blood_worker_->tissue_waited_ms()};
+}
+
+std::uint64_t SessionSim::blood_most_particles() const {
+  if (!blood_worker_) return 0;
+  (void)blood_worker_->settled();
+  return blood_worker_->most_particles();
 }
 
 std::size_t SessionSim::close_jaws(Hand& hand, const glm::dvec3& tip_m) {
@@ -652,7 +690,7 @@ std::uint64_t SessionSim::state_hash() {
   for (std::size_t b = 0; b < world_.body_count(); ++b)
     mix(world_.body(static_cast<std::uint32_t>(b)).state_hash());
   // The blood too, once there is any (a session without it keeps its hash).
-  for (const glm::dvec3& p : blood_.positions()) {
+  for (const glm::dvec3& p : blood().positions()) {
     for (int k = 0; k < 3; ++k) {
       std::uint64_t bits = 0;
       std::memcpy(&bits, &p[k], sizeof bits);

@@ -86,10 +86,7 @@ void SnapshotPublisher::publish(const TickOutput& out,
     }
   }
   if (s.incisions.size() != sim_.incisions().size()) s.incisions = sim_.incisions();
-  const std::vector<glm::dvec3>& blood = sim_.blood().positions();
-  s.blood_mm.resize(blood.size());
-  for (std::size_t i = 0; i < blood.size(); ++i)
-    s.blood_mm[i] = sim::sim_to_scene(blood[i]);
+  sim_.newest_blood_mm(s.blood_mm);  // the blood's thread's newest step: never waits for one
   s.instruments.resize(sim_.hand_count());
   for (std::size_t h = 0; h < sim_.hand_count(); ++h)
     s.instruments[h] = {sim_.tip_mm(h), sim_.blade_to_mm(h), sim_.grasping(h), sim_.cutting(h)};

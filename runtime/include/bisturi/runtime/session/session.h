@@ -190,12 +190,15 @@ struct SessionReport {
   std::vector<std::pair<std::string, std::array<double, 3>>> breathing;
   /// Bleeding (sim/blood.h): the blood's particles at the end (emitted = in flight + pooled +
   /// drained + recycled), the volume that left the vessels, the most particles in the field at
-  /// once, and each blood step's wall time on the tissue thread.
+  /// once, each blood step's wall time on the blood's thread, and how far that thread fell
+  /// behind the tissue (SessionSim::BloodLag).
   struct Bleeding {
     std::uint64_t emitted = 0, in_flight = 0, pooled = 0, drained = 0;
     double volume_ml = 0.0;
     std::uint64_t most_particles = 0;
     std::uint64_t recycled = 0;
+    std::uint64_t most_behind_steps = 0, tissue_waits = 0;
+    double tissue_waited_ms = 0.0;
   } bleeding;
   TimingRecorder blood_step_ms{"ms"};
   /// What the renderer drew and left out, per frame on average, in the frames before the first

@@ -35,6 +35,9 @@
 
 namespace bisturi::runtime {
 
+class BloodWorker;
+struct BloodEmission;
+
 /// Something a device did that the picture must show (action-to-response is measured from it).
 enum class SessionEventKind : std::uint8_t { Contact, GraspClosed, GraspReleased, CutStarted, Cut };
 const char* to_string(SessionEventKind kind);
@@ -135,6 +138,9 @@ class SessionSim {
  public:
   /// Takes the built solids (moved into soft bodies) and the haptic device's force channel layout:
   /// one hand, its device the options' (its limit the scene's first haptic device's max_force_N).
+  ~SessionSim();
+  SessionSim(SessionSim&&) noexcept;
+  SessionSim& operator=(SessionSim&&) noexcept;
   SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> solids,
              std::vector<devices::ForceChannel> channels, const SessionSimOptions& options = {});
   /// One hand per setup (at least one), acting on the same tissue in the same steps.
@@ -193,12 +199,23 @@ class SessionSim {
   [[nodiscard]] std::uint64_t state_hash();
   /// Bleeding: blood leaves a pulsing vessel where a cut opened it, at a flow its lumen pressure
   /// drives through the opening (none while a grasper holds that vessel: clamped), and runs on
-  /// the tissue (sim/blood.h), stepped every kBloodStep_s of simulated time.
-  [[nodiscard]] const sim::Blood& blood() const { return blood_; }
-  /// Wall time of each blood step so far (ms): what bleeding costs the tissue thread.
-  [[nodiscard]] const std::vector<double>& blood_step_ms() const { return blood_step_ms_; }
-  /// The most particles the field held at once.
-  [[nodiscard]] std::uint64_t blood_most_particles() const { return blood_most_particles_; }
+  /// the tissue (sim/blood.h), a step every kBloodStep_s of simulated time, on a thread of its
+  /// own (runtime/src/session/blood_worker.h). Waits for the steps queued so far: not on the
+  /// tissue thread during a session (newest_blood_mm is for that).
+  [[nodiscard]] const sim::Blood& blood() const;
+  /// The particles after the newest blood step done (mm; never waits).
+  void newest_blood_mm(std::vector<glm::dvec3>& out) const;
+  /// Wall time of each blood step so far (ms, on the blood's thread); waits as blood() does.
+  [[nodiscard]] const std::vector<double>& blood_step_ms() const;
+  /// The most particles the field held at once; waits as blood() does.
+  [[nodiscard]] std::uint64_t blood_most_particles() const;
+  /// How far the blood's thread fell behind: the most steps queued and not done, and how often
+  /// and how long (ms) the tissue thread waited for it (BloodWorker::kMostQueued behind).
+  struct BloodLag {
+    std::uint64_t most_behind_steps = 0, tissue_waits = 0;
+    double tissue_waited_ms = 0.0;
+  };
+  [[nodiscard]] BloodLag blood_lag() const;
   /// The bleeding openings' flow at the last blood step (m^3/s).
   [[nodiscard]] double blood_flow_m3_s() const { return blood_flow_m3_s_; }
   /// How long building body b's volume took (ms; 0 for a membrane).
@@ -295,12 +312,13 @@ class SessionSim {
   };
   std::vector<Opening> openings_;
   std::vector<double> diastolic_Pa_;  ///< per body
-  sim::Blood blood_;
-  double blood_due_s_ = 0.0;  ///< simulated time since the last blood step
-  std::vector<double> blood_step_ms_;
+  sim::BloodOptions blood_options_;
+  sim::Blood no_blood_;  ///< what blood() gives before the first opening
+  /// Started at the first opening.
+  std::unique_ptr<BloodWorker> blood_worker_;
+  std::vector<BloodEmission> emissions_;  ///< scratch: the openings' this blood step
+  double blood_due_s_ = 0.0;              ///< simulated time since the last blood step
   double blood_flow_m3_s_ = 0.0;
-  std::uint64_t blood_most_particles_ = 0;
-  std::vector<sim::BloodSurface> blood_surfaces_;
   /// A cut through body b along `points_m`: an opening when b pulses.
   void open_vessel(std::int32_t body, const std::vector<glm::dvec3>& points_m);
   /// Emits at each opening's flow and steps the blood when kBloodStep_s has passed.
