@@ -349,6 +349,30 @@ TEST(SimVolumeBody, AWoundOpensUnderTheTissuesTensionAndWidensOverASecond) {
   ASSERT_FALSE(tense.cut.new_vertices.empty());
   ASSERT_EQ(tense.cut.path.size(), tense.cut.new_vertices.size() + 2);
   ASSERT_TRUE(validate(tense.world.body(0).mesh()).ok());
+  {
+    // Every vertex in a cell the cut parted lies in a cell of its own side: the lips on the side
+    // their faces are on, the others on the side of the blade's sheet they lie on.
+    const SoftBody& body = tense.world.body(0);
+    const VolumeBody& volume = *tense.world.volume(0);
+    const HexLattice& lattice = volume.volume().lattice();
+    const std::vector<std::int8_t> lips = lip_sides(body, tense.cut, lattice);
+    std::size_t beside = 0;
+    for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+      if (!body.mesh().alive(VertexId(i))) continue;
+      const EmbeddedPoint* e = volume.embedding(VertexId(i));
+      ASSERT_NE(e, nullptr);
+      if (lattice.separated[e->cell] == 0) continue;
+      ++beside;
+      const auto& o = lattice.cell_ijk[e->cell];
+      const glm::dvec3 centre =
+          glm::dvec3(lattice.axis[0][o[0]], lattice.axis[1][o[1]], lattice.axis[2][o[2]]) +
+          0.5 * lattice.cell_sides(e->cell);
+      const int side =
+          lips[i] != 0 ? lips[i] : sheet_side(lattice, body.rest_position(VertexId(i)));
+      EXPECT_EQ(sheet_side(lattice, centre), side) << "vertex " << i;
+    }
+    EXPECT_GT(beside, tense.cut.path.size());
+  }
   const glm::dvec3 away{1.0, 1.0, 1.0};
   EXPECT_LT(widest_gap(tense.world.body(0), tense.cut).width_m, 1e-6);  // closed at the cut
   for (int s = 0; s < 100; ++s)

@@ -113,6 +113,10 @@ class VolumeBody {
   [[nodiscard]] glm::dvec3 support_offset() const { return volume_.held_offset(); }
   /// Embedded vertex slots (alive vertices of the body's mesh).
   [[nodiscard]] std::size_t embedded_vertices() const;
+  /// Vertex v's cell and weights in the lattice (null when it is not embedded).
+  [[nodiscard]] const EmbeddedPoint* embedding(VertexId v) const {
+    return v.idx < embedded_.size() && embedded_[v.idx] ? &embedding_[v.idx] : nullptr;
+  }
   /// The last step's compliance under haptic probe `probe`'s contact patch along its normal
   /// (ElasticVolume::step_compliance; m/N): 0 when that probe did not press on this body in
   /// the step, or the step was rolled back.
