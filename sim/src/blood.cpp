@@ -3,6 +3,7 @@
 #include "bisturi/sim/blood.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include <glm/geometric.hpp>
@@ -44,6 +45,23 @@ std::uint64_t cell_key(std::int64_t x, std::int64_t y, std::int64_t z) {
   constexpr std::int64_t kBias = 1 << 20;
   const auto u = [](std::int64_t v) { return static_cast<std::uint64_t>(v + kBias) & 0x1FFFFFu; };
   return u(x) << 42 | u(y) << 21 | u(z);
+}
+
+/// Calls visit(b) for each entry b of `cells` (sorted by key) in the 27 cells round the one
+/// holding `at`: the three cells along z are neighbours in key order, so one search a column.
+template <class Visit>
+void for_each_near(const std::vector<std::pair<std::uint64_t, std::uint32_t>>& cells,
+                   const glm::dvec3& at, double h, Visit&& visit) {
+  const std::int64_t cx = cell_of(at.x, h), cy = cell_of(at.y, h), cz = cell_of(at.z, h);
+  for (std::int64_t dx = -1; dx <= 1; ++dx)
+    for (std::int64_t dy = -1; dy <= 1; ++dy) {
+      const std::uint64_t low = cell_key(cx + dx, cy + dy, cz - 1);
+      const auto it = std::lower_bound(cells.begin(), cells.end(),
+                                       std::pair<std::uint64_t, std::uint32_t>{low, 0});
+      for (auto b = static_cast<std::size_t>(it - cells.begin());
+           b < cells.size() && cells[b].first <= low + 2; ++b)
+        visit(b);
+    }
 }
 
 }  // namespace
@@ -117,6 +135,9 @@ void Blood::find_neighbours() {
     cells_[i] = {cell_key(cell_of(p_[i].x, h_), cell_of(p_[i].y, h_), cell_of(p_[i].z, h_)),
                  static_cast<std::uint32_t>(i)};
   std::sort(cells_.begin(), cells_.end());
+  sorted_p_.resize(n);
+  for (std::size_t a = 0; a < n; ++a)
+    sorted_p_[a] = p_[cells_[a].second];
   // Each particle's list keeps its capacity from step to step.
   if (found_.size() < n) found_.resize(n);
   for (std::size_t i = 0; i < n; ++i)
@@ -146,34 +167,36 @@ void Blood::find_neighbours() {
 void Blood::list_neighbours(std::uint8_t pass) {
   const std::size_t n = cells_.size();
   const double h2 = h_ * h_;
-  // Cell by cell: the 27 cells around each are looked up once for all its particles in the pass.
+  std::array<std::uint32_t, 64> here{};  // the cell's particles in the pass (sorted positions)
+  // Cell by cell: the cells around each are looked up once for all its particles in the pass.
   for (std::size_t begin = 0; begin < n;) {
-    std::size_t end = begin;
-    bool any = false;
-    for (; end < n && cells_[end].first == cells_[begin].first; ++end)
-      any = any || active_[cells_[end].second] == pass;
-    if (!any) {
-      begin = end;
-      continue;
+    std::size_t end = begin, count = 0;
+    for (; end < n && cells_[end].first == cells_[begin].first; ++end) {
+      if (active_[cells_[end].second] != pass) continue;
+      if (count < here.size()) here[count] = static_cast<std::uint32_t>(end);
+      ++count;
     }
-    const glm::dvec3& first = p_[cells_[begin].second];
-    const std::int64_t cx = cell_of(first.x, h_), cy = cell_of(first.y, h_),
-                       cz = cell_of(first.z, h_);
-    for (std::int64_t dx = -1; dx <= 1; ++dx)
-      for (std::int64_t dy = -1; dy <= 1; ++dy)
-        for (std::int64_t dz = -1; dz <= 1; ++dz) {
-          const std::uint64_t key = cell_key(cx + dx, cy + dy, cz + dz);
-          auto it = std::lower_bound(cells_.begin(), cells_.end(),
-                                     std::pair<std::uint64_t, std::uint32_t>{key, 0});
-          for (; it != cells_.end() && it->first == key; ++it) {
-            for (std::size_t a = begin; a < end; ++a) {
-              const std::uint32_t i = cells_[a].second;
-              if (active_[i] == pass && it->second != i &&
-                  glm::length2(p_[i] - p_[it->second]) < h2)
-                found_[i].push_back(it->second);
-            }
-          }
+    if (count > here.size()) {
+      // A cell of more than 64 particles in the pass (blood packed far past its rest density).
+      for_each_near(cells_, sorted_p_[begin], h_, [&](std::size_t b) {
+        const std::uint32_t j = cells_[b].second;
+        for (std::size_t a = begin; a < end; ++a) {
+          const std::uint32_t i = cells_[a].second;
+          if (active_[i] == pass && j != i && glm::length2(sorted_p_[a] - sorted_p_[b]) < h2)
+            found_[i].push_back(j);
         }
+      });
+    } else if (count > 0) {
+      // The positions in cell order: the inner loop reads memory in a row.
+      for_each_near(cells_, sorted_p_[begin], h_, [&](std::size_t b) {
+        const std::uint32_t j = cells_[b].second;
+        const glm::dvec3& q = sorted_p_[b];
+        for (std::size_t k = 0; k < count; ++k) {
+          const std::uint32_t i = cells_[here[k]].second;
+          if (j != i && glm::length2(sorted_p_[here[k]] - q) < h2) found_[i].push_back(j);
+        }
+      });
+    }
     begin = end;
   }
 }
@@ -185,6 +208,7 @@ void Blood::solve_density() {
   delta_.resize(n);
   const double scale = mass_kg_ / rest_density_;
   const double self = kernels.poly6(0.0);
+  gradient_.resize(neighbours_.size());
   for (std::size_t i = 0; i < n; ++i) {
     lambda_[i] = 0.0;
     if (!active_[i]) continue;  // no particle in flight near it reads its lambda
@@ -194,7 +218,8 @@ void Blood::solve_density() {
     for (std::uint32_t k = neighbour_start_[i]; k < neighbour_start_[i + 1]; ++k) {
       const glm::dvec3 r = p_[i] - p_[neighbours_[k]];
       density += mass_kg_ * kernels.poly6(glm::length2(r));
-      const glm::dvec3 g = scale * kernels.spiky_gradient(r);
+      gradient_[k] = kernels.spiky_gradient(r);  // the position update below uses it again
+      const glm::dvec3 g = scale * gradient_[k];
       grad_i += g;
       grad_sum += glm::length2(g);
     }
@@ -209,7 +234,7 @@ void Blood::solve_density() {
     glm::dvec3 d(0.0);
     for (std::uint32_t k = neighbour_start_[i]; k < neighbour_start_[i + 1]; ++k) {
       const std::uint32_t j = neighbours_[k];
-      d += (lambda_[i] + lambda_[j]) * kernels.spiky_gradient(p_[i] - p_[j]);
+      d += (lambda_[i] + lambda_[j]) * gradient_[k];  // a particle in flight is active
     }
     delta_[i] = scale * d;
   }

@@ -116,6 +116,10 @@ class Blood {
   std::vector<double> lambda_;
   std::vector<glm::dvec3> delta_;
   std::vector<std::pair<std::uint64_t, std::uint32_t>> cells_;  ///< scratch
+  std::vector<glm::dvec3> sorted_p_;  ///< scratch: the predicted positions in cells_' order
+  /// Scratch: the spiky kernel's gradient for each neighbour pair (as neighbours_), this
+  /// iteration.
+  std::vector<glm::dvec3> gradient_;
   std::vector<std::vector<std::uint32_t>> found_;  ///< scratch: each particle's neighbours
   /// Per particle, this substep: 0 idle (pooled, nothing in flight near it), 1 in flight, 2
   /// pooled next to one in flight (its density constraint pushes on that one).
