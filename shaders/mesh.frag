@@ -26,10 +26,14 @@ layout(push_constant) uniform Draw {
 layout(location = 0) out vec4 out_colour;
 
 void main() {
-  // A back face is the inside of the tissue seen through an incision: its own colour, its
-  // normal turned to the viewer, no highlight (wet cut tissue reads matte at this scale).
-  const bool inside = !gl_FrontFacing;
-  const vec3 n = inside ? -normalize(v_normal) : normalize(v_normal);
+  // A back face is the inside of the tissue seen through an incision, and a wound's wall (its
+  // vertices' normals 2 + their occlusion long) is the tissue's inside too: the interior colour,
+  // no highlight (wet cut tissue reads matte at this scale). A back face's normal turns to the
+  // viewer.
+  const bool wall = v_open > 1.5;
+  const bool back = !gl_FrontFacing;
+  const bool inside = back || wall;
+  const vec3 n = back ? -normalize(v_normal) : normalize(v_normal);
   const vec3 albedo = inside ? draw.interior.rgb : draw.colour.rgb;
   const float shine = inside ? 0.0 : draw.material.z;
   const vec3 l = normalize(eyes.light_direction.xyz);
@@ -39,7 +43,7 @@ void main() {
   // light the field scatters back (a third of the sky's).
   // Ambient occlusion dims the sky's light, and part of the key light (the lamp is wide: what
   // hides much of the sky hides much of it too), a soft shadow where parts of the field meet.
-  const float open = clamp(v_open, 0.0, 1.0);
+  const float open = clamp(wall ? v_open - 2.0 : v_open, 0.0, 1.0);
   const float hemisphere = open * mix(0.35, 1.0, 0.5 + 0.5 * dot(n, l));
   const float diffuse = mix(1.0, open, 0.6) * max(dot(n, l), 0.0);
   const float fill = 0.25 * max(dot(n, v), 0.0);

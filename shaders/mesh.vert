@@ -3,7 +3,7 @@
 #extension GL_EXT_multiview : require
 
 layout(location = 0) in vec3 in_position;  // world millimetres (solids) or model space
-layout(location = 1) in vec3 in_normal;  // its length: the vertex's ambient occlusion (1 open)
+layout(location = 1) in vec3 in_normal;  // its length: ambient occlusion (1 open), + 2 on a wall
 
 layout(set = 0, binding = 0) uniform Eyes {
   mat4 view_projection[2];

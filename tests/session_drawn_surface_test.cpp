@@ -18,7 +18,9 @@
 #include "bisturi/runtime/session/scene_builder.h"
 #include "bisturi/runtime/session/scene_description.h"
 #include "bisturi/runtime/session/session_sim.h"
+#include "bisturi/scene/dlfl_queries.h"
 #include "bisturi/scene/dlfl_validate.h"
+#include "bisturi/scene/polygon_export.h"
 #include "bisturi/scene/polygon_import.h"
 #include "bisturi/sim/units.h"
 #include "liver_procedure.h"
@@ -29,18 +31,16 @@ namespace {
 
 using devices::Nanoseconds;
 
-/// The vertices round `mesh`'s openings (its labelled boundary faces).
-std::vector<glm::dvec3> opening(const Dlfl& mesh) {
+/// The vertices of `mesh`'s wound walls (its faces marked kInteriorFaces).
+std::vector<glm::dvec3> walls(const Dlfl& mesh) {
   std::vector<glm::dvec3> out;
+  if (!mesh.face_properties().has(kInteriorFaces)) return out;
+  const auto& interior = mesh.face_properties().get<std::uint8_t>(kInteriorFaces);
   for (std::uint32_t f = 0; f < mesh.face_capacity(); ++f) {
     const FaceId id{f};
-    if (!mesh.alive(id) || !mesh.is_bounding(id)) continue;
-    const CornerId first = mesh.first_corner(id);
-    CornerId c = first;
-    do {
-      out.push_back(mesh.positions()[mesh.vertex(c).idx]);
-      c = mesh.next(c);
-    } while (c != first);
+    if (!mesh.alive(id) || !interior[id]) continue;
+    for (const VertexId v : face_vertices(mesh, id))
+      out.push_back(mesh.positions()[v.idx]);
   }
   return out;
 }
@@ -95,16 +95,21 @@ TEST(LiverScene, TheDrawnLiverRidesOnTheVolumeAndIsCutWithIt) {
     for (; cuts_seen < sim.incisions().size(); ++cuts_seen) {
       const Incision& cut = sim.incisions()[cuts_seen];
       if (cut.body != 0) continue;
-      ASSERT_TRUE(drawn.cut(cut.points_m)) << "cut " << cuts_seen;
+      ASSERT_TRUE(drawn.cut(cut.points_m, cut.tips_m)) << "cut " << cuts_seen;
       EXPECT_TRUE(validate(drawn.mesh()).ok());
-      // The drawn surface opens along the blade: every vertex of its new opening lies near
-      // the blade's points.
-      const std::vector<glm::dvec3> lips = opening(drawn.mesh());
-      ASSERT_GE(lips.size(), 4u);
-      for (const glm::dvec3& lip : lips) {
+      // The drawn surface opens along the blade, its wound closed by walls down to the blade's
+      // tip: every wall vertex lies near the blade's points or its tips.
+      bool open = false;
+      for (std::uint32_t f = 0; f < drawn.mesh().face_capacity(); ++f)
+        open = open || (drawn.mesh().alive(FaceId(f)) && drawn.mesh().is_bounding(FaceId(f)));
+      EXPECT_FALSE(open);
+      const std::vector<glm::dvec3> wall = walls(drawn.mesh());
+      ASSERT_GE(wall.size(), 8u);
+      for (const glm::dvec3& w : wall) {
         double nearest = 1e9;
-        for (const glm::dvec3& b : cut.points_m)
-          nearest = std::min(nearest, glm::length(lip - sim::sim_to_scene(b)));
+        for (std::size_t b = 0; b < cut.points_m.size(); ++b)
+          nearest = std::min({nearest, glm::length(w - sim::sim_to_scene(cut.points_m[b])),
+                              glm::length(w - sim::sim_to_scene(cut.tips_m[b]))});
         EXPECT_LT(nearest, 6.0);
       }
     }
@@ -122,15 +127,24 @@ TEST(LiverScene, TheDrawnLiverRidesOnTheVolumeAndIsCutWithIt) {
   EXPECT_GT(most_moved, 2.0);
   EXPECT_LT(most_gap, drawn.rest_gap_mm() + 1.0);
   // The structures stayed inside, as deep as they were: no vertex of theirs came within 8 mm
-  // of the liver's drawn surface (the lesion lies 15 mm in, the vein 12 mm).
+  // of the liver's outer surface (the lesion lies 15 mm in, the vein 12 mm; the wound's walls
+  // go down 14 mm towards the lesion and are not counted).
+  const Dlfl& liver_mesh = drawn.mesh();
+  std::vector<std::uint8_t> on_wall(liver_mesh.vertex_capacity(), 0);
+  const auto& interior = liver_mesh.face_properties().get<std::uint8_t>(kInteriorFaces);
+  for (std::uint32_t f = 0; f < liver_mesh.face_capacity(); ++f) {
+    if (!liver_mesh.alive(FaceId(f)) || !interior[FaceId(f)]) continue;
+    for (const VertexId v : face_vertices(liver_mesh, FaceId(f)))
+      on_wall[v.idx] = 1;
+  }
   for (const DrawnSurface& structure : inner) {
     double nearest = 1e9;
-    const auto& liver_x = drawn.mesh().positions();
+    const auto& liver_x = liver_mesh.positions();
     for (std::uint32_t v = 0; v < structure.mesh().vertex_capacity(); ++v) {
       if (!structure.mesh().alive(VertexId(v))) continue;
       const glm::dvec3& p = structure.mesh().positions()[v];
-      for (std::uint32_t w = 0; w < drawn.mesh().vertex_capacity(); ++w)
-        if (drawn.mesh().alive(VertexId(w)))
+      for (std::uint32_t w = 0; w < liver_mesh.vertex_capacity(); ++w)
+        if (liver_mesh.alive(VertexId(w)) && !on_wall[w])
           nearest = std::min(nearest, glm::length(p - liver_x[w]));
     }
     EXPECT_GT(nearest, 8.0);
@@ -153,7 +167,7 @@ TEST(LiverScene, TheScriptedCutOpensAWoundThatWidensOverTheNextSecond) {
   std::printf("%zu faces separated, %zu nodes copied (of %zu)\n", volume->separated_faces(),
               volume->volume().lattice().rest.size() - nodes, nodes);
   drawn.use_lattice(std::make_shared<const sim::HexLattice>(volume->volume().lattice()));
-  ASSERT_TRUE(drawn.cut(sim.incisions().front().points_m));
+  ASSERT_TRUE(drawn.cut(sim.incisions().front().points_m, sim.incisions().front().tips_m));
   EXPECT_TRUE(validate(drawn.mesh()).ok());
   const auto follow = [&] {
     const auto x = volume->volume().positions();

@@ -349,6 +349,18 @@ TEST(SimVolumeBody, AWoundOpensUnderTheTissuesTensionAndWidensOverASecond) {
   ASSERT_FALSE(tense.cut.new_vertices.empty());
   ASSERT_EQ(tense.cut.path.size(), tense.cut.new_vertices.size() + 2);
   ASSERT_TRUE(validate(tense.world.body(0).mesh()).ok());
+  // The wound's walls close it: a floor vertex under each opened pair, the solid closed again,
+  // two wall faces a pair but the first (one at each end spans both walls).
+  EXPECT_EQ(tense.cut.floor_vertices.size(), tense.cut.new_vertices.size());
+  EXPECT_TRUE(tense.world.body(0).closed());
+  {
+    Dlfl mesh = tense.world.body(0).mesh();
+    const auto& interior = mesh.face_properties().get<std::uint8_t>(kInteriorFaces);
+    std::size_t walls = 0;
+    for (std::uint32_t f = 0; f < mesh.face_capacity(); ++f)
+      walls += mesh.alive(FaceId(f)) && interior[FaceId(f)] != 0;
+    EXPECT_EQ(walls, 2 * tense.cut.floor_vertices.size());
+  }
   {
     // Every vertex in a cell the cut parted lies in a cell of its own side: the lips on the side
     // their faces are on, the others on the side of the blade's sheet they lie on.
@@ -361,7 +373,10 @@ TEST(SimVolumeBody, AWoundOpensUnderTheTissuesTensionAndWidensOverASecond) {
       if (!body.mesh().alive(VertexId(i))) continue;
       const EmbeddedPoint* e = volume.embedding(VertexId(i));
       ASSERT_NE(e, nullptr);
-      if (lattice.separated[e->cell] == 0) continue;
+      if (lattice.separated[e->cell] == 0 ||
+          std::find(tense.cut.floor_vertices.begin(), tense.cut.floor_vertices.end(),
+                    VertexId(i)) != tense.cut.floor_vertices.end())
+        continue;  // the floor lies on the blade's sheet: both walls' own
       ++beside;
       const auto& o = lattice.cell_ijk[e->cell];
       const glm::dvec3 centre =

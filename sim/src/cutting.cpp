@@ -16,6 +16,7 @@
 #include "bisturi/sim/errors.h"
 #include "bisturi/sim/units.h"
 #include "vertex_corners.h"
+#include "wound_walls.h"
 
 namespace bisturi::sim {
 namespace {
@@ -407,9 +408,26 @@ CutResult cut_surface(SoftBody& body, std::span<const glm::dvec3> points,
       if (r.valid()) mesh.set_bounding(mesh.face(r), true);
     }
   }
+  // ---- 5. Walls: an incision inside the surface closed down to the blade's tip ----
+  if (!result.starts_on_boundary && !result.ends_on_boundary && k >= 2 &&
+      options.blade_tips_m.size() == points.size()) {
+    // Under each opened pair, as deep as the blade went at its nearest blade point.
+    std::vector<glm::dvec3> floor, floor_rest;
+    for (std::size_t i = 1; i < k; ++i) {
+      const glm::dvec3& at = xs[path[i].idx];
+      std::size_t nearest = 0;
+      for (std::size_t s = 1; s < points.size(); ++s)
+        if (glm::length(points[s] - at) < glm::length(points[nearest] - at)) nearest = s;
+      const glm::dvec3 down = options.blade_tips_m[nearest] - points[nearest];
+      floor.push_back(at + down);
+      floor_rest.push_back(body.rest_position(path[i]) + down);
+    }
+    result.floor_vertices = close_incision(body, path, right, floor, floor_rest);
+  }
   // Only the faces around the path and its copies changed: springs and masses update there.
   std::vector<VertexId> touched(path.begin(), path.end());
   touched.insert(touched.end(), result.new_vertices.begin(), result.new_vertices.end());
+  touched.insert(touched.end(), result.floor_vertices.begin(), result.floor_vertices.end());
   body.refresh_topology_local(touched);
   result.path = std::move(path);
   return result;

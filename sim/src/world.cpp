@@ -202,7 +202,9 @@ void SimWorld::tissue_contacts() {
 
 CutResult SimWorld::cut(std::uint32_t i, std::span<const glm::dvec3> points_m,
                         const CutOptions& options, std::span<const glm::dvec3> blade_tips_m) {
-  CutResult r = cut_surface(bodies_[i], points_m, options);
+  CutOptions with_walls = options;
+  if (volumes_[i]) with_walls.blade_tips_m = blade_tips_m;  // a solid's wound has walls
+  CutResult r = cut_surface(bodies_[i], points_m, with_walls);
   if (volumes_[i] && blade_tips_m.size() == points_m.size()) {
     const BladeSheet sheet{{points_m.begin(), points_m.end()},
                            {blade_tips_m.begin(), blade_tips_m.end()}};

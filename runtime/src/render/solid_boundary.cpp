@@ -1,5 +1,8 @@
 #include "solid_boundary.h"
 
+#include "bisturi/scene/dlfl_queries.h"
+#include "bisturi/scene/polygon_export.h"
+
 namespace bisturi::render {
 
 void SolidBoundary::rebuild(const Dlfl& mesh) {
@@ -15,6 +18,22 @@ void SolidBoundary::rebuild(const Dlfl& mesh) {
       c = mesh.next(c);
     } while (c != first);
     loops_.push_back(std::move(loop));
+  }
+  // A wound closed by walls is an opening too: its mouth, the walls' vertices on the outside
+  // surface as well, is the portal through which what lies inside shows.
+  if (mesh.face_properties().has(kInteriorFaces)) {
+    const auto& interior = mesh.face_properties().get<std::uint8_t>(kInteriorFaces);
+    std::vector<std::uint8_t> at(mesh.vertex_capacity(), 0);  // bit 0: on a wall, 1: outside
+    for (std::uint32_t f = 0; f < mesh.face_capacity(); ++f) {
+      const FaceId face{f};
+      if (!mesh.alive(face) || mesh.is_bounding(face)) continue;
+      for (const VertexId v : face_vertices(mesh, face))
+        at[v.idx] = static_cast<std::uint8_t>(at[v.idx] | (interior[face] ? 1u : 2u));
+    }
+    std::vector<std::uint32_t> mouth;
+    for (std::uint32_t v = 0; v < at.size(); ++v)
+      if (at[v] == 3u) mouth.push_back(v);
+    if (!mouth.empty()) loops_.push_back(std::move(mouth));
   }
   topology_version_ = mesh.topology_version();
   refit(mesh);

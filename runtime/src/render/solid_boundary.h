@@ -1,8 +1,9 @@
 #pragma once
-// The open boundary of a solid: its labelled boundary faces (DLFL boundary extension, seed
-// section 4.2), each one boundary loop, e.g. the lips of an incision. An open solid is drawn
-// two-sided (its inside shows through the loop), and each loop's box is a portal through which
-// the structures inside the solid can be seen (seed section 3.2).
+// The openings of a solid: its labelled boundary faces (DLFL boundary extension, seed section
+// 4.2), each one boundary loop, e.g. the lips of an incision, and the mouths of its wounds (the
+// vertices where faces marked kInteriorFaces meet the outside), one loop for them all. An open solid is drawn two-sided (its inside
+// shows through the loop), and each loop's box is a portal through which the structures inside
+// the solid can be seen (seed section 3.2).
 
 #include <cstdint>
 #include <vector>

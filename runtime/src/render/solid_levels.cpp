@@ -16,9 +16,11 @@ namespace {
 /// Area-weighted vertex normals and the interleaved vertex array of a level.
 /// Interleaved positions and normals; a normal's length is its vertex's ambient occlusion (the
 /// shader normalises it and reads the length: 1 open, less where the field hides the sky).
+/// An interior vertex's normal is 2 + its occlusion long (the shader draws it in the interior
+/// colour).
 void write_vertices(const std::vector<glm::vec3>& positions,
                     const std::vector<std::uint32_t>& indices, const std::vector<float>& occlusion,
-                    std::vector<float>& out) {
+                    const std::vector<std::uint8_t>& interior, std::vector<float>& out) {
   std::vector<glm::vec3> normals(positions.size(), glm::vec3(0.0f));
   for (std::size_t t = 0; t + 2 < indices.size(); t += 3) {
     const std::uint32_t a = indices[t], b = indices[t + 1], c = indices[t + 2];
@@ -30,7 +32,8 @@ void write_vertices(const std::vector<glm::vec3>& positions,
   out.resize(positions.size() * 6);
   for (std::size_t i = 0; i < positions.size(); ++i) {
     const float length = glm::length(normals[i]);
-    const float open = occlusion.empty() ? 1.0f : occlusion[i];
+    const float open = (occlusion.empty() ? 1.0f : occlusion[i]) +
+                       (!interior.empty() && interior[i] ? 2.0f : 0.0f);
     const glm::vec3 n = open * (length > 0.0f ? normals[i] / length : glm::vec3(0.0f, 0.0f, 1.0f));
     float* v = out.data() + 6 * i;
     v[0] = positions[i].x;
@@ -78,16 +81,17 @@ void SolidLevels::copy_positions(const Dlfl& mesh) {
 }
 
 void SolidLevels::build_source(const Dlfl& mesh) {
-  const ExportedPolygons exported = export_polygons(mesh);
+  ExportedPolygons exported = export_polygons(mesh);
   SolidLevel level;
   level.kind = LevelKind::Source;
   level.vertex_count = exported.vertex_of_position.size();
   level.source_vertex.resize(level.vertex_count);
-  std::vector<glm::vec3> local(level.vertex_count);
-  for (std::size_t i = 0; i < level.vertex_count; ++i) {
+  for (std::size_t i = 0; i < level.vertex_count; ++i)
     level.source_vertex[i] = exported.vertex_of_position[i].idx;
+  if (mesh.face_properties().has(kInteriorFaces)) split_interior(mesh, exported, level);
+  std::vector<glm::vec3> local(level.vertex_count);
+  for (std::size_t i = 0; i < level.vertex_count; ++i)
     local[i] = positions_[level.source_vertex[i]];
-  }
   level.indices = triangulate(exported.polygons);
   level.tree = build_chunk_tree(local, level.indices, options_.chunk_triangles);
   level.index_generation = next_generation_++;
@@ -98,6 +102,29 @@ void SolidLevels::build_source(const Dlfl& mesh) {
   bounds_ = Aabb{};
   for (const glm::vec3& p : local)
     bounds_.extend(glm::dvec3(p));
+}
+
+void SolidLevels::split_interior(const Dlfl& mesh, ExportedPolygons& exported, SolidLevel& level) {
+  const auto& marked = mesh.face_properties().get<std::uint8_t>(kInteriorFaces);
+  // The interior faces' corners move onto copies of their vertices: a wall and the outside
+  // meeting at a lip each keep their own normal and colour there.
+  std::vector<std::uint32_t> copy(level.vertex_count, UINT32_MAX);
+  PolygonMesh& polygons = exported.polygons;
+  for (std::size_t f = 0; f < polygons.face_count(); ++f) {
+    if (!marked[exported.face_of_polygon[f]]) continue;
+    for (std::uint32_t k = polygons.offsets[f]; k < polygons.offsets[f + 1]; ++k) {
+      std::uint32_t& v = polygons.indices[k];
+      if (copy[v] == UINT32_MAX) {
+        copy[v] = static_cast<std::uint32_t>(level.source_vertex.size());
+        level.source_vertex.push_back(level.source_vertex[v]);
+      }
+      v = copy[v];
+    }
+  }
+  level.interior.assign(level.source_vertex.size(), 0);
+  for (std::size_t i = level.vertex_count; i < level.source_vertex.size(); ++i)
+    level.interior[i] = 1;
+  level.vertex_count = level.source_vertex.size();
 }
 
 void SolidLevels::build_derived(const Dlfl& mesh) {
@@ -256,7 +283,7 @@ const SolidLevel& SolidLevels::refresh(std::size_t i) {
         local[k] += level.offset[k];
     }
   }
-  write_vertices(local, level.indices, open, level.vertices);
+  write_vertices(local, level.indices, open, level.interior, level.vertices);
   level.tree.refit(local, level.indices);
   level.vertex_revision = revision_;
   return level;

@@ -77,10 +77,12 @@ void DrawnSurface::follow(std::span<const glm::dvec3> nodes_m) {
   }
 }
 
-bool DrawnSurface::cut(std::span<const glm::dvec3> points_m) {
+bool DrawnSurface::cut(std::span<const glm::dvec3> points_m, std::span<const glm::dvec3> tips_m) {
   sim::CutResult result;
   try {
-    result = sim::cut_surface(body_, points_m);
+    sim::CutOptions options;
+    options.blade_tips_m = tips_m;
+    result = sim::cut_surface(body_, points_m, options);
   } catch (const sim::CutError&) {
     return false;
   }

@@ -39,9 +39,10 @@ class DrawnSurface {
   void use_lattice(const std::shared_ptr<const sim::HexLattice>& lattice);
   /// Positions from the lattice's nodes now (metres) into positions_mm().
   void follow(std::span<const glm::dvec3> nodes_m);
-  /// Cuts along an incision's blade points (metres), at the positions follow() gave last. False
+  /// Cuts along an incision's blade points (metres), at the positions follow() gave last; with
+  /// the blade's tips (as many), the wound gets walls down to them (sim::CutOptions). False
   /// when they give no path on this surface (sim::CutError): it stays as it was.
-  bool cut(std::span<const glm::dvec3> points_m);
+  bool cut(std::span<const glm::dvec3> points_m, std::span<const glm::dvec3> tips_m = {});
 
   /// The largest distance (mm) between a drawn vertex and its closest point on the simulated
   /// surface at rest, that point carried by the simulated vertices now (by slot, mm).

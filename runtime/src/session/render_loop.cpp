@@ -250,7 +250,7 @@ void follow_drawn(DrawnSurface& drawn, const SolidState& state,
   drawn.follow(state.nodes_m);
   for (std::size_t k = seen; k < incisions.size(); ++k) {
     if (incisions[k].body != body) continue;
-    if (drawn.cut(incisions[k].points_m)) {
+    if (drawn.cut(incisions[k].points_m, incisions[k].tips_m)) {
       ++report.drawn_cuts;
     } else {
       ++report.drawn_cuts_missed;

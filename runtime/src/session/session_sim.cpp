@@ -554,7 +554,7 @@ void SessionSim::cut_along_sweep(std::size_t i, std::uint32_t b) {
     }
     const sim::CutResult cut = world_.cut(b, points, {}, hands_[i].cut_tips_m[b]);
     detail = "incision through " + std::to_string(cut.path.size()) + " vertices";
-    incisions_.push_back({b, points});
+    incisions_.push_back({b, points, hands_[i].cut_tips_m[b]});
     out_.topology_changed = true;
     open_vessel(body, points);
     for (const std::size_t o : regrasp) {

@@ -210,6 +210,8 @@ std::vector<std::int8_t> lip_sides(const SoftBody& body, const CutResult& cut,
     lip[v.idx] = 1;
   for (const VertexId v : cut.new_vertices)
     lip[v.idx] = 1;
+  for (const VertexId v : cut.floor_vertices)  // on the sheet: no side, and none to give
+    lip[v.idx] = 2;
   // Each lip leans to the side of the sheet its faces' other corners lie on.
   const auto& indices = body.triangles().indices;
   for (std::size_t t = 0; t + 2 < indices.size(); t += 3)
@@ -220,7 +222,7 @@ std::vector<std::int8_t> lip_sides(const SoftBody& body, const CutResult& cut,
           lean[indices[t + a]] += sheet_side(lattice, body.rest_position(VertexId(indices[t + b])));
     }
   for (std::size_t i = 0; i < slots; ++i)
-    side[i] = lean[i] > 0.0 ? 1 : lean[i] < 0.0 ? -1 : 0;
+    side[i] = lip[i] == 2 ? 0 : lean[i] > 0.0 ? 1 : lean[i] < 0.0 ? -1 : 0;
   return side;
 }
 

@@ -190,6 +190,7 @@ class Dlfl {
   PropertyRegistry<VertexTag>& vertex_properties() { return vertex_props_; }
   PropertyRegistry<CornerTag>& corner_properties() { return corner_props_; }
   PropertyRegistry<FaceTag>& face_properties() { return face_props_; }
+  const PropertyRegistry<FaceTag>& face_properties() const { return face_props_; }
   PropertyRegistry<EdgeTag>& edge_properties() { return edge_props_; }
 
   // ---- Raw views for validate() and compact(); not for general use ----

@@ -18,4 +18,8 @@ struct ExportedPolygons {
 
 ExportedPolygons export_polygons(const Dlfl& mesh);
 
+/// The face property (std::uint8_t, 1: yes) marking faces that show a solid's inside, such as a
+/// wound's walls: drawn in its interior colour.
+inline constexpr const char* kInteriorFaces = "interior";
+
 }  // namespace bisturi

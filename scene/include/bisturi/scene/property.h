@@ -104,6 +104,12 @@ class PropertyRegistry {
     return *typed;
   }
 
+  /// The same, read only.
+  template <class T>
+  const PropertyArray<Tag, T>& get(const std::string& name) const {
+    return const_cast<PropertyRegistry*>(this)->get<T>(name);
+  }
+
   [[nodiscard]] bool has(const std::string& name) const { return arrays_.count(name) != 0; }
   void remove(const std::string& name) { arrays_.erase(name); }
   [[nodiscard]] std::size_t count() const { return arrays_.size(); }

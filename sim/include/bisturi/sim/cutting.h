@@ -22,6 +22,7 @@
 
 #include <glm/vec3.hpp>
 
+#include "bisturi/scene/polygon_export.h"
 #include "bisturi/sim/collision.h"
 #include "bisturi/sim/soft_body.h"
 
@@ -31,6 +32,12 @@ struct CutOptions {
   /// Smallest distance, as a fraction of the face's mean edge length, between a face diagonal
   /// the path takes and any other corner of that face.
   double sliver_fraction = 0.25;
+  /// Where the blade's tip was at each blade point (as many as the points; world, metres). With
+  /// them an incision inside the surface is closed by two walls down to the tips' depth
+  /// (CutResult::floor_vertices; faces marked kInteriorFaces): the wound is a notch in a closed
+  /// solid. Without them the
+  /// incision is left open (a labelled face).
+  std::span<const glm::dvec3> blade_tips_m;
 };
 
 struct CutResult {
@@ -39,6 +46,8 @@ struct CutResult {
   std::size_t split_faces = 0;         ///< faces split by a diagonal of the path
   bool starts_on_boundary = false;
   bool ends_on_boundary = false;
+  /// The floor of the wound's walls (CutOptions::blade_tips_m), one under each opened pair.
+  std::vector<VertexId> floor_vertices;
 };
 
 /// Cuts `body` along the blade contact points (at least two, metres). Throws CutError (before

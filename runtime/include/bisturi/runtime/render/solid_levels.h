@@ -28,6 +28,10 @@
 #include "bisturi/scene/dlfl.h"
 #include "bisturi/scene/oriented_builder.h"
 
+namespace bisturi {
+struct ExportedPolygons;
+}  // namespace bisturi
+
 namespace bisturi::lod {
 class SubdivisionLevels;
 }
@@ -56,8 +60,11 @@ struct SolidLevel {
   double error_mm = 0.0;  ///< geometric error against the finest level
   std::size_t vertex_count = 0;
   std::vector<std::uint32_t> source_vertex;  ///< Source/Decimated: DLFL vertex index per vertex
-  std::vector<glm::vec3> offset;             ///< Decimated: QEM position minus rest position
-  std::vector<std::uint32_t> indices;        ///< triangles, in chunk order
+  /// Source: per vertex, 1 where it belongs to faces marked kInteriorFaces (their own copy of
+  /// each corner vertex, drawn in the interior colour); empty: none.
+  std::vector<std::uint8_t> interior;
+  std::vector<glm::vec3> offset;       ///< Decimated: QEM position minus rest position
+  std::vector<std::uint32_t> indices;  ///< triangles, in chunk order
   ChunkTree tree;
   std::uint64_t index_generation = 0;  ///< changes whenever `indices` do
   /// Interleaved position (3 floats) and normal (3 floats) per vertex, as of `vertex_revision`.
@@ -105,6 +112,8 @@ class SolidLevels {
 
  private:
   void build_source(const Dlfl& mesh);
+  /// The faces marked kInteriorFaces onto copies of their vertices (SolidLevel::interior).
+  void split_interior(const Dlfl& mesh, ExportedPolygons& exported, SolidLevel& level);
   void build_derived(const Dlfl& mesh);
   void copy_positions(const Dlfl& mesh);
 
@@ -112,7 +121,7 @@ class SolidLevels {
   std::vector<SolidLevel> levels_;
   std::size_t source_level_ = 0;
   std::vector<glm::vec3> positions_;  ///< the solid's positions by vertex index (float)
-  std::vector<float> occlusion_;       ///< by vertex index; empty: none
+  std::vector<float> occlusion_;      ///< by vertex index; empty: none
   std::unique_ptr<lod::SubdivisionLevels> subdivision_;
   Aabb bounds_;
   std::uint64_t topology_version_ = 0;

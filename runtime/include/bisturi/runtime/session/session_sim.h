@@ -56,6 +56,8 @@ struct SessionEvent {
 struct Incision {
   std::uint32_t body = 0;
   std::vector<glm::dvec3> points_m;
+  /// Where the blade's tip was at each point: a solid's wound has walls down to it.
+  std::vector<glm::dvec3> tips_m;
 };
 
 /// One hand's share of a step: its instrument's force and what its device is commanded.
