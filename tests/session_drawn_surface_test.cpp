@@ -31,16 +31,16 @@ namespace {
 
 using devices::Nanoseconds;
 
-/// The vertices of `mesh`'s wound walls (its faces marked kInteriorFaces).
-std::vector<glm::dvec3> walls(const Dlfl& mesh) {
-  std::vector<glm::dvec3> out;
+/// The vertices of `mesh`'s wound walls (its faces marked kInteriorFaces), once per face.
+std::vector<VertexId> walls(const Dlfl& mesh) {
+  std::vector<VertexId> out;
   if (!mesh.face_properties().has(kInteriorFaces)) return out;
   const auto& interior = mesh.face_properties().get<std::uint8_t>(kInteriorFaces);
   for (std::uint32_t f = 0; f < mesh.face_capacity(); ++f) {
     const FaceId id{f};
     if (!mesh.alive(id) || !interior[id]) continue;
     for (const VertexId v : face_vertices(mesh, id))
-      out.push_back(mesh.positions()[v.idx]);
+      out.push_back(v);
   }
   return out;
 }
@@ -103,9 +103,10 @@ TEST(LiverScene, TheDrawnLiverRidesOnTheVolumeAndIsCutWithIt) {
       for (std::uint32_t f = 0; f < drawn.mesh().face_capacity(); ++f)
         open = open || (drawn.mesh().alive(FaceId(f)) && drawn.mesh().is_bounding(FaceId(f)));
       EXPECT_FALSE(open);
-      const std::vector<glm::dvec3> wall = walls(drawn.mesh());
+      const std::vector<VertexId> wall = walls(drawn.mesh());
       ASSERT_GE(wall.size(), 8u);
-      for (const glm::dvec3& w : wall) {
+      for (const VertexId v : wall) {
+        const glm::dvec3& w = drawn.mesh().positions()[v.idx];
         double nearest = 1e9;
         for (std::size_t b = 0; b < cut.points_m.size(); ++b)
           nearest = std::min({nearest, glm::length(w - sim::sim_to_scene(cut.points_m[b])),
@@ -131,12 +132,8 @@ TEST(LiverScene, TheDrawnLiverRidesOnTheVolumeAndIsCutWithIt) {
   // go down 14 mm towards the lesion and are not counted).
   const Dlfl& liver_mesh = drawn.mesh();
   std::vector<std::uint8_t> on_wall(liver_mesh.vertex_capacity(), 0);
-  const auto& interior = liver_mesh.face_properties().get<std::uint8_t>(kInteriorFaces);
-  for (std::uint32_t f = 0; f < liver_mesh.face_capacity(); ++f) {
-    if (!liver_mesh.alive(FaceId(f)) || !interior[FaceId(f)]) continue;
-    for (const VertexId v : face_vertices(liver_mesh, FaceId(f)))
-      on_wall[v.idx] = 1;
-  }
+  for (const VertexId v : walls(liver_mesh))
+    on_wall[v.idx] = 1;
   for (const DrawnSurface& structure : inner) {
     double nearest = 1e9;
     const auto& liver_x = liver_mesh.positions();

@@ -378,10 +378,7 @@ TEST(SimVolumeBody, AWoundOpensUnderTheTissuesTensionAndWidensOverASecond) {
                     VertexId(i)) != tense.cut.floor_vertices.end())
         continue;  // the floor lies on the blade's sheet: both walls' own
       ++beside;
-      const auto& o = lattice.cell_ijk[e->cell];
-      const glm::dvec3 centre =
-          glm::dvec3(lattice.axis[0][o[0]], lattice.axis[1][o[1]], lattice.axis[2][o[2]]) +
-          0.5 * lattice.cell_sides(e->cell);
+      const glm::dvec3 centre = lattice.cell_centre(e->cell);
       const int side =
           lips[i] != 0 ? lips[i] : sheet_side(lattice, body.rest_position(VertexId(i)));
       EXPECT_EQ(sheet_side(lattice, centre), side) << "vertex " << i;

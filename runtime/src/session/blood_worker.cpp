@@ -37,7 +37,7 @@ BloodWorker::~BloodWorker() {
   if (thread_.joinable()) thread_.join();
 }
 
-void BloodWorker::queue(double dt_s, std::span<const Emission> emissions,
+void BloodWorker::queue(double dt_s, std::span<const BloodEmission> emissions,
                         const sim::SimWorld& world) {
   if (!thread_.joinable()) thread_ = std::thread([this] { run(); });
   Step* step = nullptr;
@@ -135,7 +135,7 @@ void BloodWorker::take(Step& step) {
   if (rebuilt)
     for (std::size_t b = 0; b < bodies_.size(); ++b)
       surfaces_[b] = {&bodies_[b], &bvhs_[b]};
-  for (const Emission& e : step.emissions)
+  for (const BloodEmission& e : step.emissions)
     (void)blood_.emit(e.sources, e.flow_m3_s, e.speed_m_s, step.dt_s);
   blood_.step(step.dt_s, surfaces_);
 }

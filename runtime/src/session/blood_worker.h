@@ -33,7 +33,6 @@ struct BloodEmission {
 
 class BloodWorker {
  public:
-  using Emission = BloodEmission;
   /// How far the blood may fall behind the tissue (0.36 s at 90 Hz) before the tissue waits.
   static constexpr std::size_t kMostQueued = 32;
 
@@ -46,7 +45,7 @@ class BloodWorker {
 
   /// Queues a step of dt_s (tissue thread): `emissions` first, then the particles move against
   /// `world`'s bodies as they are now.
-  void queue(double dt_s, std::span<const Emission> emissions, const sim::SimWorld& world);
+  void queue(double dt_s, std::span<const BloodEmission> emissions, const sim::SimWorld& world);
   /// Waits until every queued step is done, and gives the blood then.
   const sim::Blood& settled();
   /// The particles after the newest step done, in millimetres (any thread; never waits on a
@@ -56,9 +55,8 @@ class BloodWorker {
   /// a step; settle() first for all of them.
   [[nodiscard]] const std::vector<double>& step_ms() const { return step_ms_; }
   [[nodiscard]] std::uint64_t most_particles() const { return most_particles_; }
-  /// Steps queued so far; the most that were queued and not done when one more came; how
-  /// often and how long (ms) the tissue thread waited for room (tissue thread's figures).
-  [[nodiscard]] std::uint64_t steps_queued() const { return queued_; }
+  /// The most steps that were queued and not done when one more came; how often and how long
+  /// (ms) the tissue thread waited for room (the tissue thread's figures).
   [[nodiscard]] std::uint64_t most_behind() const { return most_behind_; }
   [[nodiscard]] std::uint64_t tissue_waits() const { return tissue_waits_; }
   [[nodiscard]] double tissue_waited_ms() const { return tissue_waited_ms_; }
@@ -66,7 +64,7 @@ class BloodWorker {
  private:
   struct Step {
     double dt_s = 0.0;
-    std::vector<Emission> emissions;
+    std::vector<BloodEmission> emissions;
     std::vector<std::vector<glm::dvec3>> positions;        ///< per body
     std::vector<std::unique_ptr<sim::SoftBody>> replaced;  ///< per body: a new topology, or null
   };

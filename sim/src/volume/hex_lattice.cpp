@@ -79,6 +79,11 @@ glm::dvec3 HexLattice::cell_sides(std::size_t c) const {
           axis[2][ijk[2] + n] - axis[2][ijk[2]]};
 }
 
+glm::dvec3 HexLattice::cell_centre(std::size_t c) const {
+  const auto& ijk = cell_ijk[c];
+  return glm::dvec3(axis[0][ijk[0]], axis[1][ijk[1]], axis[2][ijk[2]]) + 0.5 * cell_sides(c);
+}
+
 std::int32_t HexLattice::kept_cell(const glm::dvec3& p) const {
   const auto [i, j, k] = locate(p);
   const auto d = cell_dims();

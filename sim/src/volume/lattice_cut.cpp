@@ -15,12 +15,6 @@ namespace {
 
 using Triangle = std::array<glm::dvec3, 3>;
 
-glm::dvec3 cell_centre(const HexLattice& lattice, std::size_t c) {
-  const auto& o = lattice.cell_ijk[c];
-  return glm::dvec3(lattice.axis[0][o[0]], lattice.axis[1][o[1]], lattice.axis[2][o[2]]) +
-         0.5 * lattice.cell_sides(c);
-}
-
 /// The quads between consecutive samples as triangles, each entry moved `reach` out along its
 /// blade. A blade that barely moved between samples (one is taken each tissue step) gives no
 /// quad: samples nearer than `min_step` to the last one kept are skipped.
@@ -115,7 +109,7 @@ LatticeSeparation separate_along_sheet(HexLattice& lattice, const BladeSheet& sh
   const auto d = lattice.cell_dims();
   std::vector<glm::dvec3> centre(cells);
   for (std::size_t c = 0; c < cells; ++c)
-    centre[c] = cell_centre(lattice, c);
+    centre[c] = lattice.cell_centre(c);
   std::vector<std::uint8_t> node_touched(lattice.rest.size(), 0);
   for (std::size_t c = 0; c < cells; ++c) {
     const glm::dvec3 half = 0.5 * lattice.cell_sides(c);
@@ -189,7 +183,7 @@ std::optional<EmbeddedPoint> embed_point_on_side(const HexLattice& lattice, cons
   if (!e || lattice.separated.empty() || lattice.separated[e->cell] == 0) return e;
   if (side == 0) side = sheet_side(lattice, point);
   const std::uint32_t c = e->cell;
-  if (sheet_side(lattice, cell_centre(lattice, c)) == side) return e;
+  if (sheet_side(lattice, lattice.cell_centre(c)) == side) return e;
   // The nearest cell on the point's side across one of this cell's separated faces.
   const auto d = lattice.cell_dims();
   std::int32_t best = -1;
@@ -204,7 +198,7 @@ std::optional<EmbeddedPoint> embed_point_on_side(const HexLattice& lattice, cons
         lattice.cell_at[(std::size_t(ijk[2]) * d[1] + std::size_t(ijk[1])) * d[0] +
                         std::size_t(ijk[0])];
     if (n < 0) continue;
-    const glm::dvec3 centre = cell_centre(lattice, std::size_t(n));
+    const glm::dvec3 centre = lattice.cell_centre(std::size_t(n));
     if (sheet_side(lattice, centre) != side) continue;
     const double distance = glm::length(centre - point);
     if (distance < best_distance) {

@@ -39,11 +39,7 @@ bool motion_at(const HexLattice& lattice, std::span<const glm::dvec3> field, con
         const std::int32_t c =
             lattice.cell_at[(std::size_t(k) * d[1] + std::size_t(j)) * d[0] + std::size_t(i)];
         if (c < 0) continue;
-        const auto& o = lattice.cell_ijk[std::size_t(c)];
-        const glm::dvec3 centre =
-            glm::dvec3(lattice.axis[0][o[0]], lattice.axis[1][o[1]], lattice.axis[2][o[2]]) +
-            0.5 * lattice.cell_sides(std::size_t(c));
-        const double distance = glm::length(centre - p);
+        const double distance = glm::length(lattice.cell_centre(std::size_t(c)) - p);
         if (distance < best_distance) {
           best_distance = distance;
           best = c;
@@ -51,15 +47,8 @@ bool motion_at(const HexLattice& lattice, std::span<const glm::dvec3> field, con
       }
   if (best < 0) return false;
   // Trilinear weights past the cell's faces: the cell's motion, continued.
-  const auto& o = lattice.cell_ijk[std::size_t(best)];
-  const glm::dvec3 lo(lattice.axis[0][o[0]], lattice.axis[1][o[1]], lattice.axis[2][o[2]]);
-  const glm::dvec3 t = (p - lo) / lattice.cell_sides(std::size_t(best));
-  out = glm::dvec3(0.0);
-  for (std::uint32_t c = 0; c < 8; ++c) {
-    const double w = ((c & 1u) ? t.x : 1.0 - t.x) * (((c >> 1) & 1u) ? t.y : 1.0 - t.y) *
-                     (((c >> 2) & 1u) ? t.z : 1.0 - t.z);
-    out += w * field[lattice.cells[std::size_t(best)][c]];
-  }
+  out = embedded_position(lattice, field,
+                          embed_point_in(lattice, static_cast<std::uint32_t>(best), p));
   return true;
 }
 
@@ -275,15 +264,17 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
     nv[n] = volume_.velocities()[o];
     tissue_of_origin[o] += tissue[n];
   }
-  const auto old_load = volume_.surroundings_load();
-  if (!old_load.empty()) {
-    load.resize(nodes);
+  // A node's force or load, shared among its copies by their tissue.
+  const auto share = [&](std::span<const glm::dvec3> of_origin) {
+    std::vector<glm::dvec3> out(nodes);
     for (std::size_t n = 0; n < nodes; ++n) {
       const std::uint32_t o = separation.origin[n];
-      load[n] = tissue_of_origin[o] > 0.0 ? old_load[o] * (tissue[n] / tissue_of_origin[o])
-                                          : glm::dvec3(0.0);
+      out[n] = tissue_of_origin[o] > 0.0 ? of_origin[o] * (tissue[n] / tissue_of_origin[o])
+                                         : glm::dvec3(0.0);
     }
-  }
+    return out;
+  };
+  if (!volume_.surroundings_load().empty()) load = share(volume_.surroundings_load());
   const glm::dvec3 held_velocity = volume_.held_velocity();
   const double tension = volume_.resting_tension_Pa();
   ElasticVolume next(std::move(lattice), options_.material, options_.law);
@@ -292,14 +283,7 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
   // What each node felt before the cut, shared among its copies: the cut changes nothing at
   // once and lets go over the release time.
   next.set_state(nx, nv);
-  std::vector<glm::dvec3> before = volume_.node_forces();
-  std::vector<glm::dvec3> shared(nodes);
-  for (std::size_t n = 0; n < nodes; ++n) {
-    const std::uint32_t o = separation.origin[n];
-    shared[n] =
-        tissue_of_origin[o] > 0.0 ? before[o] * (tissue[n] / tissue_of_origin[o]) : glm::dvec3(0.0);
-  }
-  next.fade_in_from(shared, options_.tension_release_s);
+  next.fade_in_from(share(volume_.node_forces()), options_.tension_release_s);
   volume_ = std::move(next);
   separated_faces_ += separation.separated_faces;
 

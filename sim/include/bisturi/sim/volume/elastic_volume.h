@@ -178,7 +178,7 @@ class ElasticVolume {
   glm::dvec3 held_velocity_{0.0};
   double tension_Pa_ = 0.0;
   std::vector<glm::dvec3> surroundings_;  ///< per node, N
-  std::vector<glm::dvec3> releasing_;     ///< per node, N: fading (release_gradually)
+  std::vector<glm::dvec3> releasing_;     ///< per node, N: fading (fade_in_from)
   double release_s_ = 0.0;
   std::vector<double> multipliers_;  ///< per surface point, N
   std::unique_ptr<Solver> solver_;

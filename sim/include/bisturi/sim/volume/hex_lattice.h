@@ -70,6 +70,8 @@ struct HexLattice {
   }
   /// Cell c's sides (metres).
   [[nodiscard]] glm::dvec3 cell_sides(std::size_t c) const;
+  /// Cell c's centre at rest (metres).
+  [[nodiscard]] glm::dvec3 cell_centre(std::size_t c) const;
 
   [[nodiscard]] std::array<std::size_t, 3> cell_dims() const {
     return {axis[0].size() - 1, axis[1].size() - 1, axis[2].size() - 1};

@@ -48,7 +48,7 @@ struct VolumeOptions {
   /// The tissue's resting tension (Pa; ElasticVolume::set_resting_tension): what opens a
   /// wound. 0: none, a cut stays closed.
   double resting_tension_Pa = 0.0;
-  /// How long a cut's walls take to let that tension go (s; ElasticVolume::release_gradually):
+  /// How long a cut's walls take to let that tension go (s; ElasticVolume::fade_in_from):
   /// the share still held after t is exp(-t / this). 0: at once.
   double tension_release_s = 0.3;
   /// The body's weight is carried by what surrounds it (a scanned organ is at rest in its scan
