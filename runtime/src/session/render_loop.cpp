@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <exception>
 #include <limits>
 #include <optional>
 #include <stdexcept>
@@ -286,6 +287,26 @@ constexpr glm::vec3 kDrapeColour{0.040f, 0.115f, 0.100f};
 
 }  // namespace
 
+namespace {
+
+/// Sets `stop` when the scope it lives in is left by an exception.
+class StopOnUnwind {
+ public:
+  explicit StopOnUnwind(std::atomic<bool>& stop)
+      : stop_(stop), exceptions_(std::uncaught_exceptions()) {}
+  StopOnUnwind(const StopOnUnwind&) = delete;
+  StopOnUnwind& operator=(const StopOnUnwind&) = delete;
+  ~StopOnUnwind() {
+    if (std::uncaught_exceptions() > exceptions_) stop_.store(true);
+  }
+
+ private:
+  std::atomic<bool>& stop_;
+  int exceptions_;
+};
+
+}  // namespace
+
 void run_render_loop(const RenderLoopContext& c) {
   const SceneDescription& scene = c.scene;
   const SessionOptions& options = c.options;
@@ -481,6 +502,10 @@ void run_render_loop(const RenderLoopContext& c) {
       c.display_deadline_ns->store((clock.now() + display_timeout).count(),
                                    std::memory_order_release);
   };
+  // A frame that throws stops the session before the renderer and the rest of this loop's
+  // state are torn down (waiting for the device and freeing it took lavapipe over 100 ms under
+  // load): the haptic thread zeroes the force first.
+  const StopOnUnwind stop_on_fault(stop);
   while (!stop.load(std::memory_order_relaxed)) {
     came_round();
     if (c.fail_next_frame != nullptr && c.fail_next_frame->exchange(false))
