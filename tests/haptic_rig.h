@@ -83,9 +83,9 @@ inline devices::Pose at_mm(const glm::dvec3& p_mm) {
 class HangableSteps final : public TickSteps {
  public:
   explicit HangableSteps(TickSteps& inner) : inner_(inner) {}
-  TissueThread::Push push(std::span<const devices::HapticState> states,
-                          std::uint32_t ticks) override {
-    return hung ? TissueThread::Push::Behind : inner_.push(states, ticks);
+  TissueThread::Push push(std::span<const devices::HapticState> states, std::uint32_t ticks,
+                          bool blood_held) override {
+    return hung ? TissueThread::Push::Behind : inner_.push(states, ticks, blood_held);
   }
   TissueThread::TickStep step_for(std::uint64_t k, std::uint64_t due) override {
     if (hung) {
@@ -96,6 +96,7 @@ class HangableSteps final : public TickSteps {
     last_ = inner_.step_for(k, due);
     return last_;
   }
+  bool blood_held(std::uint64_t k, bool now) override { return inner_.blood_held(k, now); }
   std::uint32_t ticks_per_step(std::uint64_t k, std::uint32_t n) override {
     return inner_.ticks_per_step(k, n);
   }

@@ -164,6 +164,29 @@ TOML
     echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "the bleeding session did not replay"; }
     echo "bleeding: ok ($emitted particles: $in_flight in flight, $pooled pooled, $drained drained)"
     ;;
+  bleeding-stall)
+    # The same session, 10 s, with the blood's thread stopped for 0.5 s in its first step (at the
+    # cut, 9 s in; --inject blood-stall@1 waits for it): the blood's clock holds once the thread
+    # is 4 steps behind and goes on once it has caught up, the tissue never waits for it, and
+    # the holds noted in the trace make the replay bleed the same.
+    rm -rf "$work/stall"
+    "$bisturi" run "$4" --duration 10 --tissue-hz 500 --eye-width 128 --eye-height 128 --no-openxr \
+      --inject blood-stall@1 --out "$work/stall" --record "$work/stall.btrace" \
+      > "$work/stall.txt" 2>&1 || { cat "$work/stall.txt"; fail "bisturi run exited with $?"; }
+    report=$(tr -d ' \n' < "$work/stall/report.json")
+    echo "$report" | grep -q '"ending":"completed"' || fail "the session did not complete"
+    thread=$(echo "$report" | grep -o '"thread":{[^}]*}')
+    holds=$(echo "$thread" | grep -o '"holds":[0-9]*' | sed 's/[^0-9]//g')
+    waits=$(echo "$thread" | grep -o '"tissue_waits":[0-9]*' | sed 's/[^0-9]//g')
+    held=$(echo "$thread" | grep -o '"held_s":[0-9.]*' | sed 's/.*://')
+    [ "${holds:-0}" -ge 1 ] || { echo "$thread"; fail "the blood's clock never held"; }
+    [ "${waits:-1}" -eq 0 ] || { echo "$thread"; fail "the tissue waited for the blood"; }
+    awk -v h="$held" 'BEGIN { exit !(h >= 0.3 && h < 0.9) }' ||
+      { echo "$thread"; fail "held $held s for a 0.5 s stall"; }
+    out=$("$bisturi" replay "$work/stall.btrace" --json) || { echo "$out"; fail "replay exited $?"; }
+    echo "$out" | grep -q '"passed": true' || { echo "$out"; fail "the stalled session did not replay"; }
+    echo "bleeding-stall: ok ($holds holds, the blood held $held s)"
+    ;;
   two-hands)
     # config/two_hands.toml: the left arm takes hold of the organ beside the cut's path and holds
     # it while the right glove's scalpel cuts; both in one haptic tick, recorded and replayed

@@ -153,6 +153,15 @@ TEST(LockstepNotes, RoundTripAndRefuseWhatTheyAreNot) {
   EXPECT_FALSE(parse_late_tick_note(R"({"late_tick": {"tick": -1, "step": 2}})").has_value());
   EXPECT_FALSE(parse_tissue_rate_note(R"({"tissue_rate": {"tick": 5, "ticks_per_step": 0}})"));
   EXPECT_FALSE(parse_tissue_rate_note(R"({"tissue_rate": {"tick": -5, "ticks_per_step": 2}})"));
+  for (const bool held : {true, false}) {
+    const auto b = parse_blood_hold_note(blood_hold_note(777, held));
+    ASSERT_TRUE(b.has_value());
+    EXPECT_EQ(b->tick, 777u);
+    EXPECT_EQ(b->held, held);
+  }
+  EXPECT_FALSE(parse_blood_hold_note(tissue_rate_note(4096, 1)).has_value());
+  EXPECT_FALSE(parse_tissue_rate_note(blood_hold_note(4096, true)).has_value());
+  EXPECT_FALSE(parse_blood_hold_note(R"({"blood_hold": {"tick": 5, "held": 2}})").has_value());
 }
 
 }  // namespace

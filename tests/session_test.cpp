@@ -342,6 +342,7 @@ TEST(FaultInjection, ParsesAFaultAndItsTimeAndRefusesTheRest) {
   EXPECT_EQ(f.kind, FaultKind::TissueHang);
   EXPECT_DOUBLE_EQ(f.at_s, 2.5);
   EXPECT_EQ(parse_fault("trace-slow-disk@0").kind, FaultKind::TraceSlowDisk);
+  EXPECT_EQ(parse_fault("blood-stall@1").kind, FaultKind::BloodStall);
   for (const char* bad :
        {"tissue-hang", "tissue-hang@", "tissue-hang@-1", "tissue-hang@2s", "melt@1", "@1"}) {
     try {

@@ -79,6 +79,12 @@ void add_run_command(CLI::App& app, RunOptions& options, int (*&run)(const RunOp
                   "renderer's)")
       ->capture_default_str()
       ->check(CLI::Range(0.001, 1.0));
+  cmd->add_option("--blood-hold-at", options.blood_hold_at,
+                  "blood steps the blood's thread may fall behind before the blood's clock "
+                  "stops (slow motion, noted in the trace) until it has caught up half way: the "
+                  "tissue's thread, and through it the force, never waits for the blood")
+      ->capture_default_str()
+      ->check(CLI::Range(1u, 16u));
   cmd->add_option("--tissue-threads", options.tissue_threads,
                   "threads of the soft-tissue step: `auto` gives it the cores that the haptic "
                   "loop, the renderer and the tissue thread leave free, one per 4000 vertices "
@@ -157,6 +163,7 @@ int run_run(const RunOptions& options) {
   so.tissue_thread = !options.tissue_in_haptic_thread;
   so.tissue_lag_ticks = options.tissue_lag_ticks;
   so.tissue_max_load = options.tissue_max_load;
+  so.blood_hold_at = options.blood_hold_at;
   if (options.tissue_hz != "auto") {
     double hz = 0.0;
     try {
@@ -373,7 +380,10 @@ int run_run(const RunOptions& options) {
         {"thread",
          {{"most_behind_steps", r.bleeding.most_behind_steps},
           {"tissue_waits", r.bleeding.tissue_waits},
-          {"tissue_waited_ms", r.bleeding.tissue_waited_ms}}}}},
+          {"tissue_waited_ms", r.bleeding.tissue_waited_ms},
+          {"hold_at_steps", r.bleeding.hold_at_steps},
+          {"holds", r.bleeding.holds},
+          {"held_s", r.bleeding.held_s}}}}},
       {"physiology",
        {{"heart_rate_bpm", r.heart_rate_bpm},
         {"pulsing", pulsing},

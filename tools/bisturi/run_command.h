@@ -29,6 +29,7 @@ struct RunOptions {
   std::uint32_t tissue_lag_ticks = 3;
   std::string tissue_hz = "auto";
   double tissue_max_load = 0.75;
+  std::uint32_t blood_hold_at = 4;
   std::string tissue_threads = "auto";
   bool cpu = false;
   bool print_default_scene = false;

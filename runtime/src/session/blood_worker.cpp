@@ -73,6 +73,7 @@ void BloodWorker::queue(double dt_s, std::span<const BloodEmission> emissions,
   {
     const std::lock_guard<std::mutex> lock(mutex_);
     ++queued_;
+    behind_.store(queued_ - done_, std::memory_order_relaxed);
   }
   changed_.notify_all();
 }
@@ -101,6 +102,8 @@ void BloodWorker::run() {
       if (done_ == queued_) return;  // stopping, nothing left
       step = &ring_[done_ % kMostQueued];
     }
+    if (stall_flag_ != nullptr && stall_flag_->exchange(false))
+      std::this_thread::sleep_for(stall_for_);
     const auto begin = std::chrono::steady_clock::now();
     take(*step);
     step_ms_.push_back(
@@ -114,6 +117,7 @@ void BloodWorker::run() {
       const std::lock_guard<std::mutex> lock(mutex_);
       newest_mm_.swap(newest);
       ++done_;
+      behind_.store(queued_ - done_, std::memory_order_relaxed);
     }
     changed_.notify_all();
   }

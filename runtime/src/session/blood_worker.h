@@ -8,6 +8,8 @@
 // The blood does not act on the tissue (one way), so the tissue never waits for it; the tissue
 // thread waits only when kMostQueued steps are queued (the blood more than that behind).
 
+#include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <memory>
@@ -60,6 +62,14 @@ class BloodWorker {
   [[nodiscard]] std::uint64_t most_behind() const { return most_behind_; }
   [[nodiscard]] std::uint64_t tissue_waits() const { return tissue_waits_; }
   [[nodiscard]] double tissue_waited_ms() const { return tissue_waited_ms_; }
+  /// Once `flag` is set (by another thread), the next step stops for `how_long` first, and clears
+  /// it (an injected fault: fault_injection.h).
+  void stall_when(std::atomic<bool>* flag, std::chrono::milliseconds how_long) {
+    stall_flag_ = flag;
+    stall_for_ = how_long;
+  }
+  /// Steps queued and not done now (any thread; never waits).
+  [[nodiscard]] std::uint64_t behind() const { return behind_.load(std::memory_order_relaxed); }
 
  private:
   struct Step {
@@ -81,7 +91,10 @@ class BloodWorker {
   mutable std::mutex mutex_;
   std::condition_variable changed_;
   std::vector<Step> ring_{kMostQueued};
-  std::uint64_t queued_ = 0, done_ = 0;  ///< steps queued and taken, under mutex_
+  std::uint64_t queued_ = 0, done_ = 0;      ///< steps queued and taken, under mutex_
+  std::atomic<std::uint64_t> behind_{0};     ///< queued_ - done_, for readers without the lock
+  std::atomic<bool>* stall_flag_ = nullptr;  ///< set before the thread starts
+  std::chrono::milliseconds stall_for_{0};
   bool stopping_ = false;
   std::vector<glm::dvec3> newest_mm_;  ///< under mutex_
   std::vector<double> step_ms_;

@@ -10,11 +10,17 @@ namespace bisturi::runtime {
 
 namespace {
 
-constexpr std::array<FaultKind, 10> kAll = {
-    FaultKind::TissueHang,           FaultKind::TissueThrow,   FaultKind::RenderThrow,
-    FaultKind::RenderHang,           FaultKind::DeviceUnplug,  FaultKind::DeviceIoStall,
-    FaultKind::TraceDiskFull,        FaultKind::TraceSlowDisk, FaultKind::ControllerTrackingLost,
-    FaultKind::HeadsetSwapchainStall};
+constexpr std::array<FaultKind, 11> kAll = {FaultKind::TissueHang,
+                                            FaultKind::TissueThrow,
+                                            FaultKind::RenderThrow,
+                                            FaultKind::RenderHang,
+                                            FaultKind::DeviceUnplug,
+                                            FaultKind::DeviceIoStall,
+                                            FaultKind::TraceDiskFull,
+                                            FaultKind::TraceSlowDisk,
+                                            FaultKind::ControllerTrackingLost,
+                                            FaultKind::HeadsetSwapchainStall,
+                                            FaultKind::BloodStall};
 
 }  // namespace
 
@@ -40,6 +46,8 @@ const char* to_string(FaultKind kind) {
       return "controller-tracking-lost";
     case FaultKind::HeadsetSwapchainStall:
       return "headset-swapchain-stall";
+    case FaultKind::BloodStall:
+      return "blood-stall";
   }
   return "?";
 }

@@ -74,6 +74,9 @@ void FaultInjector::inject(const InjectedFault& f, std::uint64_t ticks) {
     case FaultKind::RenderHang:
       hang_render.store(true);
       break;
+    case FaultKind::BloodStall:
+      stall_blood.store(true);
+      break;
     case FaultKind::HeadsetSwapchainStall:
       if (headset_sink.load()) {
         stall_swapchain.store(true);

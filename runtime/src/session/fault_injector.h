@@ -34,9 +34,10 @@ class FaultInjector {
   /// After the haptic thread ended: the last fault's outcome, and those never made.
   void finish();
 
-  /// Read by the tissue thread's step and the renderer's frame: set, they fail as told once.
+  /// Read by the tissue thread's step, the renderer's frame and the blood's thread: set, they
+  /// fail as told once.
   std::atomic<bool> hang_tissue{false}, fail_tissue{false}, fail_render{false}, hang_render{false},
-      lose_controller{false}, stall_swapchain{false};
+      lose_controller{false}, stall_swapchain{false}, stall_blood{false};
   /// Set by the renderer once it presents through OpenXR (a swapchain to stall).
   std::atomic<bool> headset_sink{false};
   /// The haptic device is the headset's controller, fed by the renderer (set before the run).

@@ -163,7 +163,13 @@ void HapticLoop::hand_over(std::uint64_t k) noexcept {
   // A hand-over tick gives its states to the tissue as the next step (and may change the steps'
   // length, noted in the trace).
   if (!schedule_.hands_over(k)) return;
-  switch (parts_.steps->push(scene_states_, schedule_.handed_over_ticks())) {
+  const bool held = parts_.steps->blood_held(k, blood_held_);
+  if (held != blood_held_) {
+    blood_held_ = held;
+    if (held) ++counters_.blood_holds;
+    note(blood_hold_note(k, held));
+  }
+  switch (parts_.steps->push(scene_states_, schedule_.handed_over_ticks(), held)) {
     case TissueThread::Push::Queued:
       hand_over_ticks_[schedule_.steps() % kHandOverRing] = k;
       break;

@@ -43,13 +43,16 @@ class TickSteps {
  public:
   virtual ~TickSteps() = default;
   /// A hand-over tick's device states (scene frame, one per hand) as the next step over
-  /// `ticks` periods.
-  virtual TissueThread::Push push(std::span<const devices::HapticState> states,
-                                  std::uint32_t ticks) = 0;
+  /// `ticks` periods, the blood's clock held over it or not.
+  virtual TissueThread::Push push(std::span<const devices::HapticState> states, std::uint32_t ticks,
+                                  bool blood_held) = 0;
   /// The step tick k uses when step `due` is due (late: an older one).
   virtual TissueThread::TickStep step_for(std::uint64_t k, std::uint64_t due) = 0;
   /// At hand-over tick k, with n ticks per step now: the ticks per step from the next step on.
   virtual std::uint32_t ticks_per_step(std::uint64_t k, std::uint32_t n) = 0;
+  /// At hand-over tick k, with the blood's clock held now or not: whether it is held from this
+  /// step on.
+  virtual bool blood_held(std::uint64_t k, bool now) = 0;
   /// Steps handed over and not finished.
   [[nodiscard]] virtual std::uint64_t backlog() const = 0;
 };
@@ -60,9 +63,9 @@ class LiveTickSteps final : public TickSteps {
  public:
   LiveTickSteps(TissueThread& tissue, bool adaptive, TissueRateController controller)
       : tissue_(tissue), adaptive_(adaptive), controller_(controller) {}
-  TissueThread::Push push(std::span<const devices::HapticState> states,
-                          std::uint32_t ticks) override {
-    return tissue_.push(states, ticks);
+  TissueThread::Push push(std::span<const devices::HapticState> states, std::uint32_t ticks,
+                          bool blood_held) override {
+    return tissue_.push(states, ticks, blood_held);
   }
   TissueThread::TickStep step_for(std::uint64_t, std::uint64_t due) override {
     return tissue_.step_for(due);
@@ -71,7 +74,16 @@ class LiveTickSteps final : public TickSteps {
     // A fixed rate stays fixed (the controller would also lower a rate given too low).
     return adaptive_ ? controller_.decide(tissue_.median_step_ms()) : n;
   }
+  bool blood_held(std::uint64_t, bool now) override {
+    // Held once the blood's thread is blood_hold_at steps behind, until it has caught up to half
+    // that: the tissue's thread then never waits for it.
+    const std::uint64_t behind = tissue_.blood_behind();
+    return now ? behind > blood_hold_at / 2 : behind >= blood_hold_at;
+  }
   [[nodiscard]] std::uint64_t backlog() const override { return tissue_.pushed() - tissue_.done(); }
+
+  /// Blood steps behind at which the blood's clock holds (SessionOptions::blood_hold_at).
+  std::uint64_t blood_hold_at = 4;
 
  private:
   TissueThread& tissue_;
@@ -110,6 +122,7 @@ struct HapticLoopCounters {
   std::uint64_t tissue_rate_changes = 0;
   std::uint32_t max_ticks_per_step = 1;
   std::uint64_t dropped_steps = 0;       ///< hand-overs the tissue could not queue (a ring behind)
+  std::uint64_t blood_holds = 0;         ///< times the blood's clock stopped (its thread behind)
   bool tissue_failed = false;            ///< a step threw: no new steps, the force is zero
   std::uint64_t display_held_ticks = 0;  ///< ticks held at zero: the headset showed nothing
   std::uint64_t display_stalls = 0;      ///< holds begun because the renderer stopped
@@ -275,6 +288,7 @@ class HapticLoop {
   const TickOutput* step_output_ = nullptr;
   bool head_lost_ = false;
   bool display_held_ = false;
+  bool blood_held_ = false;  ///< the blood's clock held over the steps handed over now
   std::atomic<bool> recording_{true};
   std::mutex error_mutex_;
   std::uint64_t k_ = 0;

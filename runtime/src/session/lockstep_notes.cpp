@@ -68,6 +68,16 @@ std::optional<DroppedStep> parse_dropped_step_note(std::string_view text) {
   return DroppedStep{(*f)[0], (*f)[1]};
 }
 
+NoteText blood_hold_note(std::uint64_t tick, bool held) {
+  return format_note("blood_hold", "held", held ? 1 : 0, "tick", tick);
+}
+
+std::optional<BloodHold> parse_blood_hold_note(std::string_view text) {
+  const auto f = two_fields(text, "blood_hold", "tick", "held");
+  if (!f || (*f)[1] > 1) return std::nullopt;
+  return BloodHold{(*f)[0], (*f)[1] == 1};
+}
+
 std::string hand_note(std::string_view what, std::size_t hand) {
   std::string text(what);
   if (hand > 0) {

@@ -55,6 +55,15 @@ struct DroppedStep {
 };
 std::optional<DroppedStep> parse_dropped_step_note(std::string_view text);
 
+/// The blood's clock stopped (held 1) or going again (held 0) from the step handed over at tick
+/// k on: {"blood_hold": {"held": h, "tick": k}} (SessionSim::tick's blood_held).
+NoteText blood_hold_note(std::uint64_t tick, bool held);
+struct BloodHold {
+  std::uint64_t tick = 0;
+  bool held = false;
+};
+std::optional<BloodHold> parse_blood_hold_note(std::string_view text);
+
 /// A zero a hand's device is about to get ("haptic_stop" at the end, "watchdog_zero" from the
 /// supervisor): the note names the hand after the first ("watchdog_zero 1"), so a one-handed
 /// trace reads as it always has. Made once, at the loop's start.

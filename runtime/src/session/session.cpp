@@ -467,6 +467,9 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   FaultInjector faults(options.inject, report, clock, session_devices, writer.get(),
                        scene.rates.haptic_hz);
   faults.controller_fed = controller_feed.opened();
+  sim.stall_blood_when(
+      &faults.stall_blood,
+      std::chrono::milliseconds(static_cast<std::int64_t>(kBloodStallSeconds * 1000.0)));
   const auto publish_step = [&](const TickOutput& out, std::span<const devices::HapticState> states,
                                 double step_ms) {
     report.step_ms.record(step_ms);
@@ -533,6 +536,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   LiveTickSteps steps(tissue, options.adaptive_tissue_rate,
                       TissueRateController(first_ticks_per_step, options.max_tissue_ticks_per_step,
                                            ms(period), options.tissue_max_load));
+  steps.blood_hold_at = std::max<std::uint32_t>(1, options.blood_hold_at);
   HapticLoopParts parts;
   parts.stale_margin_ticks = static_cast<std::uint32_t>(scene.simulation.stale_margin_ticks);
   report.stale_margin_ticks = parts.stale_margin_ticks;
@@ -679,6 +683,9 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     report.bleeding.most_behind_steps = behind.most_behind_steps;
     report.bleeding.tissue_waits = behind.tissue_waits;
     report.bleeding.tissue_waited_ms = behind.tissue_waited_ms;
+    report.bleeding.hold_at_steps = options.blood_hold_at;
+    report.bleeding.holds = loop.counters().blood_holds;
+    report.bleeding.held_s = sim.blood_held_s();
     for (const double step : sim.blood_step_ms())
       report.blood_step_ms.record(step);
   }

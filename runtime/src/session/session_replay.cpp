@@ -35,18 +35,19 @@ bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {
 }
 
 /// The tissue steps of a replay: run in place when a tick needs them, late where the trace's
-/// late-tick note says, their length changed where a rate note says (each note applies to the
-/// tick that follows it).
+/// late-tick note says, their length changed where a rate note says, the blood's clock held
+/// where a blood-hold note says (each note applies to the tick that follows it).
 class ReplayTickSteps final : public TickSteps {
  public:
   explicit ReplayTickSteps(SessionSim& sim) : sim_(sim) {}
-  TissueThread::Push push(std::span<const devices::HapticState> states,
-                          std::uint32_t ticks) override {
+  TissueThread::Push push(std::span<const devices::HapticState> states, std::uint32_t ticks,
+                          bool blood_held) override {
     if (dropped) {  // the live tissue could not take this one (its note precedes the push)
       dropped.reset();
       return TissueThread::Push::Behind;
     }
-    queued_.emplace_back(std::vector<devices::HapticState>(states.begin(), states.end()), ticks);
+    queued_.push_back(
+        {std::vector<devices::HapticState>(states.begin(), states.end()), ticks, blood_held});
     ++pushed_;
     return TissueThread::Push::Queued;
   }
@@ -62,24 +63,36 @@ class ReplayTickSteps final : public TickSteps {
   std::uint32_t ticks_per_step(std::uint64_t k, std::uint32_t n) override {
     return rate && rate->tick == k ? rate->ticks_per_step : n;
   }
+  bool blood_held(std::uint64_t k, bool now) override {
+    const bool held = hold && hold->tick == k ? hold->held : now;
+    hold.reset();
+    return held;
+  }
   [[nodiscard]] std::uint64_t backlog() const override { return queued_.size(); }
   void run_all() { run_to(pushed_); }
 
   std::optional<LateTick> late;
   std::optional<TissueRateChange> rate;
   std::optional<DroppedStep> dropped;
+  std::optional<BloodHold> hold;
 
  private:
+  struct Queued {
+    std::vector<devices::HapticState> states;
+    std::uint32_t ticks = 1;
+    bool blood_held = false;
+  };
   void run_to(std::uint64_t j) {
     while (run_ < j && !queued_.empty()) {
-      newest_ = &sim_.tick(queued_.front().first, queued_.front().second);
+      const Queued& q = queued_.front();
+      newest_ = &sim_.tick(q.states, q.ticks, q.blood_held);
       queued_.pop_front();
       ++run_;
     }
   }
 
   SessionSim& sim_;
-  std::deque<std::pair<std::vector<devices::HapticState>, std::uint32_t>> queued_;
+  std::deque<Queued> queued_;
   std::uint64_t pushed_ = 0;
   std::uint64_t run_ = 0;
   const TickOutput* newest_ = nullptr;
@@ -255,6 +268,8 @@ SessionReplayResult replay_session(const std::filesystem::path& trace) {
         if (steps) steps->rate = c;
       } else if (auto d = parse_dropped_step_note(text)) {
         if (steps) steps->dropped = d;
+      } else if (auto b = parse_blood_hold_note(text)) {
+        if (steps) steps->hold = b;
       } else {
         const nlohmann::json j = nlohmann::json::parse(text, nullptr, false);
         if (!j.is_discarded() && j.is_object() && j.contains("session_end")) {

@@ -226,6 +226,10 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
   }
   tips_m_.resize(hands_.size());
   haptic_out_.resize(hands_.size());
+  const auto has_lumen = [](double pressure_Pa) { return pressure_Pa > 0.0; };
+  if (std::any_of(pulse_pressure_Pa_.begin(), pulse_pressure_Pa_.end(), has_lumen) ||
+      std::any_of(diastolic_Pa_.begin(), diastolic_Pa_.end(), has_lumen))
+    blood_worker_ = std::make_unique<BloodWorker>(blood_options_, world_);
 }
 
 std::vector<devices::ForceChannel> SessionSim::guard_channels(std::size_t hand) const {
@@ -268,12 +272,13 @@ std::int32_t SessionSim::nearest_body(const glm::dvec3& p_m) {
   return best;
 }
 
-const TickOutput& SessionSim::tick(const devices::HapticState& state, std::uint32_t ticks) {
-  return tick(std::span<const devices::HapticState>(&state, 1), ticks);
+const TickOutput& SessionSim::tick(const devices::HapticState& state, std::uint32_t ticks,
+                                   bool blood_held) {
+  return tick(std::span<const devices::HapticState>(&state, 1), ticks, blood_held);
 }
 
 const TickOutput& SessionSim::tick(std::span<const devices::HapticState> states,
-                                   std::uint32_t ticks) {
+                                   std::uint32_t ticks, bool blood_held) {
   if (states.size() != hands_.size())
     throw std::invalid_argument("SessionSim::tick: " + std::to_string(states.size()) +
                                 " device states for " + std::to_string(hands_.size()) + " hands");
@@ -328,7 +333,7 @@ const TickOutput& SessionSim::tick(std::span<const devices::HapticState> states,
     finger_contacts(hands_[i], out_.hand(i), tips_m_[i], states[i].finger_joint_angles_rad);
     update_scalpel(i, states[i], tips_m_[i]);
   }
-  bleed(ticks);
+  bleed(ticks, blood_held);
   for (std::size_t i = 0; i < hands_.size(); ++i) {
     HandOutput& out = out_.hand(i);
     out.grasping = hands_[i].grasp_body >= 0;
@@ -387,8 +392,14 @@ void SessionSim::open_vessel(std::int32_t body, const std::vector<glm::dvec3>& p
   if (!opening.sources.empty()) openings_.push_back(std::move(opening));
 }
 
-void SessionSim::bleed(std::uint32_t ticks) {
+void SessionSim::bleed(std::uint32_t ticks, bool held) {
   if (openings_.empty()) return;
+  if (held) {
+    // Its thread is behind: the blood's time stops (slow motion) rather than the tissue's
+    // thread waiting for it, and the flow of these steps is not emitted.
+    blood_held_s_ += static_cast<double>(ticks) / haptic_hz_;
+    return;
+  }
   blood_due_s_ += static_cast<double>(ticks) / haptic_hz_;
   if (blood_due_s_ < kBloodStep_s) return;
   std::size_t used = 0;
@@ -419,7 +430,6 @@ void SessionSim::bleed(std::uint32_t ticks) {
     e.flow_m3_s = flow;
     e.speed_m_s = speed;
   }
-  if (!blood_worker_) blood_worker_ = std::make_unique<BloodWorker>(blood_options_, world_);
   blood_worker_->queue(blood_due_s_, std::span(emissions_).first(used), world_);
   blood_due_s_ = 0.0;
 }
@@ -441,6 +451,14 @@ const std::vector<double>& SessionSim::blood_step_ms() const {
   if (!blood_worker_) return none;
   (void)blood_worker_->settled();
   return blood_worker_->step_ms();
+}
+
+void SessionSim::stall_blood_when(std::atomic<bool>* flag, std::chrono::milliseconds how_long) {
+  if (blood_worker_) blood_worker_->stall_when(flag, how_long);
+}
+
+std::uint64_t SessionSim::blood_behind() const noexcept {
+  return blood_worker_ ? blood_worker_->behind() : 0;
 }
 
 SessionSim::BloodLag SessionSim::blood_lag() const {

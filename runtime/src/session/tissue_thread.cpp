@@ -20,6 +20,7 @@ TissueThread::TissueThread(SessionSim& sim, std::vector<devices::HapticState> sh
       capacity_(capacity),
       states_(capacity, shapes),
       ticks_(capacity, 1),
+      blood_held_(capacity, 0),
       outputs_(capacity) {
   // No allocation when a step's output is copied.
   for (TickOutput& o : outputs_) {
@@ -53,7 +54,7 @@ bool request_realtime_priority(int below) {
 }
 
 TissueThread::Push TissueThread::push(std::span<const devices::HapticState> states,
-                                      std::uint32_t ticks) {
+                                      std::uint32_t ticks, bool blood_held) {
   if (failed_.load(std::memory_order_acquire)) return Push::Failed;
   const std::uint64_t k = pushed_.load(std::memory_order_relaxed) + 1;
   if (k - done_.load(std::memory_order_acquire) >= capacity_) return Push::Behind;
@@ -61,6 +62,7 @@ TissueThread::Push TissueThread::push(std::span<const devices::HapticState> stat
   for (std::size_t h = 0; h < std::min(slot.size(), states.size()); ++h)
     slot[h] = states[h];
   ticks_[k % capacity_] = ticks;
+  blood_held_[k % capacity_] = blood_held ? 1 : 0;
   pushed_.store(k, std::memory_order_release);
   if (!thread_.joinable()) {
     try {
@@ -98,7 +100,7 @@ void TissueThread::step(std::uint64_t j) {
   const std::vector<devices::HapticState>& states = states_[j % capacity_];
   const std::uint32_t ticks = ticks_[j % capacity_];
   const auto begin = std::chrono::steady_clock::now();
-  const TickOutput& out = sim_.tick(states, ticks);
+  const TickOutput& out = sim_.tick(states, ticks, blood_held_[j % capacity_] != 0);
   const auto end = std::chrono::steady_clock::now();
   outputs_[j % capacity_] = out;
   if (after_step_)

@@ -47,10 +47,12 @@ class TissueThread {
   TissueThread& operator=(const TissueThread&) = delete;
 
   /// Haptic thread: hands over the next step's haptic state; the step covers `ticks` haptic
-  /// periods. Never throws: Behind when the simulation is a whole ring (capacity steps) behind
-  /// (the state is not queued), Failed once a step has thrown (finish() rethrows it).
+  /// periods, the blood's clock held over it or not (SessionSim::tick). Never throws: Behind
+  /// when the simulation is a whole ring (capacity steps) behind (the state is not queued),
+  /// Failed once a step has thrown (finish() rethrows it).
   enum class Push : std::uint8_t { Queued, Behind, Failed };
-  Push push(std::span<const devices::HapticState> states, std::uint32_t ticks = 1);
+  Push push(std::span<const devices::HapticState> states, std::uint32_t ticks = 1,
+            bool blood_held = false);
   /// One hand's state.
   Push push(const devices::HapticState& state, std::uint32_t ticks = 1) {
     return push(std::span<const devices::HapticState>(&state, 1), ticks);
@@ -73,6 +75,8 @@ class TissueThread {
   }
   [[nodiscard]] std::uint64_t done() const { return done_.load(std::memory_order_acquire); }
   [[nodiscard]] std::uint64_t pushed() const { return pushed_.load(std::memory_order_relaxed); }
+  /// The blood's steps queued and not done (SessionSim::blood_behind; any thread).
+  [[nodiscard]] std::uint64_t blood_behind() const noexcept { return sim_.blood_behind(); }
   /// Runs the steps still pending and joins the thread; rethrows what the simulation threw.
   void finish();
 
@@ -86,7 +90,8 @@ class TissueThread {
   AfterStep after_step_;
   std::size_t capacity_;
   std::vector<std::vector<devices::HapticState>> states_;  ///< per slot, one per hand
-  std::vector<std::uint32_t> ticks_;  ///< haptic periods each pending step covers
+  std::vector<std::uint32_t> ticks_;      ///< haptic periods each pending step covers
+  std::vector<std::uint8_t> blood_held_;  ///< each pending step's blood_held
   static constexpr std::size_t kRecentSteps = 32;
   std::array<double, kRecentSteps> recent_ms_{};  ///< simulation thread only
   std::atomic<double> median_step_ms_{0.0};

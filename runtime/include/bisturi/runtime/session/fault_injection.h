@@ -23,10 +23,16 @@ enum class FaultKind : std::uint8_t {
   DeviceIoStall,  ///< the haptic device holds off the host's next write for kFaultHangSeconds
   ControllerTrackingLost,  ///< the headset's controller is not located for kFaultHangSeconds
   HeadsetSwapchainStall,   ///< the headset's next swapchain image wait blocks kFaultHangSeconds
+  /// The blood's thread stops inside its next step (the first after a cut opens a vessel, when
+  /// none bleeds yet) for kBloodStallSeconds: the blood's clock holds, and the tissue and the
+  /// force go on without waiting for it.
+  BloodStall,
 };
 
 /// How long a hang or a stall lasts.
 constexpr double kFaultHangSeconds = 2.0;
+/// A blood stall is shorter: it ends within the bleeding that follows a scripted cut.
+constexpr double kBloodStallSeconds = 0.5;
 
 const char* to_string(FaultKind kind);
 /// Every fault's name, for help texts and errors.

@@ -90,6 +90,9 @@ struct SessionOptions {
   std::uint32_t max_tissue_ticks_per_step = 8;
   /// The share of the time a step covers that it may take before the rate halves.
   double tissue_max_load = 0.75;
+  /// Blood steps the blood's thread may fall behind before the blood's clock stops (slow
+  /// motion, noted in the trace), until it is back within half that: the tissue never waits.
+  std::uint32_t blood_hold_at = 4;
   /// Threads of the soft-tissue step (the tissue thread plus helpers); 0: auto_tissue_threads.
   /// Recorded in the trace: the state's bits depend on it.
   std::uint32_t tissue_threads = 0;
@@ -191,7 +194,8 @@ struct SessionReport {
   /// Bleeding (sim/blood.h): the blood's particles at the end (emitted = in flight + pooled +
   /// drained + recycled), the volume that left the vessels, the most particles in the field at
   /// once, each blood step's wall time on the blood's thread, and how far that thread fell
-  /// behind the tissue (SessionSim::BloodLag).
+  /// behind the tissue (SessionSim::BloodLag); how often and for how long (simulated seconds)
+  /// the blood's clock stopped because its thread was blood_hold_at steps behind.
   struct Bleeding {
     std::uint64_t emitted = 0, in_flight = 0, pooled = 0, drained = 0;
     double volume_ml = 0.0;
@@ -199,6 +203,8 @@ struct SessionReport {
     std::uint64_t recycled = 0;
     std::uint64_t most_behind_steps = 0, tissue_waits = 0;
     double tissue_waited_ms = 0.0;
+    std::uint64_t hold_at_steps = 0, holds = 0;
+    double held_s = 0.0;
   } bleeding;
   TimingRecorder blood_step_ms{"ms"};
   /// What the renderer drew and left out, per frame on average, in the frames before the first

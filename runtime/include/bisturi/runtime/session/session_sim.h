@@ -14,6 +14,8 @@
 //    its release cuts along the sweep.
 
 #include <array>
+#include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -151,9 +153,13 @@ class SessionSim {
 
   /// One simulation step with the haptic device in `state`, covering `ticks` haptic periods (its
   /// time step; the tissue may step at a fraction of the haptic rate, see step_schedule.h).
-  const TickOutput& tick(const devices::HapticState& state, std::uint32_t ticks = 1);
+  /// `blood_held`: the blood's clock stands still over this step (its thread is behind; the
+  /// session notes when in its trace, so a replay holds the same steps).
+  const TickOutput& tick(const devices::HapticState& state, std::uint32_t ticks = 1,
+                         bool blood_held = false);
   /// The same with hand i's device in states[i] (one state per hand).
-  const TickOutput& tick(std::span<const devices::HapticState> states, std::uint32_t ticks = 1);
+  const TickOutput& tick(std::span<const devices::HapticState> states, std::uint32_t ticks = 1,
+                         bool blood_held = false);
   [[nodiscard]] double haptic_period_ms() const { return 1000.0 / haptic_hz_; }
   [[nodiscard]] std::size_t hand_count() const { return hands_.size(); }
 
@@ -218,6 +224,15 @@ class SessionSim {
     double tissue_waited_ms = 0.0;
   };
   [[nodiscard]] BloodLag blood_lag() const;
+  /// Blood steps queued and not done now (any thread, lock-free: the haptic thread reads it to
+  /// decide when the blood's clock holds).
+  [[nodiscard]] std::uint64_t blood_behind() const noexcept;
+  /// Once `flag` is set, the blood's thread stops for `how_long` in its next step (an injected
+  /// fault, fault_injection.h); nothing without a vessel that can bleed. Before the session's
+  /// threads start.
+  void stall_blood_when(std::atomic<bool>* flag, std::chrono::milliseconds how_long);
+  /// Simulated time the blood's clock stood still while vessels bled (s): its lag on the tissue.
+  [[nodiscard]] double blood_held_s() const { return blood_held_s_; }
   /// The bleeding openings' flow at the last blood step (m^3/s).
   [[nodiscard]] double blood_flow_m3_s() const { return blood_flow_m3_s_; }
   /// How long building body b's volume took (ms; 0 for a membrane).
@@ -316,15 +331,18 @@ class SessionSim {
   std::vector<double> diastolic_Pa_;  ///< per body
   sim::BloodOptions blood_options_;
   sim::Blood no_blood_;  ///< what blood() gives before the first opening
-  /// Started at the first opening.
+  /// Made with the session when a body has a lumen pressure (a vessel that can bleed), so that
+  /// other threads may read it while the tissue thread runs; its thread starts at the first
+  /// opening.
   std::unique_ptr<BloodWorker> blood_worker_;
+  double blood_held_s_ = 0.0;
   std::vector<BloodEmission> emissions_;  ///< scratch: the openings' this blood step
   double blood_due_s_ = 0.0;              ///< simulated time since the last blood step
   double blood_flow_m3_s_ = 0.0;
   /// A cut through body b along `points_m`: an opening when b pulses.
   void open_vessel(std::int32_t body, const std::vector<glm::dvec3>& points_m);
   /// Emits at each opening's flow and steps the blood when kBloodStep_s has passed.
-  void bleed(std::uint32_t ticks);
+  void bleed(std::uint32_t ticks, bool held);
   /// The pulsing bodies' lumen pressure at the step beginning at ticks_ (sim/pulse.h), and the
   /// breathing bodies' supports moving to where the step covering `ticks` ends.
   void apply_physiology(std::uint32_t ticks);
