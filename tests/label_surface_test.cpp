@@ -47,6 +47,7 @@ double torus(const dvec3& p) {
 struct Fit {
   double rms_mm = 0;
   double normal_rms_deg = 0;
+  double normal_max_deg = 0;
 };
 
 Fit fit(const PolygonMesh& m, const Distance& d) {
@@ -67,6 +68,7 @@ Fit fit(const PolygonMesh& m, const Distance& d) {
     const double cosine = std::clamp(glm::dot(glm::normalize(n), glm::normalize(grad)), -1.0, 1.0);
     const double deg = glm::degrees(std::acos(cosine));
     f.normal_rms_deg += 0.5 * glm::length(n) * deg * deg;
+    f.normal_max_deg = std::max(f.normal_max_deg, deg);
     area += 0.5 * glm::length(n);
   }
   f.normal_rms_deg = std::sqrt(f.normal_rms_deg / area);
@@ -99,6 +101,10 @@ TEST(LabelSurface, TorusAtThickSlicesIsSmoothClosedAndKeepsItsGenus) {
     EXPECT_GT(before.normal_rms_deg, 25.0);
     EXPECT_LT(after.normal_rms_deg, 0.35 * before.normal_rms_deg);
     EXPECT_LT(after.rms_mm, 0.7 * before.rms_mm);
+    // No crease where the band held vertices back: the worst face turned at most about half as
+    // far as the staircase's (41 against 82 deg at 1 x 1 x 3 mm; 46 without spreading the way
+    // back to the neighbours).
+    EXPECT_LT(after.normal_max_deg, 0.55 * before.normal_max_deg);
 
     const Dlfl solid = extract_label_surface(labels, kLabel);
     EXPECT_TRUE(validate(solid).ok());

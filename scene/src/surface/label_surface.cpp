@@ -370,7 +370,18 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
       std::swap(cur, next);
     }
   };
-  std::vector<Vec3> smoothed(n);
+  std::vector<Vec3> smoothed(n), back(n);
+  std::vector<std::uint8_t> held(n, 0);
+  constexpr int kSpreadSweeps = 4;
+  // From `from` (in the band) towards `to`: as far as the band goes.
+  const auto towards_in_band = [&](const Vec3& from, const Vec3& to) {
+    double lo = 0.0, hi = 1.0;
+    for (int it = 0; it < 12; ++it) {
+      const double mid = 0.5 * (lo + hi);
+      (in_band(from + mid * (to - from)) ? lo : hi) = mid;
+    }
+    return from + lo * (to - from);
+  };
   for (std::size_t round = 0; round < o.rounds; ++round) {
     // Round 0 filters the positions; each later one filters what is left between them and the
     // marching-cubes ones and adds it back (Tukey's twicing: gain 2F - F^2 after two), which
@@ -383,15 +394,28 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
     // Back into the band the voxels allow: along the way from its marching-cubes position (a
     // point of the band), as far as the band goes.
     clamped = 0;
+    std::fill(held.begin(), held.end(), 0);
     for (std::size_t v = 0; v < n; ++v) {
+      back[v] = Vec3(0.0);
       if (in_band(pos[v])) continue;
       ++clamped;
-      double lo = 0.0, hi = 1.0;
-      for (int it = 0; it < 12; ++it) {
-        const double mid = 0.5 * (lo + hi);
-        (in_band(home[v] + mid * (pos[v] - home[v])) ? lo : hi) = mid;
+      held[v] = 1;
+      back[v] = towards_in_band(home[v], pos[v]) - pos[v];
+    }
+    // The held vertices' way back spreads to their neighbours, fading (each free vertex takes
+    // its neighbours' mean a few times): the surface bends back into the band instead of
+    // creasing round each held vertex.
+    if (clamped > 0) {
+      std::vector<Vec3> spread(back);
+      for (int sweep = 0; sweep < kSpreadSweeps; ++sweep) {
+        for (std::size_t v = 0; v < n; ++v)
+          if (!held[v]) spread[v] = average(back, v);
+        back.swap(spread);
       }
-      pos[v] = home[v] + lo * (pos[v] - home[v]);
+      for (std::size_t v = 0; v < n; ++v) {
+        const Vec3 moved = pos[v] + back[v];
+        pos[v] = in_band(moved) ? moved : towards_in_band(home[v], moved);
+      }
     }
     if (o.smooth_progress) o.smooth_progress(round + 1, o.rounds);
   }
