@@ -161,8 +161,9 @@ TEST(LiverScene, TheScriptedCutOpensAWoundThatWidensOverTheNextSecond) {
     (void)liver.step(k);
   ASSERT_GT(volume->separated_faces(), 0u);
   EXPECT_GT(volume->volume().lattice().rest.size(), nodes);  // the walls' nodes were copied
-  std::printf("%zu faces separated, %zu nodes copied (of %zu)\n", volume->separated_faces(),
-              volume->volume().lattice().rest.size() - nodes, nodes);
+  std::printf("%zu faces separated, %zu nodes now (of %zu), %zu cells\n", volume->separated_faces(),
+              volume->volume().lattice().rest.size(), nodes,
+              volume->volume().lattice().cells.size());
   drawn.use_lattice(std::make_shared<const sim::HexLattice>(volume->volume().lattice()));
   ASSERT_TRUE(drawn.cut(sim.incisions().front().points_m, sim.incisions().front().tips_m));
   EXPECT_TRUE(validate(drawn.mesh()).ok());

@@ -67,6 +67,18 @@ TEST(SceneFile, ModelVolumeTakesACellSizeAndNeedsAnElasticMaterial) {
   EXPECT_NE(
       error(solid_with("model = 'volume'\ncell_mm = -1.0", "preset = 'liver'")).find("cell_mm"),
       std::string::npos);
+  // The cells along a cut split before they part: 1 (not at all) to 4 times finer.
+  EXPECT_EQ(
+      parse_scene(solid_with("model = 'volume'\ncut_refine = 3", "preset = 'liver'"), "scene.toml")
+          .solids[0]
+          .cut_refine,
+      3);
+  EXPECT_NE(
+      error(solid_with("model = 'volume'\ncut_refine = 5", "preset = 'liver'")).find("cut_refine"),
+      std::string::npos);
+  EXPECT_NE(error(solid_with("model = 'surface'\ncut_refine = 2", "preset = 'liver'"))
+                .find("only for model"),
+            std::string::npos);
 }
 
 TEST(SceneFile, AClosedSolidWithAModulusIsAVolumeAndAnOpenOneAMembrane) {

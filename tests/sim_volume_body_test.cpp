@@ -295,20 +295,22 @@ Gap widest_gap(const SoftBody& body, const CutResult& cut) {
   return gap;
 }
 
-/// The anchored sphere (no gravity) with a resting tension, cut 6 mm deep across its top
-/// along x by a blade standing in the plane y = centre.
+/// The anchored sphere (no gravity) with a resting tension, cut `depth_m` deep across its top
+/// along x by a blade standing in the plane y = centre, its cells split `refine`^3 along the
+/// blade's sheet first.
 struct Wound {
   SimWorld world;
   CutResult cut;
   std::size_t separated = 0;
 };
-Wound cut_sphere(double tension_Pa) {
+Wound cut_sphere(double tension_Pa, double depth_m = 0.006, std::uint32_t refine = 1) {
   WorldOptions options;
   options.integrator.gravity_m_s2 = glm::dvec3(0.0);
   Wound w{SimWorld(options), {}, 0};
   w.world.add_body(anchored_sphere());
   VolumeOptions volume = liver_cells();
   volume.resting_tension_Pa = tension_Pa;
+  volume.cut_refine_factor = refine;
   w.world.set_volume(0, volume);
   w.world.prepare();
   std::vector<glm::dvec3> entry, tip;
@@ -316,11 +318,35 @@ Wound cut_sphere(double tension_Pa) {
     const double x = -0.008 + 0.001 * k;
     const double z = std::sqrt(kRadius_m * kRadius_m - x * x);
     entry.push_back(kCentre_m + glm::dvec3(x, 0.0, z));
-    tip.push_back(kCentre_m + glm::dvec3(x, 0.0, z - 0.006));
+    tip.push_back(kCentre_m + glm::dvec3(x, 0.0, z - depth_m));
   }
   w.cut = w.world.cut(0, entry, {}, tip);
   w.separated = w.world.separated_faces(0);
   return w;
+}
+
+/// Checks that every vertex embedded in a cell the cut parted lies in a cell of its own side:
+/// the lips on the side their faces are on, the others on the side of the blade's sheet they
+/// lie on (the floor lies on the sheet: both walls' own). Returns how many were checked.
+std::size_t expect_each_vertex_on_its_side(const Wound& w) {
+  const SoftBody& body = w.world.body(0);
+  const VolumeBody& volume = *w.world.volume(0);
+  const HexLattice& lattice = volume.volume().lattice();
+  const std::vector<std::int8_t> lips = lip_sides(body, w.cut, lattice);
+  std::size_t beside = 0;
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+    if (!body.mesh().alive(VertexId(i))) continue;
+    const EmbeddedPoint* e = volume.embedding(VertexId(i));
+    EXPECT_NE(e, nullptr) << "vertex " << i;
+    if (e == nullptr || lattice.separated[e->cell] == 0 ||
+        std::find(w.cut.floor_vertices.begin(), w.cut.floor_vertices.end(), VertexId(i)) !=
+            w.cut.floor_vertices.end())
+      continue;
+    ++beside;
+    const int side = lips[i] != 0 ? lips[i] : sheet_side(lattice, body.rest_position(VertexId(i)));
+    EXPECT_EQ(sheet_side(lattice, lattice.cell_centre(e->cell)), side) << "vertex " << i;
+  }
+  return beside;
 }
 
 TEST(SimVolumeBody, AWoundOpensUnderTheTissuesTensionAndWidensOverASecond) {
@@ -361,30 +387,7 @@ TEST(SimVolumeBody, AWoundOpensUnderTheTissuesTensionAndWidensOverASecond) {
       walls += mesh.alive(FaceId(f)) && interior[FaceId(f)] != 0;
     EXPECT_EQ(walls, 2 * tense.cut.floor_vertices.size());
   }
-  {
-    // Every vertex in a cell the cut parted lies in a cell of its own side: the lips on the side
-    // their faces are on, the others on the side of the blade's sheet they lie on.
-    const SoftBody& body = tense.world.body(0);
-    const VolumeBody& volume = *tense.world.volume(0);
-    const HexLattice& lattice = volume.volume().lattice();
-    const std::vector<std::int8_t> lips = lip_sides(body, tense.cut, lattice);
-    std::size_t beside = 0;
-    for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
-      if (!body.mesh().alive(VertexId(i))) continue;
-      const EmbeddedPoint* e = volume.embedding(VertexId(i));
-      ASSERT_NE(e, nullptr);
-      if (lattice.separated[e->cell] == 0 ||
-          std::find(tense.cut.floor_vertices.begin(), tense.cut.floor_vertices.end(),
-                    VertexId(i)) != tense.cut.floor_vertices.end())
-        continue;  // the floor lies on the blade's sheet: both walls' own
-      ++beside;
-      const glm::dvec3 centre = lattice.cell_centre(e->cell);
-      const int side =
-          lips[i] != 0 ? lips[i] : sheet_side(lattice, body.rest_position(VertexId(i)));
-      EXPECT_EQ(sheet_side(lattice, centre), side) << "vertex " << i;
-    }
-    EXPECT_GT(beside, tense.cut.path.size());
-  }
+  EXPECT_GT(expect_each_vertex_on_its_side(tense), tense.cut.path.size());
   const glm::dvec3 away{1.0, 1.0, 1.0};
   EXPECT_LT(widest_gap(tense.world.body(0), tense.cut).width_m, 1e-6);  // closed at the cut
   for (int s = 0; s < 100; ++s)
@@ -406,6 +409,72 @@ TEST(SimVolumeBody, AWoundOpensUnderTheTissuesTensionAndWidensOverASecond) {
   for (int s = 0; s < 200; ++s)
     slack.world.step(away);
   EXPECT_LT(widest_gap(slack.world.body(0), slack.cut).width_m, 1e-5);
+}
+
+/// How deep under the sphere's surface (metres) the deepest corner of a face a cut parted lies,
+/// and how far from the blade's plane y = centre the farthest such face lies.
+struct Parted {
+  double deepest_m = 0.0;
+  double widest_m = 0.0;
+};
+Parted parted_faces(const HexLattice& lattice) {
+  Parted out;
+  for (std::size_t c = 0; c < lattice.cells.size(); ++c) {
+    if (lattice.separated.empty() || lattice.separated[c] == 0) continue;
+    for (std::uint32_t bit = 0; bit < 6; ++bit) {
+      if (!((lattice.separated[c] >> bit) & 1u)) continue;
+      const int a = static_cast<int>(bit / 2), b = (a + 1) % 3, c2 = (a + 2) % 3;
+      const glm::dvec3 half = 0.5 * lattice.cell_sides(c);
+      glm::dvec3 face = lattice.cell_centre(c);
+      face[a] += (bit & 1u) ? half[a] : -half[a];
+      out.widest_m = std::max(out.widest_m, std::abs(face.y - kCentre_m.y));
+      for (int corner = 0; corner < 4; ++corner) {
+        glm::dvec3 p = face;
+        p[b] += (corner & 1) ? half[b] : -half[b];
+        p[c2] += (corner & 2) ? half[c2] : -half[c2];
+        out.deepest_m = std::max(out.deepest_m, kRadius_m - glm::length(p - kCentre_m));
+      }
+    }
+  }
+  return out;
+}
+
+TEST(SimVolumeBody, AShallowCutPartsTheTissueAsDeepAsTheBladeWentOnceItsCellsAreSplit) {
+  // 1.2 mm deep in 3 mm cells: the faces parted are the cells' own, down to 3 mm under the
+  // surface. With the cells along the blade's sheet split into 1 mm ones first, the tissue
+  // parts down to the blade's depth and less than a fine cell more (1.8 mm), and opens under
+  // the tension.
+  constexpr double kDepth_m = 0.0012;
+  const glm::dvec3 away{1.0, 1.0, 1.0};
+  const Wound coarse = cut_sphere(300.0, kDepth_m);
+  const Parted coarse_parted = parted_faces(coarse.world.volume(0)->volume().lattice());
+
+  Wound fine = cut_sphere(300.0, kDepth_m, 3);
+  ASSERT_FALSE(fine.cut.new_vertices.empty());
+  EXPECT_GT(fine.separated, coarse.separated);
+  ASSERT_TRUE(validate(fine.world.body(0).mesh()).ok());
+  EXPECT_TRUE(fine.world.body(0).closed());
+  const VolumeBody& volume = *fine.world.volume(0);
+  const HexLattice& lattice = volume.volume().lattice();
+  EXPECT_FALSE(lattice.cell_span.empty());  // two levels now
+  EXPECT_EQ(volume.embedded_vertices(), fine.world.body(0).mesh().num_vertices());
+  const Parted fine_parted = parted_faces(lattice);
+  std::printf("shallow cut: %zu faces parted down to %.2f mm (%zu down to %.2f mm unsplit)\n",
+              fine.separated, fine_parted.deepest_m * 1e3, coarse.separated,
+              coarse_parted.deepest_m * 1e3);
+  EXPECT_LT(fine_parted.deepest_m, kDepth_m + 0.001);
+  EXPECT_GT(coarse_parted.deepest_m, kDepth_m + 0.0015);
+  EXPECT_LT(fine_parted.widest_m, 0.001);  // the faces next to the blade's plane
+  // Each vertex in a parted cell lies in a cell of its own side, as in the one-level lattice.
+  EXPECT_GT(expect_each_vertex_on_its_side(fine), fine.cut.path.size());
+  EXPECT_LT(widest_gap(fine.world.body(0), fine.cut).width_m, 1e-6);  // closed at the cut
+  for (int s = 0; s < 1000; ++s)
+    fine.world.step(away);
+  EXPECT_TRUE(fine.world.take_events().empty());
+  const Gap open = widest_gap(fine.world.body(0), fine.cut);
+  std::printf("  it opened %.3f mm in 1 s\n", open.width_m * 1e3);
+  EXPECT_GT(open.width_m, 1e-4);
+  EXPECT_GT(open.across_m, 0.8 * open.width_m);
 }
 
 }  // namespace

@@ -346,11 +346,11 @@ class SceneReader {
 
   SolidDescription read_solid(const toml::table& t, const std::string& path) const {
     only_keys(t, path,
-              {"name",    "mesh",      "volume",    "phantom",    "dims",          "spacing_mm",
-               "a_mm",    "b_mm",      "iso",       "label",      "downsample",    "decimate",
-               "smooth",  "offset_mm", "material",  "anchors",    "simulate",      "model",
-               "cell_mm", "refine",    "supported", "pulse_mmHg", "pressure_mmHg", "breathing_mm",
-               "drawn",   "inner",     "tension_Pa"});
+              {"name",    "mesh",      "volume",     "phantom",    "dims",          "spacing_mm",
+               "a_mm",    "b_mm",      "iso",        "label",      "downsample",    "decimate",
+               "smooth",  "offset_mm", "material",   "anchors",    "simulate",      "model",
+               "cell_mm", "refine",    "supported",  "pulse_mmHg", "pressure_mmHg", "breathing_mm",
+               "drawn",   "inner",     "tension_Pa", "cut_refine"});
     SolidDescription s;
     s.name = string_or(t, path, "name", path);
     const int sources = (t.contains("mesh") ? 1 : 0) + (t.contains("volume") ? 1 : 0) +
@@ -457,6 +457,11 @@ class SceneReader {
         fail(t.get("tension_Pa"), t, path + ".tension_Pa", "only for model = \"volume\"");
       if (!(s.tension_Pa >= 0.0 && s.tension_Pa <= 1e5))
         fail(t.get("tension_Pa"), t, path + ".tension_Pa", "must be from 0 to 100000 Pa");
+    }
+    if (t.contains("cut_refine")) {
+      s.cut_refine = static_cast<int>(integer(t, path, "cut_refine", s.cut_refine, 1, 4));
+      if (s.model != SolidDescription::Model::Volume)
+        fail(t.get("cut_refine"), t, path + ".cut_refine", "only for model = \"volume\"");
     }
     if (t.contains("pulse_mmHg")) {
       const std::array<double, 2> p = numbers<2>(t, path, "pulse_mmHg", {0.0, 0.0});

@@ -154,6 +154,7 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
       volume.cell_m = d.cell_mm * sim::kMetresPerMillimetre;
       volume.weight_supported = d.supported;
       volume.resting_tension_Pa = d.tension_Pa;
+      volume.cut_refine_factor = static_cast<std::uint32_t>(d.cut_refine);
       if (d.refine) {
         volume.refine_factor = static_cast<std::uint32_t>(d.refine->factor);
         volume.refine_centre_m = sim::scene_to_sim(

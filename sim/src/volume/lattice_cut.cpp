@@ -83,8 +83,6 @@ struct Groups {
 
 LatticeSeparation separate_along_sheet(HexLattice& lattice, const BladeSheet& sheet,
                                        double reach_m) {
-  if (!lattice.hanging.empty() || !lattice.cell_span.empty())
-    throw std::invalid_argument("separate_along_sheet: a two-level lattice cannot be cut");
   if (sheet.entry_m.size() < 2 || sheet.tip_m.size() != sheet.entry_m.size())
     throw std::invalid_argument("separate_along_sheet: the sheet needs two samples or more");
   double finest = std::numeric_limits<double>::infinity();
@@ -111,7 +109,22 @@ LatticeSeparation separate_along_sheet(HexLattice& lattice, const BladeSheet& sh
   for (std::size_t c = 0; c < cells; ++c)
     centre[c] = lattice.cell_centre(c);
   std::vector<std::uint8_t> node_touched(lattice.rest.size(), 0);
+  // In a two-level lattice only faces between fine cells part, and only where none of their
+  // nodes hangs on a coarse cell or is a coarse cell's corner: those follow the coarse cell.
+  std::vector<std::uint8_t> node_fixed(lattice.rest.size(), 0);
+  for (std::size_t c = 0; c < cells; ++c)
+    if (lattice.span(c) > 1)
+      for (const std::uint32_t node : lattice.cells[c])
+        node_fixed[node] = 1;
+  for (const HangingNode& h : lattice.hanging)
+    node_fixed[h.node] = 1;
+  const auto face_free = [&](std::size_t c, std::size_t a) {
+    for (std::uint32_t corner = 0; corner < 8; ++corner)
+      if (((corner >> a) & 1u) && node_fixed[lattice.cells[c][corner]]) return false;
+    return true;
+  };
   for (std::size_t c = 0; c < cells; ++c) {
+    if (lattice.span(c) > 1) continue;
     const glm::dvec3 half = 0.5 * lattice.cell_sides(c);
     if (glm::any(glm::lessThan(centre[c] + 3.0 * half, lo)) ||
         glm::any(glm::greaterThan(centre[c] - 3.0 * half, hi)))
@@ -121,7 +134,9 @@ LatticeSeparation separate_along_sheet(HexLattice& lattice, const BladeSheet& sh
       std::array<std::size_t, 3> next{ijk[0], ijk[1], ijk[2]};
       if (++next[a] >= d[a]) continue;
       const std::int32_t n = lattice.cell_at[(next[2] * d[1] + next[1]) * d[0] + next[0]];
-      if (n < 0 || !crosses_any(centre[c], centre[std::size_t(n)], triangles)) continue;
+      if (n < 0 || lattice.span(std::size_t(n)) > 1 || !face_free(c, a) ||
+          !crosses_any(centre[c], centre[std::size_t(n)], triangles))
+        continue;
       lattice.separated[c] |= std::uint8_t(1u << (2 * a + 1));
       lattice.separated[std::size_t(n)] |= std::uint8_t(1u << (2 * a));
       ++out.separated_faces;

@@ -1,8 +1,10 @@
 #include "bisturi/sim/volume/volume_body.h"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
+#include <set>
 #include <string>
 
 #include <glm/geometric.hpp>
@@ -56,7 +58,12 @@ bool motion_at(const HexLattice& lattice, std::span<const glm::dvec3> field, con
 /// relative residual, so a loose solve gives it to well under a percent.
 constexpr double kComplianceTolerance = 1e-2;
 
-ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options) {
+/// The volume under `body`: one level of cells of options.cell_m, or two with the cells meeting
+/// any box of `refine` split into `factor`^3 (without boxes, those meeting options' refined
+/// cube into options.refine_factor^3).
+ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options,
+                           const std::vector<TwoLevelOptions::Box>& refine = {},
+                           std::uint32_t factor = 1) {
   if (!body.closed()) {
     throw SimInputError("a volume needs a closed surface: the solid has open boundaries");
   }
@@ -78,12 +85,15 @@ ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options) {
   for (std::size_t t = 0; t < triangles.size(); ++t)
     for (std::size_t c = 0; c < 3; ++c)
       triangles[t][c] = compact[indices[3 * t + c]];
-  if (options.refine_factor > 1 && options.refine_half_width_m > 0.0) {
+  if ((!refine.empty() && factor > 1) ||
+      (options.refine_factor > 1 && options.refine_half_width_m > 0.0)) {
     const glm::dvec3 half(options.refine_half_width_m);
     TwoLevelOptions lattice;
     lattice.coarse_m = options.cell_m;
-    lattice.factor = options.refine_factor;
-    lattice.refine = {{options.refine_centre_m - half, options.refine_centre_m + half}};
+    lattice.factor = !refine.empty() ? factor : options.refine_factor;
+    lattice.refine = refine;
+    if (refine.empty())
+      lattice.refine = {{options.refine_centre_m - half, options.refine_centre_m + half}};
     ElasticVolume volume(build_two_level_lattice(vertices, triangles, lattice), options.material,
                          options.law);
     volume.set_resting_tension(options.resting_tension_Pa);
@@ -127,7 +137,15 @@ void VolumeBody::refocus(SoftBody& body, const glm::dvec3& centre_m) {
   const auto begin = std::chrono::steady_clock::now();
   VolumeOptions options = options_;
   options.refine_centre_m = centre_m;
-  ElasticVolume next = build_volume(body, options);
+  rebuild(body, build_volume(body, options));
+  options_ = options;
+  ++refocus_count_;
+  longest_refocus_ms_ = std::max(
+      longest_refocus_ms_,
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin).count());
+}
+
+void VolumeBody::rebuild(SoftBody& body, ElasticVolume next) {
   // The new nodes where the old lattice has moved their rest positions to; a node far from
   // every old cell (none should be: both fill the same surface) moves with the supports.
   const HexLattice& old = volume_.lattice();
@@ -145,18 +163,13 @@ void VolumeBody::refocus(SoftBody& body, const glm::dvec3& centre_m) {
   BlockMatrix::expand(v, next.lattice().hanging);
   const glm::dvec3 held_velocity = volume_.held_velocity();
   volume_ = std::move(next);
-  options_ = options;
   std::fill(embedded_.begin(), embedded_.end(), std::uint8_t{0});
   embed_slots(body);
   hold_anchored(body);
   volume_.set_state(x, v);
   volume_.set_held_velocity(held_velocity);
   write_surface(body);
-  ++refocus_count_;
   ++lattice_version_;
-  longest_refocus_ms_ = std::max(
-      longest_refocus_ms_,
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin).count());
 }
 
 void VolumeBody::embed_slots(const SoftBody& body) {
@@ -216,8 +229,7 @@ std::vector<std::int8_t> lip_sides(const SoftBody& body, const CutResult& cut,
 }
 
 std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeSheet& sheet) {
-  const HexLattice& old = volume_.lattice();
-  if (!old.hanging.empty() || !old.cell_span.empty() || sheet.entry_m.size() < 2) {
+  if (sheet.entry_m.size() < 2) {
     sync_topology(body);
     return 0;
   }
@@ -241,9 +253,36 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
     rest_sheet.entry_m.push_back(to_rest(sheet.entry_m[k]));
     rest_sheet.tip_m.push_back(to_rest(sheet.tip_m[k]));
   }
+  if (options_.cut_refine_factor > 1 && volume_.lattice().cell_span.empty() && body.closed()) {
+    // The cells the sheet passes through, or passes within half a fine cell of, split before
+    // they part: a box of a fine cell round each of its points half a fine cell apart.
+    const double fine_m = options_.cell_m / options_.cut_refine_factor;
+    std::vector<TwoLevelOptions::Box> boxes;
+    std::set<std::array<std::int64_t, 3>> seen;
+    for (std::size_t k = 0; k + 1 < rest_sheet.entry_m.size(); ++k) {
+      const glm::dvec3 &a = rest_sheet.entry_m[k], &b = rest_sheet.entry_m[k + 1];
+      const glm::dvec3 &c = rest_sheet.tip_m[k + 1], &d = rest_sheet.tip_m[k];
+      const double along = std::max(glm::length(b - a), glm::length(c - d));
+      const double down = std::max(glm::length(d - a), glm::length(c - b));
+      const auto nu = static_cast<std::size_t>(std::ceil(along / (0.5 * fine_m))) + 1;
+      const auto nv = static_cast<std::size_t>(std::ceil(down / (0.5 * fine_m))) + 1;
+      for (std::size_t i = 0; i <= nu; ++i)
+        for (std::size_t j = 0; j <= nv; ++j) {
+          const double u = double(i) / double(nu), v = double(j) / double(nv);
+          const glm::dvec3 p = (1 - v) * ((1 - u) * a + u * b) + v * ((1 - u) * d + u * c);
+          // One box per half fine cell the points fall in (the blade is sampled each step).
+          const glm::dvec3 q = glm::floor(p / (0.5 * fine_m));
+          if (!seen.insert({std::int64_t(q.x), std::int64_t(q.y), std::int64_t(q.z)}).second)
+            continue;
+          boxes.push_back({p - glm::dvec3(0.5 * fine_m), p + glm::dvec3(0.5 * fine_m)});
+        }
+    }
+    rebuild(body, build_volume(body, options_, boxes, options_.cut_refine_factor));
+  }
+  const HexLattice& old = volume_.lattice();
   HexLattice lattice = old;
   const LatticeSeparation separation =
-      separate_along_sheet(lattice, rest_sheet, volume_.finest_cell_m());
+      separate_along_sheet(lattice, rest_sheet, options_.cell_m / options_.cut_refine_factor);
   if (separation.new_nodes == 0) {
     sync_topology(body);
     return 0;

@@ -114,6 +114,10 @@ struct SolidDescription {
   /// The tissue's resting tension (Pa; model volume only): what pulls a wound open once a cut
   /// separates the volume. 0: a cut stays closed.
   double tension_Pa = 0.0;
+  /// At the first cut through the volume, the cells along the blade's sheet split into
+  /// cut_refine^3 before they part, so the wound opens as deep and as long as the blade went
+  /// (model volume only; 1: the cells part as they are).
+  int cut_refine = 1;
   /// A vessel's lumen pressure over the heartbeat, diastolic and systolic (mmHg): the wall is at
   /// rest at diastole and the pressure above it pushes the wall out (sim/pulse.h). Both equal: a
   /// vein's steady pressure (the scene's pressure_mmHg), which moves no wall. None: no lumen.

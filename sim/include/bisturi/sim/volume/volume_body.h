@@ -7,7 +7,8 @@
 // volume takes one implicit step, and the vertices' positions and velocities are read back from
 // it. Anchored vertices hold the nodes of their cells.
 //
-// A cut with the blade's sheet (cut()) separates the lattice along it (lattice_cut.h) and embeds
+// A cut with the blade's sheet (cut()) splits the cells along it finer (cut_refine_factor),
+// separates the lattice along it (lattice_cut.h) and embeds
 // each lip of the surface on its own side, so the wound opens as far as the tissue's resting
 // tension pulls it. A cut without one changes the surface only: the new vertices are embedded
 // where their originals are and both lips follow the same cells.
@@ -51,6 +52,11 @@ struct VolumeOptions {
   /// How long a cut's walls take to let that tension go (s; ElasticVolume::fade_in_from):
   /// the share still held after t is exp(-t / this). 0: at once.
   double tension_release_s = 0.3;
+  /// At a cut through a lattice of one level, the cells the blade's sheet meets (and those next
+  /// to them) are split into this^3 first, the nodes taking the lattice's motion where they are,
+  /// so the wound opens at the fine cells' resolution: a cut shallower than half a coarse cell
+  /// parts the tissue too. 1: the cut parts the cells as they are.
+  std::uint32_t cut_refine_factor = 1;
   /// The body's weight is carried by what surrounds it (a scanned organ is at rest in its scan
   /// under its supports): its steps take no gravity.
   bool weight_supported = false;
@@ -80,10 +86,10 @@ class VolumeBody {
   /// After `cut` was made on the body's surface by a blade whose sheet (where it entered the
   /// surface and where its tip was, per sample, in the world now) is `sheet`: separates the
   /// lattice along the sheet and embeds every vertex again, each lip on its own side. The
-  /// nodes keep their motion; a node's copies share its load from the surroundings. Returns
-  /// the count of lattice faces separated: 0 when the sheet parts no cells, or the lattice has
-  /// two levels (then only the new vertices are embedded, as sync_topology does). Allocates:
-  /// between steps, on the tissue's thread.
+  /// nodes keep their motion; a node's copies share its load from the surroundings (with
+  /// cut_refine_factor, the cells along the sheet are split first). Returns the count of
+  /// lattice faces separated: 0 when the sheet parts no cells (then only the new vertices are
+  /// embedded, as sync_topology does). Allocates: between steps, on the tissue's thread.
   std::size_t cut(SoftBody& body, const CutResult& cut, const BladeSheet& sheet);
   /// Lattice faces separated by cuts so far.
   [[nodiscard]] std::size_t separated_faces() const { return separated_faces_; }
@@ -131,6 +137,9 @@ class VolumeBody {
   }
 
  private:
+  /// The volume built again from `next_lattice` (the same surface), its nodes taking the
+  /// current lattice's motion where they are, every vertex embedded again.
+  void rebuild(SoftBody& body, ElasticVolume next);
   /// Embeds the alive vertex slots not embedded yet (at their rest positions).
   void embed_slots(const SoftBody& body);
   /// Holds the nodes of the cells holding an anchored vertex.
