@@ -19,6 +19,7 @@ void SolidBoundary::rebuild(const Dlfl& mesh) {
     } while (c != first);
     loops_.push_back(std::move(loop));
   }
+  holes_ = loops_.size();
   // A wound closed by walls is an opening too: its mouth, the walls' vertices on the outside
   // surface as well, is the portal through which what lies inside shows.
   if (mesh.face_properties().has(kInteriorFaces)) {

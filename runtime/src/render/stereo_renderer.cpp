@@ -39,7 +39,7 @@ struct Solid {
   bool visible = true;
   std::vector<IndexBuffer> index_buffers;  ///< one per level
   int drawn_level = -1;
-  SolidBoundary boundary;         ///< open: drawn two-sided
+  SolidBoundary boundary;         ///< holed: drawn two-sided
   std::int32_t enclosed_by = -1;  ///< the solid whose closed surface it lies inside
 };
 
@@ -432,12 +432,12 @@ struct StereoRenderer::Impl {
     }
   }
 
-  /// One planned draw with `constants`: its pipeline (two-sided for an open solid), its
+  /// One planned draw with `constants`: its pipeline (two-sided for a holed solid), its
   /// streamed vertices and index ranges.
   void record_draw(VkCommandBuffer cmd, const FrameSlot& slot, const PlannedDraw& d,
                    const vk::DrawConstants& constants, VkPipeline& bound, FrameStats& stats) {
     const Solid& s = solids[d.solid];
-    const VkPipeline wanted = s.boundary.open() ? pipeline->two_sided() : pipeline->pipeline();
+    const VkPipeline wanted = s.boundary.holed() ? pipeline->two_sided() : pipeline->pipeline();
     if (wanted != bound) {
       vkCmdBindPipeline(cmd, VK_PIPELINE_BIND_POINT_GRAPHICS, wanted);
       bound = wanted;
