@@ -307,14 +307,25 @@ std::vector<double> sinc_weights(std::size_t order, double pass_band) {
   return a;
 }
 
-/// Whether a point lies in a cell whose corners are neither all inside nor all outside: the
-/// band of cells the label's true boundary passes through, where marching cubes put its
-/// vertices. Outside the grid counts as outside the band.
+/// Whether a point lies within kBandMargin of a cell (in cells, along each axis) whose corners
+/// are neither all inside nor all outside: the band of cells the label's true boundary passes
+/// through, where marching cubes put its vertices. The margin lets the filter's surface round
+/// the band's corners instead of creasing at them. Outside the grid counts as outside the band.
 class BandTest {
  public:
+  static constexpr double kBandMargin = 0.25;
   explicit BandTest(const Grid<float>& field) : f_(field) {}
   bool operator()(const Vec3& world) const {
-    const Vec3 ijk = f_.geometry.world_to_index(world);
+    const Vec3 at = f_.geometry.world_to_index(world);
+    if (mixed(at)) return true;
+    for (int o = 0; o < 8; ++o)
+      if (mixed(at + kBandMargin * Vec3((o & 1) ? 1 : -1, (o & 2) ? 1 : -1, (o & 4) ? 1 : -1)))
+        return true;
+    return false;
+  }
+
+ private:
+  [[nodiscard]] bool mixed(const Vec3& ijk) const {
     const auto& d = f_.geometry.dims;
     const Vec3 c = glm::floor(ijk);
     if (c.x < 0 || c.y < 0 || c.z < 0 || c.x >= static_cast<double>(d[0] - 1) ||
@@ -331,7 +342,6 @@ class BandTest {
     return lo != hi;
   }
 
- private:
   const Grid<float>& f_;
 };
 
