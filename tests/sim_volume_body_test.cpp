@@ -477,5 +477,30 @@ TEST(SimVolumeBody, AShallowCutPartsTheTissueAsDeepAsTheBladeWentOnceItsCellsAre
   EXPECT_GT(open.across_m, 0.8 * open.width_m);
 }
 
+TEST(SimVolumeBody, ASecondCutAfterTheSplitPartsTheFineCellsItMeetsAndKeepsEveryVertex) {
+  // The first cut split the cells along it; a second, 1 mm beside it and longer, parts the fine
+  // cells it meets and leaves the coarse ones joined: the surface stays closed and valid, every
+  // vertex embedded, and the steps after it run clean.
+  Wound w = cut_sphere(300.0, 0.004, 3);
+  ASSERT_GT(w.separated, 0u);
+  std::vector<glm::dvec3> entry, tip;
+  for (int k = 0; k <= 20; ++k) {
+    const double x = -0.010 + 0.001 * k, y = 0.001;
+    const double z = std::sqrt(kRadius_m * kRadius_m - x * x - y * y);
+    entry.push_back(kCentre_m + glm::dvec3(x, y, z));
+    tip.push_back(kCentre_m + glm::dvec3(x, y, z - 0.004));
+  }
+  const CutResult second = w.world.cut(0, entry, {}, tip);
+  ASSERT_FALSE(second.new_vertices.empty());
+  EXPECT_GT(w.world.separated_faces(0), w.separated);
+  ASSERT_TRUE(validate(w.world.body(0).mesh()).ok());
+  EXPECT_TRUE(w.world.body(0).closed());
+  EXPECT_EQ(w.world.volume(0)->embedded_vertices(), w.world.body(0).mesh().num_vertices());
+  for (int s = 0; s < 300; ++s)
+    w.world.step({1.0, 1.0, 1.0});
+  EXPECT_TRUE(w.world.take_events().empty());
+  EXPECT_GT(widest_gap(w.world.body(0), second).width_m, 1e-5);
+}
+
 }  // namespace
 }  // namespace bisturi::sim
