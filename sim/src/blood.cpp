@@ -157,8 +157,8 @@ void Blood::find_neighbours() {
   neighbours_.clear();
   for (std::size_t i = 0; i < n; ++i) {
     neighbour_start_[i] = static_cast<std::uint32_t>(neighbours_.size());
-    // In index order, whatever the cells' order: the sums come out the same bits every run.
-    std::sort(found_[i].begin(), found_[i].end());
+    // In the order the cells were searched: fixed by the positions, so the sums come out the
+    // same bits every run.
     neighbours_.insert(neighbours_.end(), found_[i].begin(), found_[i].end());
   }
   neighbour_start_[n] = static_cast<std::uint32_t>(neighbours_.size());
@@ -180,20 +180,29 @@ void Blood::list_neighbours(std::uint8_t pass) {
       // A cell of more than 64 particles in the pass (blood packed far past its rest density).
       for_each_near(cells_, sorted_p_[begin], h_, [&](std::size_t b) {
         const std::uint32_t j = cells_[b].second;
+        const bool both = active_[j] == pass;
         for (std::size_t a = begin; a < end; ++a) {
           const std::uint32_t i = cells_[a].second;
-          if (active_[i] == pass && j != i && glm::length2(sorted_p_[a] - sorted_p_[b]) < h2)
-            found_[i].push_back(j);
+          if (active_[i] != pass || (both && b <= a)) continue;
+          if (glm::length2(sorted_p_[a] - sorted_p_[b]) >= h2) continue;
+          found_[i].push_back(j);
+          if (both) found_[j].push_back(i);
         }
       });
     } else if (count > 0) {
-      // The positions in cell order: the inner loop reads memory in a row.
+      // The positions in cell order: the inner loop reads memory in a row. A pair of particles
+      // both in the pass is found once, from the earlier of the two in cell order, and listed
+      // both ways.
       for_each_near(cells_, sorted_p_[begin], h_, [&](std::size_t b) {
         const std::uint32_t j = cells_[b].second;
+        const bool both = active_[j] == pass;
         const glm::dvec3& q = sorted_p_[b];
         for (std::size_t k = 0; k < count; ++k) {
+          if (both && b <= here[k]) continue;
           const std::uint32_t i = cells_[here[k]].second;
-          if (j != i && glm::length2(sorted_p_[here[k]] - q) < h2) found_[i].push_back(j);
+          if (glm::length2(sorted_p_[here[k]] - q) >= h2) continue;
+          found_[i].push_back(j);
+          if (both) found_[j].push_back(i);
         }
       });
     }
@@ -215,13 +224,21 @@ void Blood::solve_density() {
     double density = mass_kg_ * self;
     glm::dvec3 grad_i(0.0);
     double grad_sum = 0.0;
+    const glm::dvec3 pi = p_[i];
     for (std::uint32_t k = neighbour_start_[i]; k < neighbour_start_[i + 1]; ++k) {
-      const glm::dvec3 r = p_[i] - p_[neighbours_[k]];
-      density += mass_kg_ * kernels.poly6(glm::length2(r));
-      gradient_[k] = kernels.spiky_gradient(r);  // the position update below uses it again
+      const glm::dvec3 r = pi - p_[neighbours_[k]];
+      const double r2 = glm::dot(r, r);
+      gradient_[k] = glm::dvec3(0.0);  // the position update below uses it again
+      if (r2 >= kernels.h2) continue;
+      const double d = kernels.h2 - r2;
+      density += mass_kg_ * (kernels.poly6_scale * d * d * d);
+      const double len = std::sqrt(r2);
+      if (len <= 1e-12) continue;
+      const double e = kernels.h - len;
+      gradient_[k] = (kernels.spiky_scale * e * e / len) * r;
       const glm::dvec3 g = scale * gradient_[k];
       grad_i += g;
-      grad_sum += glm::length2(g);
+      grad_sum += glm::dot(g, g);
     }
     grad_sum += glm::length2(grad_i);
     // Only compression is corrected: a free surface (too few neighbours) is not pulled in.
