@@ -108,6 +108,32 @@ ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options,
   return volume;
 }
 
+/// Boxes of side `fine_m` round points of `sheet` half that apart (one per half-cell they fall
+/// in: the blade is sampled every step): what the cells along the sheet meet.
+std::vector<TwoLevelOptions::Box> boxes_along(const BladeSheet& sheet, double fine_m) {
+  std::vector<TwoLevelOptions::Box> boxes;
+  std::set<std::array<std::int64_t, 3>> seen;
+  const double step = 0.5 * fine_m;
+  for (std::size_t k = 0; k + 1 < sheet.entry_m.size(); ++k) {
+    const glm::dvec3 &a = sheet.entry_m[k], &b = sheet.entry_m[k + 1];
+    const glm::dvec3 &c = sheet.tip_m[k + 1], &d = sheet.tip_m[k];
+    const double along = std::max(glm::length(b - a), glm::length(c - d));
+    const double down = std::max(glm::length(d - a), glm::length(c - b));
+    const auto nu = static_cast<std::size_t>(std::ceil(along / step)) + 1;
+    const auto nv = static_cast<std::size_t>(std::ceil(down / step)) + 1;
+    for (std::size_t i = 0; i <= nu; ++i)
+      for (std::size_t j = 0; j <= nv; ++j) {
+        const double u = double(i) / double(nu), v = double(j) / double(nv);
+        const glm::dvec3 p = (1 - v) * ((1 - u) * a + u * b) + v * ((1 - u) * d + u * c);
+        const glm::dvec3 q = glm::floor(p / step);
+        if (!seen.insert({std::int64_t(q.x), std::int64_t(q.y), std::int64_t(q.z)}).second)
+          continue;
+        boxes.push_back({p - glm::dvec3(step), p + glm::dvec3(step)});
+      }
+  }
+  return boxes;
+}
+
 }  // namespace
 
 VolumeBody::VolumeBody(const SoftBody& body, const VolumeOptions& options)
@@ -255,28 +281,9 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
   }
   if (options_.cut_refine_factor > 1 && volume_.lattice().cell_span.empty() && body.closed()) {
     // The cells the sheet passes through, or passes within half a fine cell of, split before
-    // they part: a box of a fine cell round each of its points half a fine cell apart.
-    const double fine_m = options_.cell_m / options_.cut_refine_factor;
-    std::vector<TwoLevelOptions::Box> boxes;
-    std::set<std::array<std::int64_t, 3>> seen;
-    for (std::size_t k = 0; k + 1 < rest_sheet.entry_m.size(); ++k) {
-      const glm::dvec3 &a = rest_sheet.entry_m[k], &b = rest_sheet.entry_m[k + 1];
-      const glm::dvec3 &c = rest_sheet.tip_m[k + 1], &d = rest_sheet.tip_m[k];
-      const double along = std::max(glm::length(b - a), glm::length(c - d));
-      const double down = std::max(glm::length(d - a), glm::length(c - b));
-      const auto nu = static_cast<std::size_t>(std::ceil(along / (0.5 * fine_m))) + 1;
-      const auto nv = static_cast<std::size_t>(std::ceil(down / (0.5 * fine_m))) + 1;
-      for (std::size_t i = 0; i <= nu; ++i)
-        for (std::size_t j = 0; j <= nv; ++j) {
-          const double u = double(i) / double(nu), v = double(j) / double(nv);
-          const glm::dvec3 p = (1 - v) * ((1 - u) * a + u * b) + v * ((1 - u) * d + u * c);
-          // One box per half fine cell the points fall in (the blade is sampled each step).
-          const glm::dvec3 q = glm::floor(p / (0.5 * fine_m));
-          if (!seen.insert({std::int64_t(q.x), std::int64_t(q.y), std::int64_t(q.z)}).second)
-            continue;
-          boxes.push_back({p - glm::dvec3(0.5 * fine_m), p + glm::dvec3(0.5 * fine_m)});
-        }
-    }
+    // they part.
+    const std::vector<TwoLevelOptions::Box> boxes =
+        boxes_along(rest_sheet, options_.cell_m / options_.cut_refine_factor);
     rebuild(body, build_volume(body, options_, boxes, options_.cut_refine_factor));
   }
   const HexLattice& old = volume_.lattice();
