@@ -274,8 +274,18 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
     }
     return p - shift;
   };
+  // A sample (one is taken each tissue step) whose entry and tip are both nearer than a
+  // twentieth of a cell to the last one kept adds nothing to the sheet (separate_along_sheet
+  // skips it too): only the others are taken back to rest.
+  const double min_step = 0.05 * options_.cell_m / std::max(1u, options_.cut_refine_factor);
   BladeSheet rest_sheet;
+  std::size_t last = 0;
   for (std::size_t k = 0; k < sheet.entry_m.size(); ++k) {
+    const bool final = k + 1 == sheet.entry_m.size();
+    if (k > 0 && !final && glm::length(sheet.entry_m[k] - sheet.entry_m[last]) < min_step &&
+        glm::length(sheet.tip_m[k] - sheet.tip_m[last]) < min_step)
+      continue;
+    last = k;
     rest_sheet.entry_m.push_back(to_rest(sheet.entry_m[k]));
     rest_sheet.tip_m.push_back(to_rest(sheet.tip_m[k]));
   }
