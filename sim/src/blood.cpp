@@ -30,8 +30,13 @@ struct Kernels {
     return poly6_scale * d * d * d;
   }
   [[nodiscard]] glm::dvec3 spiky_gradient(const glm::dvec3& r) const {
-    const double len = glm::length(r);
-    if (len >= h || len <= 1e-12) return glm::dvec3(0.0);
+    return spiky_gradient(r, glm::dot(r, r));
+  }
+  /// The same with r's squared length known.
+  [[nodiscard]] glm::dvec3 spiky_gradient(const glm::dvec3& r, double r2) const {
+    if (r2 >= h2) return glm::dvec3(0.0);
+    const double len = std::sqrt(r2);
+    if (len <= 1e-12) return glm::dvec3(0.0);
     const double d = h - len;
     return (spiky_scale * d * d / len) * r;
   }
@@ -229,13 +234,9 @@ void Blood::solve_density() {
       const glm::dvec3 r = pi - p_[neighbours_[k]];
       const double r2 = glm::dot(r, r);
       gradient_[k] = glm::dvec3(0.0);  // the position update below uses it again
-      if (r2 >= kernels.h2) continue;
-      const double d = kernels.h2 - r2;
-      density += mass_kg_ * (kernels.poly6_scale * d * d * d);
-      const double len = std::sqrt(r2);
-      if (len <= 1e-12) continue;
-      const double e = kernels.h - len;
-      gradient_[k] = (kernels.spiky_scale * e * e / len) * r;
+      if (r2 >= kernels.h2) continue;  // beyond the kernel: one distance
+      density += mass_kg_ * kernels.poly6(r2);
+      gradient_[k] = kernels.spiky_gradient(r, r2);
       const glm::dvec3 g = scale * gradient_[k];
       grad_i += g;
       grad_sum += glm::dot(g, g);

@@ -683,7 +683,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     report.bleeding.most_behind_steps = behind.most_behind_steps;
     report.bleeding.tissue_waits = behind.tissue_waits;
     report.bleeding.tissue_waited_ms = behind.tissue_waited_ms;
-    report.bleeding.hold_at_steps = options.blood_hold_at;
+    report.bleeding.hold_at_steps = steps.blood_hold_at;
     report.bleeding.holds = loop.counters().blood_holds;
     report.bleeding.held_s = sim.blood_held_s();
     for (const double step : sim.blood_step_ms())

@@ -58,12 +58,10 @@ bool motion_at(const HexLattice& lattice, std::span<const glm::dvec3> field, con
 /// relative residual, so a loose solve gives it to well under a percent.
 constexpr double kComplianceTolerance = 1e-2;
 
-/// The volume under `body`: one level of cells of options.cell_m, or two with the cells meeting
-/// any box of `refine` split into `factor`^3 (without boxes, those meeting options' refined
-/// cube into options.refine_factor^3).
+/// The volume under `body`: one level of cells of options.cell_m, or, with `refine` boxes and a
+/// factor above 1, two, the cells meeting a box split into factor^3.
 ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options,
-                           const std::vector<TwoLevelOptions::Box>& refine = {},
-                           std::uint32_t factor = 1) {
+                           const std::vector<TwoLevelOptions::Box>& refine, std::uint32_t factor) {
   if (!body.closed()) {
     throw SimInputError("a volume needs a closed surface: the solid has open boundaries");
   }
@@ -85,15 +83,11 @@ ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options,
   for (std::size_t t = 0; t < triangles.size(); ++t)
     for (std::size_t c = 0; c < 3; ++c)
       triangles[t][c] = compact[indices[3 * t + c]];
-  if ((!refine.empty() && factor > 1) ||
-      (options.refine_factor > 1 && options.refine_half_width_m > 0.0)) {
-    const glm::dvec3 half(options.refine_half_width_m);
+  if (!refine.empty() && factor > 1) {
     TwoLevelOptions lattice;
     lattice.coarse_m = options.cell_m;
-    lattice.factor = !refine.empty() ? factor : options.refine_factor;
+    lattice.factor = factor;
     lattice.refine = refine;
-    if (refine.empty())
-      lattice.refine = {{options.refine_centre_m - half, options.refine_centre_m + half}};
     ElasticVolume volume(build_two_level_lattice(vertices, triangles, lattice), options.material,
                          options.law);
     volume.set_resting_tension(options.resting_tension_Pa);
@@ -106,6 +100,15 @@ ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options,
                        options.law);
   volume.set_resting_tension(options.resting_tension_Pa);
   return volume;
+}
+
+/// The volume under `body` with options' refined cube (if any) split finer.
+ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options) {
+  if (!(options.refine_half_width_m > 0.0)) return build_volume(body, options, {}, 1);
+  const glm::dvec3 half(options.refine_half_width_m);
+  return build_volume(body, options,
+                      {{options.refine_centre_m - half, options.refine_centre_m + half}},
+                      options.refine_factor);
 }
 
 /// Boxes of side `fine_m` round points of `sheet` half that apart (one per half-cell they fall
@@ -299,7 +302,7 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
   const HexLattice& old = volume_.lattice();
   HexLattice lattice = old;
   const LatticeSeparation separation =
-      separate_along_sheet(lattice, rest_sheet, options_.cell_m / options_.cut_refine_factor);
+      separate_along_sheet(lattice, rest_sheet, volume_.finest_cell_m());
   if (separation.new_nodes == 0) {
     sync_topology(body);
     return 0;
