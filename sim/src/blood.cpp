@@ -143,35 +143,26 @@ void Blood::find_neighbours() {
   sorted_p_.resize(n);
   for (std::size_t a = 0; a < n; ++a)
     sorted_p_[a] = p_[cells_[a].second];
-  // Each particle's list keeps its capacity from step to step.
-  if (found_.size() < n) found_.resize(n);
-  for (std::size_t i = 0; i < n; ++i)
-    found_[i].clear();
-  // The particles in flight first, then the pooled ones they found.
+  // The pairs with a particle in flight first, then those of the pooled ones they reach. In the
+  // order the cells were searched: fixed by the positions, so the sums come out the same bits
+  // every run.
+  pairs_.clear();
   active_.resize(n);
   for (std::size_t i = 0; i < n; ++i)
     active_[i] = pooled_[i] ? 0 : 1;
   list_neighbours(1);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (active_[i] != 1) continue;
-    for (const std::uint32_t j : found_[i])
-      if (active_[j] == 0) active_[j] = 2;
+  for (const auto& [i, j] : pairs_) {
+    if (active_[i] == 0) active_[i] = 2;
+    if (active_[j] == 0) active_[j] = 2;
   }
   list_neighbours(2);
-  neighbour_start_.assign(n + 1, 0);
-  neighbours_.clear();
-  for (std::size_t i = 0; i < n; ++i) {
-    neighbour_start_[i] = static_cast<std::uint32_t>(neighbours_.size());
-    // In the order the cells were searched: fixed by the positions, so the sums come out the
-    // same bits every run.
-    neighbours_.insert(neighbours_.end(), found_[i].begin(), found_[i].end());
-  }
-  neighbour_start_[n] = static_cast<std::uint32_t>(neighbours_.size());
 }
 
 void Blood::list_neighbours(std::uint8_t pass) {
   const std::size_t n = cells_.size();
   const double h2 = h_ * h_;
+  // Those in flight found all their pairs in the first pass.
+  const auto listed = [&](std::uint32_t j) { return pass == 2 && active_[j] == 1; };
   std::array<std::uint32_t, 64> here{};  // the cell's particles in the pass (sorted positions)
   // Cell by cell: the cells around each are looked up once for all its particles in the pass.
   for (std::size_t begin = 0; begin < n;) {
@@ -185,29 +176,27 @@ void Blood::list_neighbours(std::uint8_t pass) {
       // A cell of more than 64 particles in the pass (blood packed far past its rest density).
       for_each_near(cells_, sorted_p_[begin], h_, [&](std::size_t b) {
         const std::uint32_t j = cells_[b].second;
+        if (listed(j)) return;
         const bool both = active_[j] == pass;
         for (std::size_t a = begin; a < end; ++a) {
           const std::uint32_t i = cells_[a].second;
           if (active_[i] != pass || (both && b <= a)) continue;
           if (glm::length2(sorted_p_[a] - sorted_p_[b]) >= h2) continue;
-          found_[i].push_back(j);
-          if (both) found_[j].push_back(i);
+          pairs_.emplace_back(i, j);
         }
       });
     } else if (count > 0) {
       // The positions in cell order: the inner loop reads memory in a row. A pair of particles
-      // both in the pass is found once, from the earlier of the two in cell order, and listed
-      // both ways.
+      // both in the pass is found once, from the earlier of the two in cell order.
       for_each_near(cells_, sorted_p_[begin], h_, [&](std::size_t b) {
         const std::uint32_t j = cells_[b].second;
+        if (listed(j)) return;
         const bool both = active_[j] == pass;
         const glm::dvec3& q = sorted_p_[b];
-        for (std::size_t k = 0; k < count; ++k) {
-          if (both && b <= here[k]) continue;
-          const std::uint32_t i = cells_[here[k]].second;
+        // here[] ascends: past the first at or after b, a pair both in the pass is found from b.
+        for (std::size_t k = 0; k < count && !(both && b <= here[k]); ++k) {
           if (glm::length2(sorted_p_[here[k]] - q) >= h2) continue;
-          found_[i].push_back(j);
-          if (both) found_[j].push_back(i);
+          pairs_.emplace_back(cells_[here[k]].second, j);
         }
       });
     }
@@ -218,46 +207,45 @@ void Blood::list_neighbours(std::uint8_t pass) {
 void Blood::solve_density() {
   const Kernels kernels(h_);
   const std::size_t n = x_.size();
-  lambda_.resize(n);
-  delta_.resize(n);
   const double scale = mass_kg_ / rest_density_;
-  const double self = kernels.poly6(0.0);
-  gradient_.resize(neighbours_.size());
-  for (std::size_t i = 0; i < n; ++i) {
-    lambda_[i] = 0.0;
-    if (!active_[i]) continue;  // no particle in flight near it reads its lambda
-    double density = mass_kg_ * self;
-    glm::dvec3 grad_i(0.0);
-    double grad_sum = 0.0;
-    const glm::dvec3 pi = p_[i];
-    for (std::uint32_t k = neighbour_start_[i]; k < neighbour_start_[i + 1]; ++k) {
-      const glm::dvec3 r = pi - p_[neighbours_[k]];
-      const double r2 = glm::dot(r, r);
-      gradient_[k] = glm::dvec3(0.0);  // the position update below uses it again
-      if (r2 >= kernels.h2) continue;  // beyond the kernel: one distance
-      density += mass_kg_ * kernels.poly6(r2);
-      gradient_[k] = kernels.spiky_gradient(r, r2);
-      const glm::dvec3 g = scale * gradient_[k];
-      grad_i += g;
-      grad_sum += glm::dot(g, g);
-    }
-    grad_sum += glm::length2(grad_i);
-    // Only compression is corrected: a free surface (too few neighbours) is not pulled in.
-    const double c = std::max(0.0, density / rest_density_ - 1.0);
-    lambda_[i] = -c / (grad_sum + relaxation_);
+  sums_.assign(n, DensitySums{glm::dvec3(0.0), mass_kg_ * kernels.poly6(0.0), 0.0});
+  gradient_.resize(pairs_.size());
+  for (std::size_t k = 0; k < pairs_.size(); ++k) {
+    const auto [i, j] = pairs_[k];
+    const glm::dvec3 r = p_[i] - p_[j];
+    const double r2 = glm::dot(r, r);
+    gradient_[k] = glm::dvec3(0.0);  // the position update below uses it again
+    if (r2 >= kernels.h2) continue;  // beyond the kernel: one distance
+    const double w = mass_kg_ * kernels.poly6(r2);
+    sums_[i].density += w;
+    sums_[j].density += w;
+    gradient_[k] = kernels.spiky_gradient(r, r2);
+    const glm::dvec3 g = scale * gradient_[k];
+    const double g2 = glm::dot(g, g);
+    sums_[i].gradient += g;
+    sums_[i].gradient_squares += g2;
+    sums_[j].gradient -= g;
+    sums_[j].gradient_squares += g2;
   }
-  // Only particles in flight move: their neighbours are all active, with their lambdas.
+  lambda_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    if (pooled_[i]) continue;
-    glm::dvec3 d(0.0);
-    for (std::uint32_t k = neighbour_start_[i]; k < neighbour_start_[i + 1]; ++k) {
-      const std::uint32_t j = neighbours_[k];
-      d += (lambda_[i] + lambda_[j]) * gradient_[k];  // a particle in flight is active
-    }
-    delta_[i] = scale * d;
+    const DensitySums& s = sums_[i];
+    // Only compression is corrected: a free surface (too few neighbours) is not pulled in. No
+    // particle in flight is near an idle one, so an idle one's lambda is never read.
+    const double c = std::max(0.0, s.density / rest_density_ - 1.0);
+    lambda_[i] =
+        active_[i] ? -c / (s.gradient_squares + glm::length2(s.gradient) + relaxation_) : 0.0;
   }
+  delta_.assign(n, glm::dvec3(0.0));
+  for (std::size_t k = 0; k < pairs_.size(); ++k) {
+    const auto [i, j] = pairs_[k];
+    const glm::dvec3 d = (lambda_[i] + lambda_[j]) * gradient_[k];
+    delta_[i] += d;
+    delta_[j] -= d;
+  }
+  // Only particles in flight move.
   for (std::size_t i = 0; i < n; ++i)
-    if (!pooled_[i]) p_[i] += delta_[i];
+    if (!pooled_[i]) p_[i] += scale * delta_[i];
 }
 
 void Blood::collide(std::span<const BloodSurface> surfaces) {
@@ -353,23 +341,20 @@ void Blood::step(double dt_s, std::span<const BloodSurface> surfaces) {
       }
     }
     // XSPH: each particle's velocity drawn towards its neighbours' (the blood's viscosity).
-    delta_.resize(n);
+    delta_.assign(n, glm::dvec3(0.0));
+    weight_.assign(n, 0.0);
     const Kernels kernels(h_);
-    for (std::size_t i = 0; i < n; ++i) {
-      if (pooled_[i]) continue;  // at rest: its velocity stays zero
-      glm::dvec3 dv(0.0);
-      double w_sum = 0.0;
-      for (std::uint32_t k = neighbour_start_[i]; k < neighbour_start_[i + 1]; ++k) {
-        const std::uint32_t j = neighbours_[k];
-        const double w = kernels.poly6(glm::length2(p_[i] - p_[j]));
-        dv += w * (v_[j] - v_[i]);
-        w_sum += w;
-      }
-      delta_[i] = w_sum > 0.0 ? options_.viscosity * dv / w_sum : glm::dvec3(0.0);
+    for (const auto& [i, j] : pairs_) {
+      const double w = kernels.poly6(glm::length2(p_[i] - p_[j]));
+      const glm::dvec3 dv = w * (v_[j] - v_[i]);
+      delta_[i] += dv;
+      delta_[j] -= dv;
+      weight_[i] += w;
+      weight_[j] += w;
     }
     for (std::size_t i = 0; i < n; ++i) {
-      if (pooled_[i]) continue;
-      v_[i] += delta_[i];
+      if (pooled_[i]) continue;  // at rest: its velocity stays zero
+      if (weight_[i] > 0.0) v_[i] += options_.viscosity * delta_[i] / weight_[i];
       x_[i] = p_[i];
       // Come to rest on a surface: pooled (still a neighbour of the others, never moved again
       // unless the tissue pushes it).

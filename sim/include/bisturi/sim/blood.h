@@ -84,11 +84,11 @@ class Blood {
   [[nodiscard]] const BloodOptions& options() const { return options_; }
 
  private:
-  /// The neighbour lists the step needs: those of the particles in flight and of the pooled
-  /// particles next to them (the others' lists stay empty: a pool that nothing flows over does
-  /// not change, and costs nothing).
+  /// The neighbour pairs the step needs: those of the particles in flight and of the pooled
+  /// particles next to them (a pool that nothing flows over does not change, and costs nothing).
   void find_neighbours();
-  /// Lists the neighbours of the particles whose active_ is `pass`.
+  /// Lists the pairs of the particles whose active_ is `pass` with their neighbours, each pair
+  /// once; in the second pass, not again those with a particle in flight.
   void list_neighbours(std::uint8_t pass);
   void solve_density();
   void collide(std::span<const BloodSurface> surfaces);
@@ -111,16 +111,23 @@ class Blood {
   std::vector<std::uint8_t> pooled_;
   std::vector<std::uint16_t> resting_;  ///< steps spent slow on a surface
   std::vector<std::uint8_t> touching_;  ///< on a surface after the last collision pass
-  // Neighbours: particles sorted by grid cell, each particle's neighbour list in one array.
-  std::vector<std::uint32_t> neighbour_start_, neighbours_;
+  /// Neighbours: each pair of particles within the kernel's reach once (its kernel values are
+  /// symmetric, its gradients opposite, so each is computed once for both).
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs_;
+  /// Per particle, this iteration: the density and the constraint gradient's sums.
+  struct DensitySums {
+    glm::dvec3 gradient{0.0};
+    double density = 0.0;
+    double gradient_squares = 0.0;
+  };
+  std::vector<DensitySums> sums_;
   std::vector<double> lambda_;
   std::vector<glm::dvec3> delta_;
+  std::vector<double> weight_;  ///< scratch: XSPH's kernel weights summed per particle
   std::vector<std::pair<std::uint64_t, std::uint32_t>> cells_;  ///< scratch
   std::vector<glm::dvec3> sorted_p_;  ///< scratch: the predicted positions in cells_' order
-  /// Scratch: the spiky kernel's gradient for each neighbour pair (as neighbours_), this
-  /// iteration.
+  /// Scratch: the spiky kernel's gradient for each pair (as pairs_), this iteration.
   std::vector<glm::dvec3> gradient_;
-  std::vector<std::vector<std::uint32_t>> found_;  ///< scratch: each particle's neighbours
   /// Per particle, this substep: 0 idle (pooled, nothing in flight near it), 1 in flight, 2
   /// pooled next to one in flight (its density constraint pushes on that one).
   std::vector<std::uint8_t> active_;
