@@ -67,6 +67,13 @@ bool crosses_any(const glm::dvec3& p, const glm::dvec3& q, const std::vector<Tri
                      [&](const Triangle& t) { return crosses(p, q, t); });
 }
 
+/// Lattice position ijk moved `by` along axis a.
+std::array<std::uint32_t, 3> shifted(std::array<std::uint32_t, 3> ijk, std::size_t a,
+                                     std::uint32_t by) {
+  ijk[a] += by;
+  return ijk;
+}
+
 /// Union-find over a node's (at most 8) cell corners.
 struct Groups {
   std::array<std::uint32_t, 8> parent{};
@@ -90,6 +97,16 @@ LatticeSeparation separate_along_sheet(HexLattice& lattice, const BladeSheet& sh
     for (std::size_t i = 0; i + 1 < axis.size(); ++i)
       finest = std::min(finest, axis[i + 1] - axis[i]);
   const std::vector<Triangle> triangles = sheet_triangles(sheet, reach_m, 0.05 * finest);
+  // A coarse cell's sheet reaches out as far as its side is the fine cells' (reach_m is the
+  // finest cell's): cells of each size holding little tissue part alike.
+  std::vector<std::vector<Triangle>> by_span(2);
+  const auto sheet_of = [&](std::uint32_t span) -> const std::vector<Triangle>& {
+    if (span <= 1) return triangles;
+    if (by_span.size() <= span) by_span.resize(span + 1);
+    if (by_span[span].empty())
+      by_span[span] = sheet_triangles(sheet, reach_m * span, 0.05 * finest);
+    return by_span[span];
+  };
   LatticeSeparation out;
   out.origin.resize(lattice.rest.size());
   std::iota(out.origin.begin(), out.origin.end(), 0u);
@@ -109,13 +126,16 @@ LatticeSeparation separate_along_sheet(HexLattice& lattice, const BladeSheet& sh
   for (std::size_t c = 0; c < cells; ++c)
     centre[c] = lattice.cell_centre(c);
   std::vector<std::uint8_t> node_touched(lattice.rest.size(), 0);
-  // In a two-level lattice only faces between fine cells part, and only where none of their
-  // nodes hangs on a coarse cell or is a coarse cell's corner: those follow the coarse cell.
+  // In a two-level lattice a face parts between two cells of one size, and only where none of
+  // its nodes hangs or is shared with a cell of the other size: those follow both sizes' cells.
+  constexpr std::uint32_t kNoSpan = 0;
+  std::vector<std::uint32_t> node_span(lattice.rest.size(), kNoSpan);
   std::vector<std::uint8_t> node_fixed(lattice.rest.size(), 0);
   for (std::size_t c = 0; c < cells; ++c)
-    if (lattice.span(c) > 1)
-      for (const std::uint32_t node : lattice.cells[c])
-        node_fixed[node] = 1;
+    for (const std::uint32_t node : lattice.cells[c]) {
+      if (node_span[node] != kNoSpan && node_span[node] != lattice.span(c)) node_fixed[node] = 1;
+      node_span[node] = lattice.span(c);
+    }
   for (const HangingNode& h : lattice.hanging)
     node_fixed[h.node] = 1;
   const auto face_free = [&](std::size_t c, std::size_t a) {
@@ -124,18 +144,20 @@ LatticeSeparation separate_along_sheet(HexLattice& lattice, const BladeSheet& sh
     return true;
   };
   for (std::size_t c = 0; c < cells; ++c) {
-    if (lattice.span(c) > 1) continue;
     const glm::dvec3 half = 0.5 * lattice.cell_sides(c);
     if (glm::any(glm::lessThan(centre[c] + 3.0 * half, lo)) ||
         glm::any(glm::greaterThan(centre[c] - 3.0 * half, hi)))
       continue;
+    const std::uint32_t span = lattice.span(c);
     const auto& ijk = lattice.cell_ijk[c];
     for (std::size_t a = 0; a < 3; ++a) {
       std::array<std::size_t, 3> next{ijk[0], ijk[1], ijk[2]};
-      if (++next[a] >= d[a]) continue;
+      next[a] += span;
+      if (next[a] >= d[a]) continue;
       const std::int32_t n = lattice.cell_at[(next[2] * d[1] + next[1]) * d[0] + next[0]];
-      if (n < 0 || lattice.span(std::size_t(n)) > 1 || !face_free(c, a) ||
-          !crosses_any(centre[c], centre[std::size_t(n)], triangles))
+      if (n < 0 || lattice.span(std::size_t(n)) != span ||
+          lattice.cell_ijk[std::size_t(n)] != shifted(lattice.cell_ijk[c], a, span) ||
+          !face_free(c, a) || !crosses_any(centre[c], centre[std::size_t(n)], sheet_of(span)))
         continue;
       lattice.separated[c] |= std::uint8_t(1u << (2 * a + 1));
       lattice.separated[std::size_t(n)] |= std::uint8_t(1u << (2 * a));
@@ -156,9 +178,11 @@ LatticeSeparation separate_along_sheet(HexLattice& lattice, const BladeSheet& sh
     const auto& at = corners[node];
     if (at.size() < 2) continue;
     Groups groups(at.size());
+    // A parted face's nodes are shared by cells of one size only.
+    const std::vector<Triangle>& around = sheet_of(lattice.span(at[0].first));
     for (std::uint32_t i = 0; i < at.size(); ++i)
       for (std::uint32_t j = i + 1; j < at.size(); ++j)
-        if (!crosses_any(centre[at[i].first], centre[at[j].first], triangles)) groups.join(i, j);
+        if (!crosses_any(centre[at[i].first], centre[at[j].first], around)) groups.join(i, j);
     std::array<std::int64_t, 8> copy_of_root;
     copy_of_root.fill(-1);
     const std::uint32_t kept = groups.root(0);
@@ -207,7 +231,7 @@ std::optional<EmbeddedPoint> embed_point_on_side(const HexLattice& lattice, cons
     if (!((lattice.separated[c] >> bit) & 1u)) continue;
     std::array<std::int64_t, 3> ijk{lattice.cell_ijk[c][0], lattice.cell_ijk[c][1],
                                     lattice.cell_ijk[c][2]};
-    ijk[bit / 2] += (bit & 1u) ? 1 : -1;
+    ijk[bit / 2] += (bit & 1u) ? std::int64_t(lattice.span(c)) : -1;
     if (ijk[bit / 2] < 0 || ijk[bit / 2] >= static_cast<std::int64_t>(d[bit / 2])) continue;
     const std::int32_t n =
         lattice.cell_at[(std::size_t(ijk[2]) * d[1] + std::size_t(ijk[1])) * d[0] +
