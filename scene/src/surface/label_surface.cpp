@@ -221,6 +221,9 @@ Grid<float> label_field(const Grid<float>& labels, float label, std::size_t& ins
 struct Neighbours {
   std::vector<std::uint32_t> offsets;
   std::vector<std::uint32_t> adjacency;
+  /// Per entry of adjacency, the corner before v in the same face: (v, next, before) spans that
+  /// face, so the vertex's normal is their cross products' sum.
+  std::vector<std::uint32_t> before;
 };
 
 // In a triangle the corner after v names one neighbour; around a closed manifold vertex these
@@ -236,11 +239,14 @@ Neighbours neighbours_of(const PolygonMesh& mesh) {
   for (std::size_t v = 0; v < n; ++v)
     nb.offsets[v + 1] += nb.offsets[v];
   nb.adjacency.resize(nb.offsets[n]);
+  nb.before.resize(nb.offsets[n]);
   std::vector<std::uint32_t> fill(nb.offsets.begin(), nb.offsets.end() - 1);
   for (std::size_t f = 0; f < mesh.face_count(); ++f) {
     const auto face = mesh.face(f);
-    for (std::size_t c = 0; c < face.size(); ++c)
+    for (std::size_t c = 0; c < face.size(); ++c) {
+      nb.before[fill[face[c]]] = face[(c + face.size() - 1) % face.size()];
       nb.adjacency[fill[face[c]]++] = face[(c + 1) % face.size()];
+    }
   }
   return nb;
 }
@@ -258,7 +264,10 @@ Neighbours neighbours_of(const Dlfl& mesh) {
         const CornerId start = mesh.rotation_corner(r);
         CornerId c = start;
         do {
-          if (!mesh.is_point_sphere(c)) nb.adjacency.push_back(mesh.vertex(mesh.next(c)).idx);
+          if (!mesh.is_point_sphere(c)) {
+            nb.adjacency.push_back(mesh.vertex(mesh.next(c)).idx);
+            nb.before.push_back(mesh.vertex(mesh.prev(c)).idx);
+          }
           c = mesh.rot_next(c);
         } while (c != start);
       }
@@ -345,6 +354,42 @@ class BandTest {
   const Grid<float>& f_;
 };
 
+/// Sun, Rosin, Martin and Langbein, "Fast and effective feature-preserving mesh denoising"
+/// (2007), section 3.2: each vertex moves along its faces' smooth normals by the mean of its
+/// distances to their planes, so each face comes to lie across its smooth normal. The smooth
+/// normal of a face is here the mean of its corners' normals (each the sum of its faces' area
+/// vectors). `keep(p, v)` is where vertex v may go when it would go to p.
+template <class Keep>
+void fit_to_smooth_normals(std::span<Vec3> pos, const Neighbours& nb, std::size_t sweeps,
+                           Keep&& keep) {
+  const std::size_t n = pos.size();
+  std::vector<Vec3> normal(n), moved(n);
+  for (std::size_t sweep = 0; sweep < sweeps; ++sweep) {
+    for (std::size_t v = 0; v < n; ++v) {
+      Vec3 sum(0.0);
+      for (std::uint32_t k = nb.offsets[v]; k < nb.offsets[v + 1]; ++k)
+        sum += glm::cross(pos[nb.adjacency[k]] - pos[v], pos[nb.before[k]] - pos[v]);
+      const double length = glm::length(sum);
+      normal[v] = length > 0.0 ? sum / length : Vec3(0.0);
+    }
+    for (std::size_t v = 0; v < n; ++v) {
+      const std::uint32_t b = nb.offsets[v], e = nb.offsets[v + 1];
+      Vec3 move(0.0);
+      for (std::uint32_t k = b; k < e; ++k) {
+        const std::uint32_t x = nb.adjacency[k], y = nb.before[k];
+        const Vec3 smooth = normal[v] + normal[x] + normal[y];
+        const double length = glm::length(smooth);
+        if (length == 0.0) continue;
+        const Vec3 unit = smooth / length;
+        move += glm::dot(unit, (pos[x] + pos[y] - 2.0 * pos[v]) / 3.0) * unit;
+      }
+      moved[v] = b == e ? pos[v] : pos[v] + move / static_cast<double>(e - b);
+    }
+    for (std::size_t v = 0; v < n; ++v)
+      pos[v] = keep(moved[v], v);
+  }
+}
+
 void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>& field,
                     const LabelSurfaceOptions& o, LabelSurfaceStats& stats) {
   const auto start = Clock::now();
@@ -429,6 +474,9 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
     }
     if (o.smooth_progress) o.smooth_progress(round + 1, o.rounds);
   }
+  fit_to_smooth_normals(pos, nb, o.normal_fit_sweeps, [&](const Vec3& p, std::size_t v) {
+    return in_band(p) ? p : towards_in_band(home[v], p);
+  });
   stats.clamped_last = clamped;
   stats.smooth_seconds = seconds_since(start);
 }
