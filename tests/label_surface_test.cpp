@@ -246,6 +246,27 @@ TEST(LabelSurface, AnEndOverAnEmptySliceIsACapNotABulge) {
   EXPECT_EQ(st.parts.size(), 2u);
 }
 
+TEST(LabelSurface, AnEndBesideAnotherObjectIsACapToo) {
+  // Two balls of 8 mm side by side (1 x 1 x 3 mm), the right one 5.6 mm higher: the slices over
+  // the left one's top still hold the right one, so no slice beyond it is empty, yet the left
+  // ball ends there as much as over an empty slice. Its end is capped, as the right one's.
+  const dvec3 left(-10.3, -0.2, -3.1), right(10.3, -0.2, 2.5);
+  const Distance balls = [&](const dvec3& p) {
+    return std::min(glm::length(p - left), glm::length(p - right)) - 8.0;
+  };
+  const Grid<float> labels = voxelise(balls, {1.0, 1.0, 3.0}, 21.0);
+  const PolygonMesh m = extract_label_surface_mesh(labels, kLabel);
+  double left_top = -1e9, right_top = -1e9;
+  for (const auto& p : m.positions)
+    (p.x < 0.0 ? left_top : right_top) = std::max(p.x < 0.0 ? left_top : right_top, p.z);
+  // 0.18 and 0.02 mm off when written; with only ends over an empty slice capped, the left
+  // top was 1.13 mm below the true one.
+  std::printf("tops %.2f and %.2f mm off\n", left_top - (left.z + 8.0),
+              right_top - (right.z + 8.0));
+  EXPECT_NEAR(left_top, left.z + 8.0, 0.3);
+  EXPECT_NEAR(right_top, right.z + 8.0, 0.3);
+}
+
 TEST(LabelSurface, DownsampledLabelMapsGiveAClosedCoarseSurface) {
   // The label reaches the map's edge: the background border closes it.
   const Distance slab = [](const dvec3& p) { return std::abs(p.z) - 6.0; };

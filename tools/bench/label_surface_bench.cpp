@@ -175,6 +175,8 @@ Errors measure(const Shape& s, const std::vector<dvec3>& pts,
     const double d = s.distance(p);
     sum2 += d * d;
     e.max_mm = std::max(e.max_mm, std::abs(d));
+    if (std::getenv("WORSTD") && std::abs(d) > std::atof(std::getenv("WORSTD")))
+      std::fprintf(stderr, "  far %.3f at rel (%.2f %.2f %.2f) n (%.2f %.2f %.2f)\n", d, p.x - kCentre.x, p.y - kCentre.y, p.z - kCentre.z, s.normal(p).x, s.normal(p).y, s.normal(p).z);
   }
   e.rms_mm = std::sqrt(sum2 / static_cast<double>(pts.size()));
   double area = 0, angle2 = 0;
@@ -219,14 +221,16 @@ int main(int argc, char** argv) {
   int repeats = 5;
   std::string json_path;
   bisturi::LabelSurfaceOptions constrained;  // the defaults unless given
+  std::vector<std::pair<std::string, dvec3>> spacings;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") {
       std::printf(
           "label_surface_bench [--repeats N] [--iterations N] [--pass-band K] [--rounds N]\n"
-          "                    [--json FILE]\n"
+          "                    [--fit-sweeps N] [--spacing X,Y,Z]... [--json FILE]\n"
           "  surfaces of voxelised analytic solids against the true shape: marching cubes,\n"
-          "  constrained smoothing and (when built with VTK) 3D Slicer's VTK pipeline\n");
+          "  constrained smoothing and (when built with VTK) 3D Slicer's VTK pipeline;\n"
+          "  each --spacing (mm) replaces the default 0.6,0.6,1.3 and 1,1,3\n");
       return 0;
     }
     if (a == "--repeats" && i + 1 < argc) {
@@ -237,6 +241,21 @@ int main(int argc, char** argv) {
       constrained.pass_band = std::atof(argv[++i]);
     } else if (a == "--rounds" && i + 1 < argc) {
       constrained.rounds = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
+    } else if (a == "--fit-sweeps" && i + 1 < argc) {
+      constrained.normal_fit_sweeps = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
+    } else if (a == "--spacing" && i + 1 < argc) {
+      const std::string text = argv[++i];
+      dvec3 v(0.0);
+      char tail = 0;
+      if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &v.x, &v.y, &v.z, &tail) != 3 ||
+          !(v.x > 0.0 && v.y > 0.0 && v.z > 0.0)) {
+        std::fprintf(stderr, "label_surface_bench: --spacing wants X,Y,Z in mm, got '%s'\n",
+                     text.c_str());
+        return 2;
+      }
+      std::string name = text;
+      std::replace(name.begin(), name.end(), ',', 'x');
+      spacings.emplace_back(name, v);
     } else if (a == "--json" && i + 1 < argc) {
       json_path = argv[++i];
     } else {
@@ -244,8 +263,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  const std::vector<std::pair<std::string, dvec3>> spacings = {{"0.6x0.6x1.3", {0.6, 0.6, 1.3}},
-                                                               {"1x1x3", {1.0, 1.0, 3.0}}};
+  if (spacings.empty()) spacings = {{"0.6x0.6x1.3", {0.6, 0.6, 1.3}}, {"1x1x3", {1.0, 1.0, 3.0}}};
   std::vector<Row> rows;
   std::printf("%-20s %-12s %-13s %9s %9s %9s %9s %9s %8s\n", "shape", "spacing", "method", "rms_mm",
               "max_mm", "n_rms_deg", "n_max_deg", "ms", "tris");

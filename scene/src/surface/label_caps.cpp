@@ -15,53 +15,79 @@ namespace {
 /// before it, over the same samples (0 where there is no such slice).
 struct Radii {
   float last = -1.0F, before = 0.0F, before2 = 0.0F;
+  /// No sample of the region is inside in the slice beyond it: the label ends over it.
+  bool ends = true;
 };
 
-/// Per sample of slice k: the radii of its 4-connected inside region (last 0 outside), the slices
-/// before it being k - step and k - 2 step.
-void region_radii(const Grid<float>& field, std::int64_t k, std::int64_t step,
-                  std::vector<Radii>& radii, std::vector<std::int64_t>& stack,
-                  std::vector<std::int64_t>& members) {
-  const VolumeGeometry& g = field.geometry;
-  const std::int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
-  radii.assign(static_cast<std::size_t>(nx * ny), Radii{});
-  const float* slice = &field.values[g.linear_index(0, 0, k)];
-  const auto slice_at = [&](std::int64_t kk) {
-    return kk >= 0 && kk < nz ? &field.values[g.linear_index(0, 0, kk)] : nullptr;
-  };
-  const float* inner = slice_at(k - step);
-  const float* inner2 = slice_at(k - 2 * step);
-  for (std::int64_t seed = 0; seed < nx * ny; ++seed) {
-    if (slice[seed] <= 0.0F) {
-      radii[static_cast<std::size_t>(seed)].last = 0.0F;
-      continue;
-    }
-    if (radii[static_cast<std::size_t>(seed)].last >= 0.0F) continue;
-    // Flood the region, then give every member its radii.
-    stack.assign(1, seed);
-    members.clear();
-    radii[static_cast<std::size_t>(seed)].last = 0.0F;
-    Radii most{0.0F, 0.0F, 0.0F};
-    while (!stack.empty()) {
-      const std::int64_t s = stack.back();
-      stack.pop_back();
-      members.push_back(s);
-      most.last = std::max(most.last, slice[s]);
+/// The 4-connected inside regions of one slice, flooded as they are asked for, with their radii
+/// in it and in the two slices before it (away from the slice beyond).
+class SliceRegions {
+ public:
+  explicit SliceRegions(const Grid<float>& field)
+      : field_(field),
+        nx_(field.geometry.dims[0]),
+        ny_(field.geometry.dims[1]),
+        nz_(field.geometry.dims[2]),
+        radii_(static_cast<std::size_t>(nx_ * ny_)),
+        stamp_(static_cast<std::size_t>(nx_ * ny_), -1) {}
+
+  /// Looks at slice k, the slice beyond it k + step.
+  void look_at(std::int64_t k, std::int64_t step) {
+    k_ = k;
+    step_ = step;
+    ++generation_;
+  }
+
+  /// The radii of the region holding sample (i, j) of the slice, which must be inside.
+  const Radii& at(std::int64_t i, std::int64_t j) {
+    const std::int64_t seed = j * nx_ + i;
+    if (stamp_[static_cast<std::size_t>(seed)] != generation_) flood(seed);
+    return radii_[static_cast<std::size_t>(seed)];
+  }
+
+ private:
+  [[nodiscard]] const float* slice(std::int64_t k) const {
+    return k >= 0 && k < nz_ ? &field_.values[field_.geometry.linear_index(0, 0, k)] : nullptr;
+  }
+
+  void flood(std::int64_t seed) {
+    const float* here = slice(k_);
+    const float* beyond = slice(k_ + step_);
+    const float* inner = slice(k_ - step_);
+    const float* inner2 = slice(k_ - 2 * step_);
+    stack_.assign(1, seed);
+    members_.clear();
+    stamp_[static_cast<std::size_t>(seed)] = generation_;
+    Radii most{0.0F, 0.0F, 0.0F, true};
+    while (!stack_.empty()) {
+      const std::int64_t s = stack_.back();
+      stack_.pop_back();
+      members_.push_back(s);
+      most.last = std::max(most.last, here[s]);
       if (inner != nullptr) most.before = std::max(most.before, inner[s]);
       if (inner2 != nullptr) most.before2 = std::max(most.before2, inner2[s]);
-      const std::int64_t x = s % nx, y = s / nx;
-      const std::int64_t next[4] = {x > 0 ? s - 1 : -1, x + 1 < nx ? s + 1 : -1,
-                                    y > 0 ? s - nx : -1, y + 1 < ny ? s + nx : -1};
+      if (beyond != nullptr && beyond[s] > 0.0F) most.ends = false;
+      const std::int64_t x = s % nx_, y = s / nx_;
+      const std::int64_t next[4] = {x > 0 ? s - 1 : -1, x + 1 < nx_ ? s + 1 : -1,
+                                    y > 0 ? s - nx_ : -1, y + 1 < ny_ ? s + nx_ : -1};
       for (const std::int64_t n : next) {
-        if (n < 0 || slice[n] <= 0.0F || radii[static_cast<std::size_t>(n)].last >= 0.0F) continue;
-        radii[static_cast<std::size_t>(n)].last = 0.0F;
-        stack.push_back(n);
+        if (n < 0 || here[n] <= 0.0F || stamp_[static_cast<std::size_t>(n)] == generation_)
+          continue;
+        stamp_[static_cast<std::size_t>(n)] = generation_;
+        stack_.push_back(n);
       }
     }
-    for (const std::int64_t m : members)
-      radii[static_cast<std::size_t>(m)] = most;
+    for (const std::int64_t m : members_)
+      radii_[static_cast<std::size_t>(m)] = most;
   }
-}
+
+  const Grid<float>& field_;
+  std::int64_t nx_, ny_, nz_;
+  std::int64_t k_ = 0, step_ = 1, generation_ = -1;
+  std::vector<Radii> radii_;
+  std::vector<std::int64_t> stamp_;  ///< the look a sample's radii were found in
+  std::vector<std::int64_t> stack_, members_;
+};
 
 /// How far past the last slice (in slice spacings) the end lies above a sample `rho` from its
 /// region's middle. The region's radius over depth D below the end is fitted as an ellipsoid's,
@@ -105,50 +131,39 @@ double cap_height(double rho, const Radii& r, double dz) {
 
 void place_cap_vertices(std::span<Dlfl::Vec3> positions, const Grid<float>& field) {
   const VolumeGeometry& g = field.geometry;
-  const std::int64_t nx = g.dims[0], ny = g.dims[1], nz = g.dims[2];
+  const std::int64_t nz = g.dims[2];
   if (nz < 2 || positions.empty()) return;
-  std::vector<std::uint8_t> empty(static_cast<std::size_t>(nz));
-  for (std::int64_t k = 0; k < nz; ++k) {
-    const float* slice = &field.values[g.linear_index(0, 0, k)];
-    empty[static_cast<std::size_t>(k)] =
-        std::none_of(slice, slice + nx * ny, [](float v) { return v > 0.0F; }) ? 1 : 0;
-  }
   // The vertices on k-edges, by the slice their edge starts at.
   std::vector<std::vector<std::size_t>> on_edge(static_cast<std::size_t>(nz));
-  bool any = false;
   for (std::size_t v = 0; v < positions.size(); ++v) {
     const glm::dvec3 c = g.world_to_index(positions[v]);
     if (std::abs(c.x - std::round(c.x)) > 1e-3 || std::abs(c.y - std::round(c.y)) > 1e-3) continue;
     const auto k = static_cast<std::int64_t>(std::floor(c.z));
     if (k < 0 || k + 1 >= nz) continue;
-    if (!empty[static_cast<std::size_t>(k)] && !empty[static_cast<std::size_t>(k + 1)]) continue;
     on_edge[static_cast<std::size_t>(k)].push_back(v);
-    any = true;
   }
-  if (!any) return;
-  std::vector<Radii> radii;
-  std::vector<std::int64_t> stack, members;
-  std::int64_t radii_of = -1;
+  // Edges up from slice k and down from slice k + 1: the regions of each, looking the way the
+  // edges go.
+  SliceRegions up(field), down(field);
   for (std::int64_t k = 0; k + 1 < nz; ++k) {
     if (on_edge[static_cast<std::size_t>(k)].empty()) continue;
-    // The edge runs from the last slice with inside samples (`last`) into the empty one.
-    const bool up = empty[static_cast<std::size_t>(k + 1)] != 0;
-    const std::int64_t last = up ? k : k + 1;
-    if (empty[static_cast<std::size_t>(last)]) continue;
-    if (radii_of != last) {
-      region_radii(field, last, up ? 1 : -1, radii, stack, members);
-      radii_of = last;
-    }
+    up.look_at(k, 1);
+    down.look_at(k + 1, -1);
     for (const std::size_t v : on_edge[static_cast<std::size_t>(k)]) {
       glm::dvec3 c = g.world_to_index(positions[v]);
       const std::int64_t i = std::llround(c.x), j = std::llround(c.y);
+      // The edge runs from the region's last slice (`last`) out of the label.
+      const float below = field.at(i, j, k), above = field.at(i, j, k + 1);
+      const bool rising = below > 0.0F && above <= 0.0F;
+      if (!rising && !(above > 0.0F && below <= 0.0F)) continue;
+      const std::int64_t last = rising ? k : k + 1;
+      const Radii& r = rising ? up.at(i, j) : down.at(i, j);
+      if (!r.ends || r.last <= 0.0F) continue;
       const float d = field.at(i, j, last);
-      const Radii& r = radii[static_cast<std::size_t>(j * nx + i)];
-      if (d <= 0.0F || r.last <= 0.0F) continue;
       const double rho = std::max(static_cast<double>(r.last) - static_cast<double>(d), 0.0);
       // Kept strictly inside the edge, as marching cubes keeps its vertices.
       const double t = std::clamp(cap_height(rho, r, g.spacing.z), 1e-3, 1.0 - 1e-3);
-      c.z = static_cast<double>(last) + (up ? t : -t);
+      c.z = static_cast<double>(last) + (rising ? t : -t);
       c.x = static_cast<double>(i);
       c.y = static_cast<double>(j);
       positions[v] = g.index_to_world(c);
