@@ -129,7 +129,7 @@ double cap_height(double rho, const Radii& r, double dz) {
 
 }  // namespace
 
-void place_cap_vertices(std::span<Dlfl::Vec3> positions, const Grid<float>& field) {
+void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<float>& field) {
   const VolumeGeometry& g = field.geometry;
   const std::int64_t nz = g.dims[2];
   if (nz < 2 || positions.empty()) return;
@@ -158,11 +158,24 @@ void place_cap_vertices(std::span<Dlfl::Vec3> positions, const Grid<float>& fiel
       if (!rising && !(above > 0.0F && below <= 0.0F)) continue;
       const std::int64_t last = rising ? k : k + 1;
       const Radii& r = rising ? up.at(i, j) : down.at(i, j);
-      if (!r.ends || r.last <= 0.0F) continue;
-      const float d = field.at(i, j, last);
-      const double rho = std::max(static_cast<double>(r.last) - static_cast<double>(d), 0.0);
+      if (r.last <= 0.0F) continue;
+      const double inside = rising ? below : above, outside = rising ? above : below;
+      const double rho = std::max(static_cast<double>(r.last) - inside, 0.0);
+      double t = 0.0;
+      if (r.ends) {
+        t = cap_height(rho, r, g.spacing.z);
+      } else {
+        // The region goes on narrowing into the slice beyond: its width there at the sample's
+        // place is rho + outside. The square of a width, not the width, changes evenly from
+        // slice to slice over a rounded end (r^2 = 2 R D under a sphere's top), so the outline
+        // passes the sample where the squared width is rho^2. On a wide region that is where
+        // the distances interpolated linearly put it.
+        const double wide = r.last, narrow = rho + outside;
+        if (!(narrow > 0.0 && narrow < wide)) continue;
+        t = (wide * wide - rho * rho) / (wide * wide - narrow * narrow);
+      }
       // Kept strictly inside the edge, as marching cubes keeps its vertices.
-      const double t = std::clamp(cap_height(rho, r, g.spacing.z), 1e-3, 1.0 - 1e-3);
+      t = std::clamp(t, 1e-3, 1.0 - 1e-3);
       c.z = static_cast<double>(last) + (rising ? t : -t);
       c.x = static_cast<double>(i);
       c.y = static_cast<double>(j);

@@ -19,8 +19,10 @@
 namespace bisturi {
 
 /// Moves the vertices of a surface extracted from `field` (in-slice signed distances, positive
-/// inside, slices along k) that lie on crossed k-edges out of a region's last slice, to the cap
-/// above.
-void place_cap_vertices(std::span<Dlfl::Vec3> positions, const Grid<float>& field);
+/// inside, slices along k) that lie on crossed k-edges: out of a region's last slice, to the cap
+/// above; out of a region that narrows into the slice beyond, to where its squared width (not
+/// its width, as the linear interpolation of the distances has it) reaches the sample, as under
+/// a rounded end.
+void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<float>& field);
 
 }  // namespace bisturi

@@ -560,7 +560,7 @@ PolygonMesh extract_label_surface_mesh(const Grid<float>& labels, float label,
   const LabelIndicator in = label_indicator(labels, label, options, s);
   const Grid<float>& band = in.band;
   PolygonMesh mesh = extract_isosurface_mesh(in.field, iso_options(options), &s.extraction);
-  place_cap_vertices({mesh.positions.data(), mesh.positions.size()}, in.field);
+  place_vertices_across_slices({mesh.positions.data(), mesh.positions.size()}, in.field);
   if (options.iterations > 0 && options.rounds > 0 && !mesh.positions.empty()) {
     smooth_in_band({mesh.positions.data(), mesh.positions.size()}, neighbours_of(mesh), band,
                    options, s);
@@ -575,7 +575,7 @@ Dlfl extract_label_surface(const Grid<float>& labels, float label,
   const LabelIndicator in = label_indicator(labels, label, options, s);
   const Grid<float>& band = in.band;
   Dlfl mesh = extract_isosurface(in.field, iso_options(options), &s.extraction);
-  place_cap_vertices({mesh.positions().data(), mesh.vertex_capacity()}, in.field);
+  place_vertices_across_slices({mesh.positions().data(), mesh.vertex_capacity()}, in.field);
   if (options.iterations > 0 && options.rounds > 0 && mesh.vertex_capacity() > 0) {
     auto& pos = mesh.positions();
     smooth_in_band({pos.data(), mesh.vertex_capacity()}, neighbours_of(mesh), band, options, s);
