@@ -6,7 +6,9 @@
 
 #include <glm/geometric.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <vector>
 
 #include "bisturi/runtime/render/liquid_surface.h"
@@ -91,6 +93,33 @@ TEST(LiquidSurface, DropsApartStayApartAndAPoolIsOneSheet) {
   EXPECT_LT(highest_top - lowest_top, 0.35);
   // No particles: nothing drawn.
   EXPECT_EQ(liquid.update(std::vector<glm::dvec3>{}).num_faces(), 0u);
+}
+
+TEST(LiquidSurface, ALargePoolIsDrawnOnCoarserCellsWithAboutAsManyFaces) {
+  // A pool of 48 x 48 particles (2,304) at the rest spacing: past fine_particles the cells grow
+  // with the square root of the count, so the pool costs the renderer a fraction of the faces it
+  // would on the finest cells, and it is still one closed sheet.
+  std::vector<glm::dvec3> pool;
+  for (int i = 0; i < 48; ++i)
+    for (int j = 0; j < 48; ++j)
+      pool.push_back({2.4 * i, 2.4 * j, 0.0});
+  LiquidSurface coarse;
+  const std::size_t coarse_faces = coarse.update(pool).num_faces();
+  expect_closed_balls(coarse.mesh());
+  EXPECT_EQ(connected_parts(coarse.mesh()).size(), 1u);
+  const LiquidSurfaceOptions defaults;
+  const double expected =
+      defaults.cell_mm * std::sqrt(2304.0 / static_cast<double>(defaults.fine_particles));
+  EXPECT_NEAR(coarse.cell_mm(), std::min(expected, defaults.max_cell_mm), 1e-9);
+
+  LiquidSurfaceOptions finest;
+  finest.fine_particles = 0;
+  LiquidSurface fine(finest);
+  const std::size_t fine_faces = fine.update(pool).num_faces();
+  EXPECT_NEAR(fine.cell_mm(), defaults.cell_mm, 1e-9);
+  std::printf("2,304 particles: %zu faces on %.2f mm cells, %zu on %.2f mm\n", coarse_faces,
+              coarse.cell_mm(), fine_faces, fine.cell_mm());
+  EXPECT_LT(coarse_faces, fine_faces / 2);
 }
 
 }  // namespace

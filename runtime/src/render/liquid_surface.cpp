@@ -78,7 +78,13 @@ void LiquidSurface::cluster(std::span<const glm::dvec3> centres_mm) {
 
 const Dlfl& LiquidSurface::update(std::span<const glm::dvec3> centres_mm) {
   combined_ = PolygonMesh{};
-  cell_mm_ = options_.cell_mm;
+  base_cell_mm_ = options_.cell_mm;
+  if (options_.fine_particles > 0 && centres_mm.size() > options_.fine_particles)
+    base_cell_mm_ =
+        std::min(std::max(options_.max_cell_mm, options_.cell_mm),
+                 options_.cell_mm * std::sqrt(static_cast<double>(centres_mm.size()) /
+                                              static_cast<double>(options_.fine_particles)));
+  cell_mm_ = base_cell_mm_;
   cluster(centres_mm);
   for (const std::vector<glm::dvec3>& c : clusters_)
     add_part(c);
@@ -95,7 +101,7 @@ void LiquidSurface::add_part(std::span<const glm::dvec3> centres_mm) {
   }
   // A margin of the kernel's reach and a cell more: the field is below iso on the grid's border,
   // so every part is closed.
-  double cell = options_.cell_mm;
+  double cell = base_cell_mm_;
   glm::dvec3 extent = hi - lo + 2.0 * (reach + cell);
   const auto samples_at = [&](double h) {
     double n = 1.0;

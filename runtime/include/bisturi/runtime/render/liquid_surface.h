@@ -31,6 +31,12 @@ struct LiquidSurfaceOptions {
   /// The grid's spacing (mm). Grows when the particles spread so far that the grid would pass
   /// max_samples.
   double cell_mm = 1.2;
+  /// Past this many particles the spacing grows as the square root of the count's ratio to it,
+  /// up to max_cell_mm: a pool's faces then stay about as many as this many particles give,
+  /// where each face costs the renderer (on the CPU the session shares, with lavapipe) more than
+  /// the finer surface is worth. 0: cell_mm whatever the count.
+  std::size_t fine_particles = 600;
+  double max_cell_mm = 3.0;
   std::size_t max_samples = std::size_t{1} << 21;
 };
 
@@ -64,6 +70,7 @@ class LiquidSurface {
   PolygonMesh combined_;
   Dlfl mesh_;
   double cell_mm_ = 0.0;
+  double base_cell_mm_ = 0.0;  ///< this update's spacing before max_samples grows it
 };
 
 }  // namespace bisturi::render

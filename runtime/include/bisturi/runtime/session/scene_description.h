@@ -224,7 +224,7 @@ struct PhysiologyDescription {
   /// velocity smoothing (0-1) at the particles' resolution, and the most particles in the field.
   double blood_density_kg_per_m3 = 1060.0;
   double blood_viscosity = 0.1;
-  int blood_max_particles = 5000;
+  int blood_max_particles = 2000;
 };
 
 struct SceneDescription {
