@@ -84,7 +84,16 @@ std::size_t GuardedHaptic::poll(std::chrono::microseconds timeout) {
   // (replay polls report by report and must come to the same last answer).
   const std::uint64_t before = device_->state().reports;
   const auto answered = [&] {
-    if (device_->state().reports != before) guard_->device_answered(device_->state().sample_time);
+    if (device_->state().reports == before) return;
+    // Recording, the guard hears the time the report was recorded at, as a replay's does (its
+    // driver stamps the report with that time): the driver's own stamp comes a little later,
+    // and a silence watchdog at its limit would decide the other way.
+    Nanoseconds at = device_->state().sample_time;
+    if (writer_ != nullptr) {
+      const std::int64_t recorded = writer_->last_report_in_ns(index_);
+      if (recorded >= 0) at = Nanoseconds(recorded);
+    }
+    guard_->device_answered(at);
   };
   std::size_t handled = 0;
   try {

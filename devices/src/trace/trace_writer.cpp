@@ -28,6 +28,8 @@ constexpr auto kWriterPoll = std::chrono::milliseconds(2);
 TraceWriter::TraceWriter(const std::filesystem::path& path, TraceHeader header,
                          TraceWriterOptions options)
     : path_(path), options_(options) {
+  for (std::atomic<std::int64_t>& t : last_report_in_ns_)
+    t.store(-1, std::memory_order_relaxed);
   if (header.devices.size() > std::numeric_limits<std::uint16_t>::max()) {
     throw TraceError(path.string() + ": too many devices for one trace");
   }
@@ -217,7 +219,12 @@ std::uint16_t TraceWriter::add_device(std::int64_t time_ns, const TraceDevice& d
 
 void TraceWriter::report_in(std::uint16_t device, std::int64_t time_ns,
                             std::span<const std::uint8_t> bytes) {
+  if (device < kTimedDevices) last_report_in_ns_[device].store(time_ns, std::memory_order_relaxed);
   append(TraceRecordType::kReportIn, device, time_ns, bytes);
+}
+
+std::int64_t TraceWriter::last_report_in_ns(std::uint16_t device) const {
+  return device < kTimedDevices ? last_report_in_ns_[device].load(std::memory_order_relaxed) : -1;
 }
 
 void TraceWriter::report_out(std::uint16_t device, std::int64_t time_ns,

@@ -68,6 +68,10 @@ class TraceWriter {
   std::uint16_t add_device(std::int64_t time_ns, const TraceDevice& device);
 
   void report_in(std::uint16_t device, std::int64_t time_ns, std::span<const std::uint8_t> bytes);
+  /// The time the latest report from `device` was recorded at (nanoseconds; -1 before any, and
+  /// for devices past the first kTimedDevices): what a replay's driver stamps that report with,
+  /// so what the force guard must hear live too.
+  [[nodiscard]] std::int64_t last_report_in_ns(std::uint16_t device) const;
   void report_out(std::uint16_t device, std::int64_t time_ns, std::span<const std::uint8_t> bytes);
   /// The force commanded for `device` (N per actuator) before the force guard.
   void force_command(std::uint16_t device, std::int64_t time_ns, std::span<const double> force_N);
@@ -112,6 +116,8 @@ class TraceWriter {
   static constexpr std::size_t kBuffers = 32;
 
  private:
+  static constexpr std::size_t kTimedDevices = 16;
+  std::array<std::atomic<std::int64_t>, kTimedDevices> last_report_in_ns_{};
   void seal_locked(std::uint32_t flags);
   /// Writes all of `bytes` (the writing thread, or the constructor before it starts), adding
   /// what went to `written`; the error when the file refused them, else empty.
@@ -134,7 +140,7 @@ class TraceWriter {
   bool stopping_ = false;
   std::size_t devices_ = 0;
   std::array<std::vector<std::uint8_t>, kBuffers> buffers_;
-  std::size_t open_ = 0;                       ///< the buffer being filled
+  std::size_t open_ = 0;                        ///< the buffer being filled
   std::array<std::size_t, kBuffers> sealed_{};  ///< ring of sealed buffers, oldest first
   std::size_t sealed_head_ = 0, sealed_count_ = 0;
   std::array<std::size_t, kBuffers> free_{};  ///< buffers neither open nor sealed
@@ -146,7 +152,7 @@ class TraceWriter {
   std::uint64_t total_records_ = 0;  // appended, sealed or not
   std::string failure_;
   std::atomic<bool> failed_{false};
-  std::string injected_failure_;           ///< fail_next_write's reason, until the write
+  std::string injected_failure_;  ///< fail_next_write's reason, until the write
   std::chrono::milliseconds injected_stall_{0};
   std::thread thread_;
 };
