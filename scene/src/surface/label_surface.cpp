@@ -437,6 +437,11 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
     }
     return from + lo * (to - from);
   };
+  // Where vertex v may go when it would go to p: there if in the band, else as far towards it
+  // from its marching-cubes position as the band goes.
+  const auto kept_in_band = [&](const Vec3& p, std::size_t v) {
+    return in_band(p) ? p : towards_in_band(home[v], p);
+  };
   for (std::size_t round = 0; round < o.rounds; ++round) {
     // Round 0 filters the positions; each later one filters what is left between them and the
     // marching-cubes ones and adds it back (Tukey's twicing: gain 2F - F^2 after two), which
@@ -467,16 +472,12 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
           if (!held[v]) spread[v] = average(back, v);
         back.swap(spread);
       }
-      for (std::size_t v = 0; v < n; ++v) {
-        const Vec3 moved = pos[v] + back[v];
-        pos[v] = in_band(moved) ? moved : towards_in_band(home[v], moved);
-      }
+      for (std::size_t v = 0; v < n; ++v)
+        pos[v] = kept_in_band(pos[v] + back[v], v);
     }
     if (o.smooth_progress) o.smooth_progress(round + 1, o.rounds);
   }
-  fit_to_smooth_normals(pos, nb, o.normal_fit_sweeps, [&](const Vec3& p, std::size_t v) {
-    return in_band(p) ? p : towards_in_band(home[v], p);
-  });
+  fit_to_smooth_normals(pos, nb, o.normal_fit_sweeps, kept_in_band);
   stats.clamped_last = clamped;
   stats.smooth_seconds = seconds_since(start);
 }

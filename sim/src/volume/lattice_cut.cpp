@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <map>
 #include <numeric>
 #include <stdexcept>
 
@@ -99,13 +100,13 @@ LatticeSeparation separate_along_sheet(HexLattice& lattice, const BladeSheet& sh
   const std::vector<Triangle> triangles = sheet_triangles(sheet, reach_m, 0.05 * finest);
   // A coarse cell's sheet reaches out as far as its side is the fine cells' (reach_m is the
   // finest cell's): cells of each size holding little tissue part alike.
-  std::vector<std::vector<Triangle>> by_span(2);
+  // (A map: the references handed out stay valid as spans are added.)
+  std::map<std::uint32_t, std::vector<Triangle>> by_span;
   const auto sheet_of = [&](std::uint32_t span) -> const std::vector<Triangle>& {
     if (span <= 1) return triangles;
-    if (by_span.size() <= span) by_span.resize(span + 1);
-    if (by_span[span].empty())
-      by_span[span] = sheet_triangles(sheet, reach_m * span, 0.05 * finest);
-    return by_span[span];
+    const auto [it, added] = by_span.try_emplace(span);
+    if (added) it->second = sheet_triangles(sheet, reach_m * span, 0.05 * finest);
+    return it->second;
   };
   LatticeSeparation out;
   out.origin.resize(lattice.rest.size());
