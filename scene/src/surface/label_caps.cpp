@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace bisturi {
@@ -127,6 +128,90 @@ double cap_height(double rho, const Radii& r, double dz) {
   return 0.5 * (1.0 - u * u);
 }
 
+/// A sample whose local radius is under this share of its region's is on a part of the region
+/// narrower than its middle (a band, an arm, the thin end of a crescent), which may end by
+/// itself: a ridge or a saddle. On a round region the two differ by the ray's sampling error.
+constexpr float kNarrowerThanItsRegion = 0.9F;
+
+/// The radius of the widest disc of slice k's region that holds sample (i, j), near it: from the
+/// sample straight away from its nearest outline point (up the distance's gradient) to where the
+/// distance stops growing, the region's local middle (the centre line of a band, the centre of a
+/// round region). Unlike the region's largest distance, it is the width that ends here: at a
+/// saddle or along a ridge the region may be far wider elsewhere in the slice. The ray stops
+/// once the radius passes `enough`.
+float local_radius(const Grid<float>& field, std::int64_t i, std::int64_t j, std::int64_t k,
+                   double enough = std::numeric_limits<double>::infinity()) {
+  const VolumeGeometry& g = field.geometry;
+  const std::int64_t nx = g.dims[0], ny = g.dims[1];
+  const auto value = [&](std::int64_t x, std::int64_t y) {
+    return field.at(std::clamp<std::int64_t>(x, 0, nx - 1), std::clamp<std::int64_t>(y, 0, ny - 1),
+                    k);
+  };
+  const float here = field.at(i, j, k);
+  const double hx = g.spacing.x, hy = g.spacing.y;
+  // The gradient in mm: central differences.
+  const double gx = (value(i + 1, j) - value(i - 1, j)) / (2.0 * hx);
+  const double gy = (value(i, j + 1) - value(i, j - 1)) / (2.0 * hy);
+  const double length = std::hypot(gx, gy);
+  if (length < 0.25) return here;  // on the middle already
+  // Bilinear in the slice, in index units.
+  const auto sample = [&](double x, double y) {
+    const double fx = std::floor(x), fy = std::floor(y);
+    const auto x0 = static_cast<std::int64_t>(fx), y0 = static_cast<std::int64_t>(fy);
+    const double u = x - fx, w = y - fy;
+    return (1.0 - w) * ((1.0 - u) * value(x0, y0) + u * value(x0 + 1, y0)) +
+           w * ((1.0 - u) * value(x0, y0 + 1) + u * value(x0 + 1, y0 + 1));
+  };
+  const double step = 0.5 * std::min(hx, hy);
+  const double dx = gx / length * step / hx, dy = gy / length * step / hy;
+  double best = here, x = static_cast<double>(i), y = static_cast<double>(j);
+  for (std::int64_t s = 0; s < 4 * (nx + ny); ++s) {
+    x += dx;
+    y += dy;
+    if (x < 0.0 || y < 0.0 || x > static_cast<double>(nx - 1) || y > static_cast<double>(ny - 1))
+      break;
+    const double d = sample(x, y);
+    best = std::max(best, d);
+    if (d < best - step || best > enough) break;  // past the middle, or as wide as asked
+  }
+  return static_cast<float>(best);
+}
+
+/// Where a part of a region narrower than its middle (a ridge, a saddle, a crescent's arm) tops
+/// out over sample (i, j) of slice `last`, its local radius, else 0: the part ends here under a
+/// cap as wide as it is here, not as the region's widest part (the top of a ring's tube, a tube
+/// lying along the slices). It ends here where the whole region does (`ends`), or where no
+/// outline of the slice beyond reaches over the sample's local middle (that outline is
+/// `-outside` from the sample). Only parts wider than a slice spacing: a narrower one's radii
+/// over three slices say little of its shape.
+float narrow_part_end_radius(const Grid<float>& field, std::int64_t i, std::int64_t j,
+                             std::int64_t last, const Radii& region, double inside,
+                             double outside) {
+  const double dz = field.geometry.spacing.z;
+  const double narrower = kNarrowerThanItsRegion * region.last;
+  // The local radius is at least `inside`: these rule most samples out without the ray.
+  if (narrower <= dz || (!region.ends && inside - outside <= dz)) return 0.0F;
+  const double enough = region.ends ? narrower : std::min(narrower, inside - outside);
+  const float local = local_radius(field, i, j, last, enough);
+  const bool ends_here =
+      local > dz && local < narrower && (region.ends || local - inside + outside <= 0.0);
+  return ends_here ? local : 0.0F;
+}
+
+/// The local radii at (i, j) in slice `last` (known) and the two before it (away from `step`).
+Radii local_radii(const Grid<float>& field, std::int64_t i, std::int64_t j, std::int64_t last,
+                  float radius_in_last, std::int64_t step) {
+  Radii r;
+  r.last = radius_in_last;
+  const std::int64_t nz = field.geometry.dims[2];
+  const auto at = [&](std::int64_t k) {
+    return k >= 0 && k < nz && field.at(i, j, k) > 0.0F ? local_radius(field, i, j, k) : 0.0F;
+  };
+  r.before = at(last - step);
+  r.before2 = r.before > 0.0F ? at(last - 2 * step) : 0.0F;
+  return r;
+}
+
 }  // namespace
 
 void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<float>& field) {
@@ -162,7 +247,11 @@ void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<fl
       const double inside = rising ? below : above, outside = rising ? above : below;
       const double rho = std::max(static_cast<double>(r.last) - inside, 0.0);
       double t = 0.0;
-      if (r.ends) {
+      if (const float local = narrow_part_end_radius(field, i, j, last, r, inside, outside);
+          local > 0.0F) {
+        t = cap_height(std::max(local - inside, 0.0),
+                       local_radii(field, i, j, last, local, rising ? 1 : -1), g.spacing.z);
+      } else if (r.ends) {
         t = cap_height(rho, r, g.spacing.z);
       } else {
         // The region goes on narrowing into the slice beyond: its width there at the sample's

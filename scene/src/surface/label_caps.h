@@ -9,7 +9,10 @@
 // cap over the region puts it, by the sample's in-slice distance to the outline against the
 // largest in its region (the region's "radius") and by how the radius narrows over the last
 // three slices (label_caps.cpp, cap_height). It meets the sides at the outline and is highest
-// over the region's middle, as a convex end is.
+// over the region's middle, as a convex end is. A part of a region narrower than its middle (a
+// crescent's arm, the top of a ring's tube, a saddle where the slice beyond holds the region on
+// either side but not over it) ends under a cap of its own width: the radius of the widest
+// in-slice disc round the sample, found by walking up the distance from the sample.
 
 #include <span>
 
