@@ -95,6 +95,51 @@ TEST(LiquidSurface, DropsApartStayApartAndAPoolIsOneSheet) {
   EXPECT_EQ(liquid.update(std::vector<glm::dvec3>{}).num_faces(), 0u);
 }
 
+TEST(LiquidSurface, ItsGroupsAreThoseOfEveryPairOfOverlappingKernels) {
+  // Drops scattered in clumps and chains whose links cross cubes diagonally and two cubes on:
+  // the groups are the connected parts of "closer than twice the kernel's reach", as a test of
+  // every pair finds them.
+  const LiquidSurfaceOptions options;
+  const double link = 2.0 * options.kernel_radius_mm;
+  std::uint64_t seed = 12345;
+  const auto uniform = [&seed] {
+    seed = seed * 6364136223846793005ULL + 1442695040888963407ULL;
+    return static_cast<double>(seed >> 11) / static_cast<double>(1ULL << 53);
+  };
+  for (int trial = 0; trial < 4; ++trial) {
+    std::vector<glm::dvec3> drops;
+    for (int clump = 0; clump < 12; ++clump) {
+      const glm::dvec3 centre(200.0 * uniform(), 200.0 * uniform(), 60.0 * uniform());
+      const glm::dvec3 step =
+          (0.6 + 0.4 * uniform()) * link *
+          glm::normalize(glm::dvec3(uniform() - 0.5, uniform() - 0.5, uniform() - 0.5));
+      for (int k = 0; k < 15; ++k)  // a chain, its links just under the reach
+        drops.push_back(centre + static_cast<double>(k) * step);
+      for (int k = 0; k < 20; ++k)  // and a clump round its start
+        drops.push_back(centre + 8.0 * glm::dvec3(uniform() - 0.5, uniform() - 0.5, uniform()));
+    }
+    std::vector<std::size_t> parent(drops.size());
+    for (std::size_t i = 0; i < parent.size(); ++i)
+      parent[i] = i;
+    const auto find = [&parent](std::size_t i) {
+      while (parent[i] != i)
+        i = parent[i] = parent[parent[i]];
+      return i;
+    };
+    for (std::size_t i = 0; i < drops.size(); ++i)
+      for (std::size_t j = i + 1; j < drops.size(); ++j)
+        if (glm::length(drops[i] - drops[j]) < link) parent[find(i)] = find(j);
+    std::size_t groups = 0;
+    for (std::size_t i = 0; i < drops.size(); ++i)
+      groups += find(i) == i ? 1 : 0;
+    LiquidSurface liquid(options);
+    liquid.update(drops);
+    EXPECT_EQ(liquid.groups(), groups) << "trial " << trial;
+    EXPECT_GT(groups, 3u);
+    EXPECT_LT(groups, drops.size() / 4);
+  }
+}
+
 TEST(LiquidSurface, ALargePoolIsDrawnOnCoarserCellsWithAboutAsManyFaces) {
   // A pool of 48 x 48 particles (2,304) at the rest spacing: past fine_particles the cells grow
   // with the square root of the count, so the pool costs the renderer a fraction of the faces it

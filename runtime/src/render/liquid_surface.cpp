@@ -3,6 +3,7 @@
 #include "bisturi/runtime/render/liquid_surface.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -35,32 +36,66 @@ std::uint32_t root(std::vector<std::uint32_t>& parent, std::uint32_t i) {
 
 void LiquidSurface::cluster(std::span<const glm::dvec3> centres_mm) {
   // Particles whose kernels overlap (closer than twice the reach) share a grid; a spray of drops
-  // far apart gets a small grid each instead of one grid over the whole field.
+  // far apart gets a small grid each instead of one grid over the whole field. The particles go
+  // into cubes whose diagonal is under that distance, so those of one cube are linked without a
+  // test; two cubes are linked by the first pair found close enough, and not searched at all
+  // once they are in one group (a pool is one group after a pass over its cubes).
   const double link = 2.0 * options_.kernel_radius_mm;
+  const double side = 0.999 * link / std::sqrt(3.0);
   const auto n = static_cast<std::uint32_t>(centres_mm.size());
   parent_.resize(n);
   for (std::uint32_t i = 0; i < n; ++i)
     parent_[i] = i;
-  const auto key = [link](const glm::dvec3& p) {
-    const glm::i64vec3 c(glm::floor(p / link));
-    return std::array<std::int64_t, 3>{c.x, c.y, c.z};
+  const auto cube_of = [side](const glm::dvec3& p) { return glm::i64vec3(glm::floor(p / side)); };
+  const auto key_of = [](const glm::i64vec3& c) {
+    constexpr std::int64_t kBias = 1 << 20;
+    const auto u = [](std::int64_t v) { return static_cast<std::uint64_t>(v + kBias) & 0x1FFFFFu; };
+    return u(c.x) << 42 | u(c.y) << 21 | u(c.z);
   };
-  buckets_.clear();
+  by_cube_.resize(n);
   for (std::uint32_t i = 0; i < n; ++i)
-    buckets_[key(centres_mm[i])].push_back(i);
-  for (const auto& [cell, members] : buckets_) {
-    for (std::int64_t dz = -1; dz <= 1; ++dz) {
-      for (std::int64_t dy = -1; dy <= 1; ++dy) {
-        for (std::int64_t dx = -1; dx <= 1; ++dx) {
-          const auto other = buckets_.find({cell[0] + dx, cell[1] + dy, cell[2] + dz});
-          if (other == buckets_.end()) continue;
-          for (const std::uint32_t i : members) {
-            for (const std::uint32_t j : other->second) {
-              if (j <= i || glm::length(centres_mm[i] - centres_mm[j]) >= link) continue;
-              parent_[root(parent_, i)] = root(parent_, j);
-            }
-          }
+    by_cube_[i] = {key_of(cube_of(centres_mm[i])), i};
+  std::sort(by_cube_.begin(), by_cube_.end());
+  cube_begin_.clear();
+  cube_keys_.clear();
+  for (std::uint32_t a = 0; a < n; ++a) {
+    if (a > 0 && by_cube_[a].first == by_cube_[a - 1].first) {
+      parent_[root(parent_, by_cube_[a].second)] =
+          root(parent_, by_cube_[cube_begin_.back()].second);
+      continue;
+    }
+    cube_begin_.push_back(a);
+    cube_keys_.push_back(by_cube_[a].first);
+  }
+  cube_begin_.push_back(n);
+  // The cubes a cube's particles may reach: two cubes on along each axis at most. Cubes are in
+  // key order (x, then y, then z), so the cubes of one column (dx, dy) round a cube follow one
+  // another, and each column's start only moves on from cube to cube: a cursor per column walks
+  // the keys once. Each pair of cubes is looked at from the earlier one.
+  const std::size_t cubes = cube_keys_.size();
+  std::array<std::size_t, 25> cursor{};
+  for (std::size_t c = 0; c < cubes; ++c) {
+    const std::uint32_t first = by_cube_[cube_begin_[c]].second;
+    const glm::i64vec3 here = cube_of(centres_mm[first]);
+    for (std::int64_t column = 0; column < 25; ++column) {
+      const glm::i64vec3 low = here + glm::i64vec3(column % 5 - 2, column / 5 - 2, -2);
+      const std::uint64_t from = key_of(low), to = key_of(low + glm::i64vec3(0, 0, 4));
+      std::size_t& o = cursor[static_cast<std::size_t>(column)];
+      while (o < cubes && cube_keys_[o] < from)
+        ++o;
+      for (std::size_t q = std::max(o, c + 1); q < cubes && cube_keys_[q] <= to; ++q) {
+        const std::uint32_t other = by_cube_[cube_begin_[q]].second;
+        const glm::i64vec3 d = cube_of(centres_mm[other]) - here;
+        const glm::dvec3 gap(glm::max(glm::abs(d) - std::int64_t{1}, glm::i64vec3(0)));
+        if (side * glm::length(gap) >= link) continue;
+        if (root(parent_, first) == root(parent_, other)) continue;
+        bool linked = false;
+        for (std::uint32_t a = cube_begin_[c]; a < cube_begin_[c + 1] && !linked; ++a) {
+          const glm::dvec3& p = centres_mm[by_cube_[a].second];
+          for (std::uint32_t b = cube_begin_[q]; b < cube_begin_[q + 1] && !linked; ++b)
+            linked = glm::length(p - centres_mm[by_cube_[b].second]) < link;
         }
+        if (linked) parent_[root(parent_, first)] = root(parent_, other);
       }
     }
   }

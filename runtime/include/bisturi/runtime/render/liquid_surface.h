@@ -11,7 +11,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
-#include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include <glm/vec3.hpp>
@@ -57,15 +57,14 @@ class LiquidSurface {
   /// One group's surface, on a grid round it, into combined_.
   void add_part(std::span<const glm::dvec3> centres_mm);
 
-  struct KeyHash {
-    std::size_t operator()(const std::array<std::int64_t, 3>& k) const {
-      return static_cast<std::size_t>(k[0] * 73856093 ^ k[1] * 19349663 ^ k[2] * 83492791);
-    }
-  };
   LiquidSurfaceOptions options_;
   Grid<float> field_;  ///< kept between parts and frames: its storage is reused
   std::vector<std::uint32_t> parent_;
-  std::unordered_map<std::array<std::int64_t, 3>, std::vector<std::uint32_t>, KeyHash> buckets_;
+  /// cluster's scratch: the particles by cube (key, index), where each cube's run begins, and
+  /// the cubes' keys in order.
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> by_cube_;
+  std::vector<std::uint32_t> cube_begin_;
+  std::vector<std::uint64_t> cube_keys_;
   std::vector<std::vector<glm::dvec3>> clusters_;
   PolygonMesh combined_;
   Dlfl mesh_;
