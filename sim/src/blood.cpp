@@ -53,21 +53,34 @@ std::uint64_t cell_key(std::int64_t x, std::int64_t y, std::int64_t z) {
 }
 
 /// Calls visit(b) for each entry b of `cells` (sorted by key) in the 27 cells round the one
-/// holding `at`: the three cells along z are neighbours in key order, so one search a column.
-template <class Visit>
-void for_each_near(const std::vector<std::pair<std::uint64_t, std::uint32_t>>& cells,
-                   const glm::dvec3& at, double h, Visit&& visit) {
-  const std::int64_t cx = cell_of(at.x, h), cy = cell_of(at.y, h), cz = cell_of(at.z, h);
-  for (std::int64_t dx = -1; dx <= 1; ++dx)
-    for (std::int64_t dy = -1; dy <= 1; ++dy) {
-      const std::uint64_t low = cell_key(cx + dx, cy + dy, cz - 1);
-      const auto it = std::lower_bound(cells.begin(), cells.end(),
-                                       std::pair<std::uint64_t, std::uint32_t>{low, 0});
-      for (auto b = static_cast<std::size_t>(it - cells.begin());
-           b < cells.size() && cells[b].first <= low + 2; ++b)
-        visit(b);
-    }
-}
+/// holding a point: the three cells along z are neighbours in key order, so one column a run.
+/// The points must come in the order of their cells' keys: each column's start then only moves
+/// on, and a cursor per column walks the entries once instead of a search per cell.
+class NearCells {
+ public:
+  NearCells(const std::vector<std::pair<std::uint64_t, std::uint32_t>>& cells, double h)
+      : cells_(cells), h_(h) {}
+
+  template <class Visit>
+  void visit(const glm::dvec3& at, Visit&& visit) {
+    const std::int64_t cx = cell_of(at.x, h_), cy = cell_of(at.y, h_), cz = cell_of(at.z, h_);
+    std::size_t column = 0;
+    for (std::int64_t dx = -1; dx <= 1; ++dx)
+      for (std::int64_t dy = -1; dy <= 1; ++dy, ++column) {
+        const std::uint64_t low = cell_key(cx + dx, cy + dy, cz - 1);
+        std::size_t& b = cursor_[column];
+        while (b < cells_.size() && cells_[b].first < low)
+          ++b;
+        for (std::size_t e = b; e < cells_.size() && cells_[e].first <= low + 2; ++e)
+          visit(e);
+      }
+  }
+
+ private:
+  const std::vector<std::pair<std::uint64_t, std::uint32_t>>& cells_;
+  double h_;
+  std::array<std::size_t, 9> cursor_{};
+};
 
 }  // namespace
 
@@ -164,6 +177,7 @@ void Blood::list_neighbours(std::uint8_t pass) {
   // Those in flight found all their pairs in the first pass.
   const auto listed = [&](std::uint32_t j) { return pass == 2 && active_[j] == 1; };
   std::array<std::uint32_t, 64> here{};  // the cell's particles in the pass (sorted positions)
+  NearCells near(cells_, h_);            // the cells in key order: begin only grows
   // Cell by cell: the cells around each are looked up once for all its particles in the pass.
   for (std::size_t begin = 0; begin < n;) {
     std::size_t end = begin, count = 0;
@@ -174,7 +188,7 @@ void Blood::list_neighbours(std::uint8_t pass) {
     }
     if (count > here.size()) {
       // A cell of more than 64 particles in the pass (blood packed far past its rest density).
-      for_each_near(cells_, sorted_p_[begin], h_, [&](std::size_t b) {
+      near.visit(sorted_p_[begin], [&](std::size_t b) {
         const std::uint32_t j = cells_[b].second;
         if (listed(j)) return;
         const bool both = active_[j] == pass;
@@ -188,7 +202,7 @@ void Blood::list_neighbours(std::uint8_t pass) {
     } else if (count > 0) {
       // The positions in cell order: the inner loop reads memory in a row. A pair of particles
       // both in the pass is found once, from the earlier of the two in cell order.
-      for_each_near(cells_, sorted_p_[begin], h_, [&](std::size_t b) {
+      near.visit(sorted_p_[begin], [&](std::size_t b) {
         const std::uint32_t j = cells_[b].second;
         if (listed(j)) return;
         const bool both = active_[j] == pass;
