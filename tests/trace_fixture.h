@@ -5,6 +5,7 @@
 // make_trace_fixture, which wrote tests/data/traces/sim_glove.btrace.
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -23,10 +24,30 @@ namespace bisturi::devices::testing {
 
 struct SimSessionOptions {
   std::chrono::milliseconds duration{200};
+  /// The glove's report rate.
+  double glove_rate_hz = 1000.0;
+  /// How far the clock moves on each reading (0: only when the session sets it), as a live
+  /// clock does between the transport's stamp and the driver's.
+  Nanoseconds tick_per_reading{0};
   /// Unplug the glove at this time and plug it back 20 ms later (0: never).
   std::chrono::milliseconds unplug_at{0};
   bool tracker = true;
   TraceWriterOptions writer;
+};
+
+/// Virtual time that also moves by `tick` on every reading.
+class TickingClock final : public Clock {
+ public:
+  TickingClock(Nanoseconds start, Nanoseconds tick) : now_ns_(start.count()), tick_(tick.count()) {}
+  Nanoseconds now() const override { return Nanoseconds{now_ns_.fetch_add(tick_) + tick_}; }
+  void sleep_until(Nanoseconds t) override {
+    if (t > now()) set(t);
+  }
+  void set(Nanoseconds t) { now_ns_.store(t.count()); }
+
+ private:
+  mutable std::atomic<Nanoseconds::rep> now_ns_;
+  Nanoseconds::rep tick_;
 };
 
 inline DeviceScript glove_script() {
@@ -80,7 +101,7 @@ inline std::vector<double> glove_command(const HapticState& state, std::size_t c
 inline std::size_t record_sim_session(const std::filesystem::path& path,
                                       const SimSessionOptions& options = {}) {
   using std::chrono::milliseconds;
-  VirtualClock clock(std::chrono::seconds(1));
+  TickingClock clock(std::chrono::seconds(1), options.tick_per_reading);
   const Registry registry = builtin_registry();
   ForceGuardConfig guard_config;
   guard_config.ramp_in = milliseconds(40);
@@ -91,7 +112,7 @@ inline std::size_t record_sim_session(const std::filesystem::path& path,
   header.config = force_guard_config_json(guard_config);
   TraceWriter writer(path, header, options.writer);
 
-  SimulatedGlove glove(glove_script());
+  SimulatedGlove glove(glove_script(), "GLOVE-0001", options.glove_rate_hz);
   SimulatedHeadTracker head(head_script());
   VirtualPair glove_link = make_virtual_pair(glove.descriptor());
   glove.attach(std::move(glove_link.device));

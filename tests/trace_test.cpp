@@ -2,8 +2,8 @@
 // writer), recording and replay of the simulated glove (a match, and a flipped output byte found),
 // and the cut.
 
-#include <gtest/gtest.h>
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -663,6 +663,29 @@ TEST_F(TraceTest, SimulatedGloveSessionReplaysByteForByte) {
     previous = record;
   }
   EXPECT_GE(after_their_report, commands * 9 / 10) << "of " << commands;
+}
+
+// A live clock moves between the transport's stamp on a report and the driver's. With the glove
+// reporting just slower than the silence watchdog's 50 ms, each watchdog decision falls within
+// those microseconds: the replay's guard hears each answer at the recorded time, and so must the
+// live one, or the two zero different commands.
+TEST_F(TraceTest, AClockThatMovesOnEveryReadingReplaysTheSilenceWatchdogAlike) {
+  for (const double rate_hz : {19.99, 19.999}) {
+    SCOPED_TRACE(rate_hz);
+    const fs::path path = file("ticking.btrace");
+    testing::SimSessionOptions options;
+    options.duration = std::chrono::milliseconds(400);
+    options.glove_rate_hz = rate_hz;
+    options.tick_per_reading = std::chrono::microseconds(3);
+    options.tracker = false;
+    testing::record_sim_session(path, options);
+    TraceReader reader(path);
+    const TraceReplayResult r = replay_trace(reader);
+    EXPECT_TRUE(r.passed()) << (r.mismatch ? r.mismatch->reason : std::string("trace error"));
+    EXPECT_EQ(r.mismatches, 0u);
+    ASSERT_EQ(r.devices.size(), 1u);
+    EXPECT_GT(r.devices[0].reports_in, 5u);
+  }
 }
 
 // The recorded session, with one byte of one output report changed (and the chunk's checksum

@@ -58,9 +58,10 @@ class GuardedHaptic {
   GuardedHaptic(HapticDevice& device, ForceGuard& guard, Clock& clock,
                 TraceWriter* writer = nullptr, std::uint16_t index = 0);
 
-  /// device.poll(timeout); when reports were handled the guard hears that the device answered at
-  /// state().sample_time. DeviceDisconnected latches the guard and is rethrown; ProtocolError
-  /// (a malformed report, dropped) propagates with the guard untouched.
+  /// device.poll(timeout); when reports were handled the guard hears that the device answered:
+  /// recording, at the time the last report was recorded (as a replay's guard hears it), else at
+  /// state().sample_time. DeviceDisconnected latches the guard and is rethrown; ProtocolError (a
+  /// malformed report, dropped) propagates with the guard untouched.
   std::size_t poll(std::chrono::microseconds timeout);
   /// Filters `command_N` through the guard at clock.now(), sends the result, then records the
   /// command. DeviceDisconnected latches the guard and is rethrown (the command recorded first).
