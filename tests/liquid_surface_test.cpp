@@ -14,6 +14,7 @@
 #include "bisturi/runtime/render/liquid_surface.h"
 #include "bisturi/scene/dlfl_queries.h"
 #include "bisturi/scene/dlfl_validate.h"
+#include "session/liquid_worker.h"
 
 namespace bisturi::render {
 namespace {
@@ -169,3 +170,49 @@ TEST(LiquidSurface, ALargePoolIsDrawnOnCoarserCellsWithAboutAsManyFaces) {
 
 }  // namespace
 }  // namespace bisturi::render
+
+namespace bisturi::runtime {
+namespace {
+
+TEST(LiquidWorker, BuildsTheNewestParticlesOnItsThreadAsTheRenderThreadWould) {
+  std::vector<glm::dvec3> pool;
+  for (int i = 0; i < 10; ++i)
+    for (int j = 0; j < 10; ++j)
+      pool.push_back({2.4 * i, 2.4 * j, 0.0});
+  render::LiquidSurface here;
+  const std::size_t faces = here.update(pool).num_faces();
+  ASSERT_GT(faces, 0u);
+
+  LiquidWorker worker;
+  std::uint64_t number = 7;
+  EXPECT_EQ(worker.newest(number), nullptr);  // nothing built yet
+  EXPECT_EQ(number, 0u);
+  worker.offer(pool);
+  worker.settle();
+  const std::shared_ptr<const Dlfl> first = worker.newest(number);
+  ASSERT_NE(first, nullptr);
+  EXPECT_EQ(number, 1u);
+  EXPECT_EQ(first->num_faces(), faces);
+  // The same particles again: no new build. Moved ones: a new surface, the old one still whole
+  // for whoever draws it.
+  worker.offer(pool);
+  worker.settle();
+  (void)worker.newest(number);
+  EXPECT_EQ(number, 1u);
+  for (glm::dvec3& p : pool)
+    p.z += 5.0;
+  worker.offer(pool);
+  worker.settle();
+  const std::shared_ptr<const Dlfl> second = worker.newest(number);
+  EXPECT_EQ(number, 2u);
+  EXPECT_EQ(second->num_faces(), faces);
+  EXPECT_EQ(first->num_faces(), faces);
+  // No particles: an empty surface.
+  worker.offer({});
+  worker.settle();
+  EXPECT_EQ(worker.newest(number)->num_faces(), 0u);
+  EXPECT_EQ(number, 3u);
+}
+
+}  // namespace
+}  // namespace bisturi::runtime

@@ -2,6 +2,8 @@
 
 #include "render_loop.h"
 
+#include "liquid_worker.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -22,7 +24,6 @@
 #include "bisturi/runtime/render/drape_mesh.h"
 #include "bisturi/runtime/render/errors.h"
 #include "bisturi/runtime/render/instrument_mesh.h"
-#include "bisturi/runtime/render/liquid_surface.h"
 #include "bisturi/runtime/render/openxr_sink.h"
 #include "bisturi/runtime/render/png_sink.h"
 #include "bisturi/runtime/session/fault_injection.h"
@@ -463,10 +464,11 @@ void run_render_loop(const RenderLoopContext& c) {
     renderer.set_visible(blade_ids.back(), false);
   }
   // Blood, where a cut may open a pulsing vessel: a liquid surface round its particles, built
-  // again each frame while there are any.
-  std::optional<render::LiquidSurface> blood;
+  // on a thread of its own from the newest particles while there are any.
+  std::optional<LiquidWorker> blood;
   render::SolidId blood_id{};
   bool blood_drawn = false;
+  std::uint64_t blood_surface_drawn = 0;  // the number of the surface drawn (LiquidWorker)
   const bool may_bleed = std::any_of(scene.solids.begin(), scene.solids.end(),
                                      [](const SolidDescription& d) { return d.pulse_mmHg; });
   if (may_bleed && scene.physiology.blood_max_particles > 0) {
@@ -477,7 +479,7 @@ void run_render_loop(const RenderLoopContext& c) {
     wet_blood.shininess = 64.0f;
     wet_blood.interior_colour = wet_blood.colour;
     wet_blood.casts_shadow = false;
-    blood_id = renderer.add_solid(blood->mesh(), wet_blood);
+    blood_id = renderer.add_solid(Dlfl{}, wet_blood);
     renderer.set_visible(blood_id, false);
   }
   render_ready.store(true);
@@ -568,13 +570,17 @@ void run_render_loop(const RenderLoopContext& c) {
       in.follow(st.nodes_m);
       renderer.update_solid(inner_ids[k], in.mesh());
     }
-    // The blood's surface is built again every other frame (45 Hz at 90): on two cores its
-    // extraction at the display's rate took CPU the tissue and haptic threads missed.
-    if (blood && (!s.blood_mm.empty() || blood_drawn) &&
-        (frames.load(std::memory_order_relaxed) % 2 == 0 || !blood_drawn || s.blood_mm.empty())) {
-      renderer.replace_solid(blood_id, blood->update(s.blood_mm));
-      blood_drawn = !s.blood_mm.empty();
-      renderer.set_visible(blood_id, blood_drawn);
+    // The blood's surface: the newest particles to its thread, the newest surface it built drawn.
+    if (blood && (!s.blood_mm.empty() || blood_drawn)) {
+      blood->offer(s.blood_mm);
+      std::uint64_t number = 0;
+      const std::shared_ptr<const Dlfl> surface = blood->newest(number);
+      if (surface && number != blood_surface_drawn) {
+        renderer.replace_solid(blood_id, *surface);
+        blood_surface_drawn = number;
+        blood_drawn = surface->num_faces() > 0;
+        renderer.set_visible(blood_id, blood_drawn);
+      }
     }
     // Each probe's shaft rises from its tip along the hand; a blade shows while it cuts.
     for (std::size_t h = 0; h < std::min(s.instruments.size(), probe_ids.size()); ++h) {

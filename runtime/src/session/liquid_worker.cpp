@@ -1,0 +1,75 @@
+// The blood's liquid surface on a thread of its own (see liquid_worker.h).
+#include "liquid_worker.h"
+
+#include <pthread.h>
+#include <sched.h>
+
+#include <algorithm>
+
+namespace bisturi::runtime {
+
+LiquidWorker::LiquidWorker(const render::LiquidSurfaceOptions& options)
+    : liquid_(options), thread_([this] { run(); }) {}
+
+LiquidWorker::~LiquidWorker() {
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+  }
+  changed_.notify_all();
+  thread_.join();
+}
+
+void LiquidWorker::offer(const std::vector<glm::dvec3>& centres_mm) {
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (number_ > 0 || pending_ || building_) {
+      if (centres_mm.size() == offered_.size() &&
+          std::equal(centres_mm.begin(), centres_mm.end(), offered_.begin()))
+        return;
+    }
+    offered_.assign(centres_mm.begin(), centres_mm.end());
+    pending_ = true;
+  }
+  changed_.notify_all();
+}
+
+std::shared_ptr<const Dlfl> LiquidWorker::newest(std::uint64_t& number) const {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  number = number_;
+  return newest_;
+}
+
+void LiquidWorker::settle() {
+  std::unique_lock<std::mutex> lock(mutex_);
+  changed_.wait(lock, [&] { return !pending_ && !building_; });
+}
+
+void LiquidWorker::run() {
+  std::vector<glm::dvec3> centres;
+  for (;;) {
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      changed_.wait(lock, [&] { return stopping_ || pending_; });
+      if (stopping_) return;
+      centres.assign(offered_.begin(), offered_.end());
+      pending_ = false;
+      building_ = true;
+    }
+    // Only on a free core while it builds; its ordinary policy again before it takes the lock
+    // the render thread waits on.
+    sched_param p{};
+    (void)pthread_setschedparam(pthread_self(), SCHED_IDLE, &p);
+    auto built = std::make_shared<const Dlfl>(liquid_.update(centres));
+    (void)pthread_setschedparam(pthread_self(), SCHED_OTHER, &p);
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      newest_ = std::move(built);
+      ++number_;
+      building_ = false;
+    }
+    changed_.notify_all();
+  }
+}
+
+}  // namespace bisturi::runtime
