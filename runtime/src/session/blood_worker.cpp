@@ -1,8 +1,8 @@
 // The blood on a thread of its own (see blood_worker.h).
 #include "blood_worker.h"
 
-#include <pthread.h>
-#include <sched.h>
+#include "free_core.h"
+
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
@@ -13,20 +13,6 @@
 #include "bisturi/sim/units.h"
 
 namespace bisturi::runtime {
-
-namespace {
-
-/// The calling thread's policy: SCHED_IDLE while it steps the blood (it runs only on a core no
-/// other thread of the session wants, and any of them that wakes takes the core at once), the
-/// ordinary policy while it holds the worker's lock (so a thread waiting on that lock never
-/// waits for an idle core).
-void step_only_on_a_free_core(bool stepping) {
-  sched_param p{};
-  p.sched_priority = 0;
-  (void)pthread_setschedparam(pthread_self(), stepping ? SCHED_IDLE : SCHED_OTHER, &p);
-}
-
-}  // namespace
 
 BloodWorker::BloodWorker(const sim::BloodOptions& options, const sim::SimWorld& world)
     : blood_(options) {
@@ -121,9 +107,9 @@ void BloodWorker::run() {
     if (stall_flag_ != nullptr && stall_flag_->exchange(false))
       std::this_thread::sleep_for(stall_for_);
     const auto begin = std::chrono::steady_clock::now();
-    step_only_on_a_free_core(true);
+    run_only_on_a_free_core(true);
     take(*step);
-    step_only_on_a_free_core(false);
+    run_only_on_a_free_core(false);
     step_ms_.push_back(
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin)
             .count());

@@ -1,8 +1,7 @@
 // The blood's liquid surface on a thread of its own (see liquid_worker.h).
 #include "liquid_worker.h"
 
-#include <pthread.h>
-#include <sched.h>
+#include "free_core.h"
 
 #include <algorithm>
 
@@ -23,11 +22,9 @@ LiquidWorker::~LiquidWorker() {
 void LiquidWorker::offer(const std::vector<glm::dvec3>& centres_mm) {
   {
     const std::lock_guard<std::mutex> lock(mutex_);
-    if (number_ > 0 || pending_ || building_) {
-      if (centres_mm.size() == offered_.size() &&
-          std::equal(centres_mm.begin(), centres_mm.end(), offered_.begin()))
-        return;
-    }
+    if (centres_mm.size() == offered_.size() &&
+        std::equal(centres_mm.begin(), centres_mm.end(), offered_.begin()))
+      return;
     offered_.assign(centres_mm.begin(), centres_mm.end());
     pending_ = true;
   }
@@ -56,12 +53,9 @@ void LiquidWorker::run() {
       pending_ = false;
       building_ = true;
     }
-    // Only on a free core while it builds; its ordinary policy again before it takes the lock
-    // the render thread waits on.
-    sched_param p{};
-    (void)pthread_setschedparam(pthread_self(), SCHED_IDLE, &p);
+    run_only_on_a_free_core(true);
     auto built = std::make_shared<const Dlfl>(liquid_.update(centres));
-    (void)pthread_setschedparam(pthread_self(), SCHED_OTHER, &p);
+    run_only_on_a_free_core(false);  // before the lock the render thread waits on
     {
       const std::lock_guard<std::mutex> lock(mutex_);
       newest_ = std::move(built);

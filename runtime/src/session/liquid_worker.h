@@ -28,7 +28,7 @@ class LiquidWorker {
   LiquidWorker& operator=(const LiquidWorker&) = delete;
 
   /// The particles now (world mm): the next build uses them, unless newer ones come first. The
-  /// same particles as the last offered start no build.
+  /// same particles as the last offered (none, at first) start no build.
   void offer(const std::vector<glm::dvec3>& centres_mm);
   /// The newest surface built (null before the first) and its number, which grows by one a
   /// build: a caller holding that number has it already.
