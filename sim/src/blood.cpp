@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
+#include <type_traits>
 
 #include <glm/geometric.hpp>
 #include <glm/gtx/norm.hpp>
@@ -137,6 +139,7 @@ std::size_t Blood::emit(std::span<const BloodSource> sources, double flow_m3_s, 
     pooled_.push_back(0);
     resting_.push_back(0);
     touching_.push_back(0);
+    serial_.push_back(counts_.emitted);
     ++next_source_;
     ++counts_.emitted;
     ++made;
@@ -146,6 +149,15 @@ std::size_t Blood::emit(std::span<const BloodSource> sources, double flow_m3_s, 
   return made;
 }
 
+template <class T>
+void Blood::permute(std::vector<T>& values) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  permuted_.resize(values.size() * sizeof(T));
+  for (std::size_t a = 0; a < values.size(); ++a)
+    std::memcpy(permuted_.data() + a * sizeof(T), &values[reorder_[a]], sizeof(T));
+  std::memcpy(values.data(), permuted_.data(), permuted_.size());
+}
+
 void Blood::find_neighbours() {
   const std::size_t n = x_.size();
   cells_.resize(n);
@@ -153,9 +165,20 @@ void Blood::find_neighbours() {
     cells_[i] = {cell_key(cell_of(p_[i].x, h_), cell_of(p_[i].y, h_), cell_of(p_[i].z, h_)),
                  static_cast<std::uint32_t>(i)};
   std::sort(cells_.begin(), cells_.end());
-  sorted_p_.resize(n);
-  for (std::size_t a = 0; a < n; ++a)
-    sorted_p_[a] = p_[cells_[a].second];
+  // The particles themselves in cell order: neighbours then lie close in memory, and every pass
+  // over the pairs below reads and writes its particles' entries nearly in a row.
+  reorder_.resize(n);
+  for (std::size_t a = 0; a < n; ++a) {
+    reorder_[a] = cells_[a].second;
+    cells_[a].second = static_cast<std::uint32_t>(a);
+  }
+  permute(x_);
+  permute(v_);
+  permute(p_);
+  permute(pooled_);
+  permute(resting_);
+  permute(touching_);
+  permute(serial_);
   // The pairs with a particle in flight first, then those of the pooled ones they reach. In the
   // order the cells were searched: fixed by the positions, so the sums come out the same bits
   // every run.
@@ -176,41 +199,40 @@ void Blood::list_neighbours(std::uint8_t pass) {
   const double h2 = h_ * h_;
   // Those in flight found all their pairs in the first pass.
   const auto listed = [&](std::uint32_t j) { return pass == 2 && active_[j] == 1; };
-  std::array<std::uint32_t, 64> here{};  // the cell's particles in the pass (sorted positions)
+  // The particles are in cell order (find_neighbours): a cell's entries are its particles.
+  std::array<std::uint32_t, 64> here{};  // the cell's particles in the pass
   NearCells near(cells_, h_);            // the cells in key order: begin only grows
   // Cell by cell: the cells around each are looked up once for all its particles in the pass.
   for (std::size_t begin = 0; begin < n;) {
     std::size_t end = begin, count = 0;
     for (; end < n && cells_[end].first == cells_[begin].first; ++end) {
-      if (active_[cells_[end].second] != pass) continue;
+      if (active_[end] != pass) continue;
       if (count < here.size()) here[count] = static_cast<std::uint32_t>(end);
       ++count;
     }
     if (count > here.size()) {
       // A cell of more than 64 particles in the pass (blood packed far past its rest density).
-      near.visit(sorted_p_[begin], [&](std::size_t b) {
-        const std::uint32_t j = cells_[b].second;
+      near.visit(p_[begin], [&](std::size_t b) {
+        const auto j = static_cast<std::uint32_t>(b);
         if (listed(j)) return;
         const bool both = active_[j] == pass;
         for (std::size_t a = begin; a < end; ++a) {
-          const std::uint32_t i = cells_[a].second;
-          if (active_[i] != pass || (both && b <= a)) continue;
-          if (glm::length2(sorted_p_[a] - sorted_p_[b]) >= h2) continue;
-          pairs_.emplace_back(i, j);
+          if (active_[a] != pass || (both && b <= a)) continue;
+          if (glm::length2(p_[a] - p_[b]) >= h2) continue;
+          pairs_.emplace_back(static_cast<std::uint32_t>(a), j);
         }
       });
     } else if (count > 0) {
-      // The positions in cell order: the inner loop reads memory in a row. A pair of particles
-      // both in the pass is found once, from the earlier of the two in cell order.
-      near.visit(sorted_p_[begin], [&](std::size_t b) {
-        const std::uint32_t j = cells_[b].second;
+      // A pair of particles both in the pass is found once, from the earlier of the two.
+      near.visit(p_[begin], [&](std::size_t b) {
+        const auto j = static_cast<std::uint32_t>(b);
         if (listed(j)) return;
         const bool both = active_[j] == pass;
-        const glm::dvec3& q = sorted_p_[b];
+        const glm::dvec3& q = p_[b];
         // here[] ascends: past the first at or after b, a pair both in the pass is found from b.
         for (std::size_t k = 0; k < count && !(both && b <= here[k]); ++k) {
-          if (glm::length2(sorted_p_[here[k]] - q) >= h2) continue;
-          pairs_.emplace_back(cells_[here[k]].second, j);
+          if (glm::length2(p_[here[k]] - q) >= h2) continue;
+          pairs_.emplace_back(here[k], j);
         }
       });
     }
@@ -304,11 +326,16 @@ void Blood::remove_drained() {
 
 void Blood::recycle_pooled(std::size_t count) {
   remove_.assign(x_.size(), 0);
-  for (std::size_t i = 0; i < x_.size() && count > 0; ++i) {
-    if (!pooled_[i]) continue;
-    remove_[i] = 1;
+  // The oldest: the smallest serials (the particles are kept in cell order, not emission order).
+  oldest_.clear();
+  for (std::size_t i = 0; i < x_.size(); ++i)
+    if (pooled_[i]) oldest_.emplace_back(serial_[i], static_cast<std::uint32_t>(i));
+  count = std::min(count, oldest_.size());
+  std::nth_element(oldest_.begin(), oldest_.begin() + static_cast<std::ptrdiff_t>(count),
+                   oldest_.end());
+  for (std::size_t k = 0; k < count; ++k) {
+    remove_[oldest_[k].second] = 1;
     ++counts_.recycled;
-    --count;
   }
   remove_marked();
   counts_.pooled = static_cast<std::uint64_t>(std::count(pooled_.begin(), pooled_.end(), 1));
@@ -324,6 +351,7 @@ void Blood::remove_marked() {
     pooled_[w] = pooled_[i];
     resting_[w] = resting_[i];
     touching_[w] = touching_[i];
+    serial_[w] = serial_[i];
     ++w;
   }
   x_.resize(w);
@@ -331,6 +359,7 @@ void Blood::remove_marked() {
   pooled_.resize(w);
   resting_.resize(w);
   touching_.resize(w);
+  serial_.resize(w);
 }
 
 void Blood::step(double dt_s, std::span<const BloodSurface> surfaces) {

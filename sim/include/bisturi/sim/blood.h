@@ -93,7 +93,7 @@ class Blood {
   void solve_density();
   void collide(std::span<const BloodSurface> surfaces);
   void remove_drained();
-  /// Takes the `count` oldest pooled particles (the first in emission order).
+  /// Takes the `count` oldest pooled particles (the first emitted).
   void recycle_pooled(std::size_t count);
   /// Removes the particles whose remove_ is set, keeping the others' order.
   void remove_marked();
@@ -111,6 +111,10 @@ class Blood {
   std::vector<std::uint8_t> pooled_;
   std::vector<std::uint16_t> resting_;  ///< steps spent slow on a surface
   std::vector<std::uint8_t> touching_;  ///< on a surface after the last collision pass
+  /// Each particle's place in emission order (the particles are kept in the order of their
+  /// cells, so neighbours lie close in memory).
+  std::vector<std::uint64_t> serial_;
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> oldest_;  ///< scratch: recycle_pooled
   /// Neighbours: each pair of particles within the kernel's reach once (its kernel values are
   /// symmetric, its gradients opposite, so each is computed once for both).
   std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs_;
@@ -125,7 +129,11 @@ class Blood {
   std::vector<glm::dvec3> delta_;
   std::vector<double> weight_;  ///< scratch: XSPH's kernel weights summed per particle
   std::vector<std::pair<std::uint64_t, std::uint32_t>> cells_;  ///< scratch
-  std::vector<glm::dvec3> sorted_p_;  ///< scratch: the predicted positions in cells_' order
+  std::vector<std::uint32_t> reorder_;   ///< scratch: the particles' former indices in cell order
+  std::vector<unsigned char> permuted_;  ///< scratch for permute()
+  /// Puts a per-particle array in reorder_'s order.
+  template <class T>
+  void permute(std::vector<T>& values);
   /// Scratch: the spiky kernel's gradient for each pair (as pairs_), this iteration.
   std::vector<glm::dvec3> gradient_;
   /// Per particle, this substep: 0 idle (pooled, nothing in flight near it), 1 in flight, 2
