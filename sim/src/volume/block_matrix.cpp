@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
-#include <stdexcept>
 
 #include <glm/geometric.hpp>
 #include <glm/matrix.hpp>
@@ -13,33 +12,53 @@
 namespace bisturi::sim {
 
 BlockMatrix::BlockMatrix(std::size_t nodes, std::span<const std::array<std::uint32_t, 8>> cells) {
-  std::vector<std::vector<std::uint32_t>> neighbours(nodes);
+  // Each node's cells (compressed rows), then its row: the nodes of those cells, in order.
+  std::vector<std::uint32_t> first_cell(nodes + 1, 0);
   for (const auto& cell : cells)
-    for (std::uint32_t a : cell)
-      for (std::uint32_t b : cell)
-        neighbours[a].push_back(b);
+    for (const std::uint32_t a : cell)
+      ++first_cell[a + 1];
+  for (std::size_t i = 0; i < nodes; ++i)
+    first_cell[i + 1] += first_cell[i];
+  std::vector<std::uint32_t> node_cells(first_cell.back());
+  std::vector<std::uint32_t> filled(first_cell.begin(), first_cell.end() - 1);
+  for (std::size_t c = 0; c < cells.size(); ++c)
+    for (const std::uint32_t a : cells[c])
+      node_cells[filled[a]++] = static_cast<std::uint32_t>(c);
   row_start_.assign(nodes + 1, 0);
-  for (std::size_t i = 0; i < nodes; ++i) {
-    std::vector<std::uint32_t>& n = neighbours[i];
-    if (n.empty()) n.push_back(static_cast<std::uint32_t>(i));  // a node in no cell: held alone
-    std::sort(n.begin(), n.end());
-    n.erase(std::unique(n.begin(), n.end()), n.end());
-    row_start_[i + 1] = row_start_[i] + static_cast<std::uint32_t>(n.size());
-  }
-  columns_.reserve(row_start_.back());
   diagonal_.resize(nodes);
+  columns_.clear();
+  columns_.reserve(27 * nodes);  // an inner node of a regular lattice
+  cell_slots_.resize(cells.size());
+  std::vector<std::uint32_t> row;
+  // Per node, in the row being built: its column's slot, and the row that listed it last.
+  std::vector<std::uint32_t> slot_of(nodes, 0), listed_in(nodes, UINT32_MAX);
   for (std::size_t i = 0; i < nodes; ++i) {
-    for (std::uint32_t j : neighbours[i]) {
+    row.clear();
+    for (std::uint32_t k = first_cell[i]; k < first_cell[i + 1]; ++k)
+      for (const std::uint32_t j : cells[node_cells[k]]) {
+        if (listed_in[j] == i) continue;
+        listed_in[j] = static_cast<std::uint32_t>(i);
+        row.push_back(j);
+      }
+    if (row.empty()) row.push_back(static_cast<std::uint32_t>(i));  // in no cell: held alone
+    std::sort(row.begin(), row.end());
+    for (const std::uint32_t j : row) {
       if (j == i) diagonal_[i] = static_cast<std::uint32_t>(columns_.size());
+      slot_of[j] = static_cast<std::uint32_t>(columns_.size());
       columns_.push_back(j);
+    }
+    row_start_[i + 1] = static_cast<std::uint32_t>(columns_.size());
+    // The slots of this row in each of its cells' blocks (the row of the corner that is i).
+    for (std::uint32_t k = first_cell[i]; k < first_cell[i + 1]; ++k) {
+      const auto& cell = cells[node_cells[k]];
+      for (std::size_t a = 0; a < 8; ++a) {
+        if (cell[a] != i) continue;
+        for (std::size_t b = 0; b < 8; ++b)
+          cell_slots_[node_cells[k]][a * 8 + b] = slot_of[cell[b]];
+      }
     }
   }
   values_.assign(columns_.size(), std::array<float, 12>{});
-  cell_slots_.resize(cells.size());
-  for (std::size_t c = 0; c < cells.size(); ++c)
-    for (std::size_t a = 0; a < 8; ++a)
-      for (std::size_t b = 0; b < 8; ++b)
-        cell_slots_[c][a * 8 + b] = slot(cells[c][a], cells[c][b]);
   r_.resize(nodes);
   z_.resize(nodes);
   p_.resize(nodes);
@@ -50,13 +69,6 @@ BlockMatrix::BlockMatrix(std::size_t nodes, std::span<const std::array<std::uint
 
 void BlockMatrix::set_zero() {
   std::fill(values_.begin(), values_.end(), std::array<float, 12>{});
-}
-
-std::uint32_t BlockMatrix::slot(std::uint32_t i, std::uint32_t j) const {
-  const auto begin = columns_.begin() + row_start_[i], end = columns_.begin() + row_start_[i + 1];
-  const auto it = std::lower_bound(begin, end, j);
-  if (it == end || *it != j) throw std::logic_error("block matrix: nodes share no cell");
-  return static_cast<std::uint32_t>(it - columns_.begin());
 }
 
 namespace {
@@ -96,8 +108,7 @@ void BlockMatrix::multiply(std::span<const glm::dvec3> x, std::span<glm::dvec3> 
   const std::size_t n = nodes();
   for (std::size_t i = 0; i < n; ++i)
     x_single_[i] = {float(x[i].x), float(x[i].y), float(x[i].z), 0.0f};
-  multiply_rows(n, row_start_.data(), columns_.data(), values_.data(), x_single_.data(),
-                y.data());
+  multiply_rows(n, row_start_.data(), columns_.data(), values_.data(), x_single_.data(), y.data());
 }
 
 void BlockMatrix::expand(std::span<glm::dvec3> x, std::span<const HangingNode> hanging) {

@@ -23,8 +23,6 @@ class BlockMatrix {
   BlockMatrix(std::size_t nodes, std::span<const std::array<std::uint32_t, 8>> cells);
 
   void set_zero();
-  /// The slot of block (i, j); i and j must share a cell.
-  [[nodiscard]] std::uint32_t slot(std::uint32_t i, std::uint32_t j) const;
   /// Cell c's 64 slots, [a * 8 + b] for its corners a and b.
   [[nodiscard]] const std::array<std::uint32_t, 64>& cell_slots(std::size_t c) const {
     return cell_slots_[c];

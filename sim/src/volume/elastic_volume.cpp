@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <stdexcept>
 
 #include <glm/geometric.hpp>
@@ -15,10 +16,14 @@ namespace bisturi::sim {
 
 struct ElasticVolume::Solver {
   explicit Solver(const HexLattice& lattice)
-      : matrix(lattice.rest.size(), lattice.cells),
-        force(lattice.rest.size()),
-        step(lattice.rest.size()) {}
-  BlockMatrix matrix;
+      : force(lattice.rest.size()), step(lattice.rest.size()) {}
+  /// The step's matrix, its structure built on first use: a volume that only gives forces (the
+  /// refined lattice a cut passes through on its way to the separated one) never builds it.
+  BlockMatrix& matrix(const HexLattice& lattice) {
+    if (!built) built.emplace(lattice.rest.size(), lattice.cells);
+    return *built;
+  }
+  std::optional<BlockMatrix> built;
   std::vector<glm::dvec3> force;
   std::vector<glm::dvec3> step;
   std::vector<glm::dvec3> start;
@@ -101,18 +106,19 @@ void ElasticVolume::set_state(std::span<const glm::dvec3> positions,
 
 DynamicResult ElasticVolume::advance(std::span<const PointLoad> loads, const DynamicOptions& o) {
   Solver& s = *solver_;
+  BlockMatrix& matrix = s.matrix(lattice_);
   const std::size_t n = x_.size();
   const double h = o.dt_s;
   const double kv_weight = h * retardation_s_ + h * h;
   // s.force = f(x), the matrix (h tau + h^2) K.
   assemble_elements(true, o.warp_tolerance, kv_weight);
-  s.matrix.multiply(v_, s.product);
+  matrix.multiply(v_, s.product);
   // The right-hand side before the loads: h (f - tau K v + M g) - h^2 K v (the product is
   // (h tau + h^2) K v: the masses join the matrix after it).
   for (std::size_t i = 0; i < n; ++i)
     s.force[i] = h * (s.force[i] + mass_[i] * o.gravity_m_s2) - s.product[i];
   for (std::size_t i = 0; i < n; ++i)
-    s.matrix.add(s.matrix.diagonal_slot(i), glm::mat3(static_cast<float>(mass_[i])));
+    matrix.add(matrix.diagonal_slot(i), glm::mat3(static_cast<float>(mass_[i])));
   for (const PointLoad& load : loads) {
     const auto& cell = lattice_.cells[load.point.cell];
     const auto& w = load.point.weights;
@@ -121,12 +127,12 @@ DynamicResult ElasticVolume::advance(std::span<const PointLoad> loads, const Dyn
       point_velocity += w[a] * v_[cell[a]];
     const glm::dvec3 rhs = h * load.force_N - (h * h) * (load.stiffness_N_per_m * point_velocity);
     const glm::dmat3 scaled = (h * h) * load.stiffness_N_per_m;
-    const auto& slots = s.matrix.cell_slots(load.point.cell);
+    const auto& slots = matrix.cell_slots(load.point.cell);
     for (std::size_t a = 0; a < 8; ++a) {
       if (w[a] == 0.0) continue;
       s.force[cell[a]] += w[a] * rhs;
       for (std::size_t b = 0; b < 8; ++b)
-        s.matrix.add(slots[a * 8 + b], glm::mat3((w[a] * w[b]) * scaled));
+        matrix.add(slots[a * 8 + b], glm::mat3((w[a] * w[b]) * scaled));
     }
   }
   // Held nodes that move (or stop moving) have a given dv: its coupling to the free nodes goes to
@@ -140,14 +146,14 @@ DynamicResult ElasticVolume::advance(std::span<const PointLoad> loads, const Dyn
     for (std::size_t i = 0; i < n; ++i)
       if (held_[i]) s.held_step[i] = held_velocity_ - v_[i];
     BlockMatrix::expand(s.held_step, lattice_.hanging);
-    s.matrix.multiply(s.held_step, s.held_product);
+    matrix.multiply(s.held_step, s.held_product);
     for (std::size_t i = 0; i < n; ++i)
       s.force[i] -= s.held_product[i];
   }
   // Warm start: the last step's velocity change (the motion changes smoothly step to step).
   if (s.step.size() != n) s.step.assign(n, glm::dvec3(0.0));
   const BlockMatrix::SolveStats cg =
-      s.matrix.solve(s.force, s.step, held_, o.cg_tolerance, o.max_cg, lattice_.hanging);
+      matrix.solve(s.force, s.step, held_, o.cg_tolerance, o.max_cg, lattice_.hanging);
   if (!lattice_.hanging.empty()) {
     // The hanging nodes follow the held ones at their given change too.
     for (std::size_t i = 0; i < n; ++i)
@@ -175,6 +181,7 @@ double ElasticVolume::step_compliance(std::span<const PointLoad> contact,
                                       const glm::dvec3& direction, double dt_s, double cg_tolerance,
                                       int max_cg) {
   Solver& s = *solver_;
+  BlockMatrix& matrix = s.matrix(lattice_);
   const std::size_t n = x_.size();
   double total = 0.0;
   for (const PointLoad& c : contact)
@@ -189,7 +196,7 @@ double ElasticVolume::step_compliance(std::span<const PointLoad> contact,
       s.unit_load[cell[a]] += (share * c.point.weights[a]) * direction;
   }
   // The step's matrix as advance() left it: A dv = h f, dx = h dv.
-  s.matrix.solve(s.unit_load, s.give, held_, cg_tolerance, max_cg, lattice_.hanging);
+  matrix.solve(s.unit_load, s.give, held_, cg_tolerance, max_cg, lattice_.hanging);
   double along = 0.0;
   for (std::size_t i = 0; i < n; ++i)
     if (!held_[i]) along += glm::dot(s.unit_load[i], s.give[i]);
@@ -210,6 +217,7 @@ PressResult ElasticVolume::press_sphere(std::span<const EmbeddedPoint> points,
                                         const glm::dvec3& centre, double radius,
                                         const PressOptions& o) {
   Solver& s = *solver_;
+  BlockMatrix& matrix = s.matrix(lattice_);
   const std::size_t n = x_.size();
   if (multipliers_.size() != points.size()) multipliers_.assign(points.size(), 0.0);
   // The penalty, unless given: twenty times what one finest cell resists with (E h). The
@@ -249,7 +257,7 @@ PressResult ElasticVolume::press_sphere(std::span<const EmbeddedPoint> points,
     }
     std::fill(s.step.begin(), s.step.end(), glm::dvec3(0.0));
     const BlockMatrix::SolveStats cg =
-        s.matrix.solve(s.force, s.step, held_, o.cg_tolerance, o.max_cg, lattice_.hanging);
+        matrix.solve(s.force, s.step, held_, o.cg_tolerance, o.max_cg, lattice_.hanging);
     result.cg_iterations += cg.iterations;
     // Backtracking: the Newton matrix is the corotated linear one, softer than neo-Hookean
     // tissue in compression, so a full step may overshoot; halve it while the residual grows.
@@ -272,6 +280,7 @@ PressResult ElasticVolume::press_sphere(std::span<const EmbeddedPoint> points,
 void ElasticVolume::add_cell_matrix(std::size_t c, const glm::dmat3& r, double warp_tolerance,
                                     float scale) {
   Solver& s = *solver_;
+  BlockMatrix& matrix = s.matrix(lattice_);
   if (s.warped.size() != lattice_.cells.size()) {
     s.warped.resize(lattice_.cells.size());
     s.warped_rotation.assign(lattice_.cells.size(), glm::dmat3(0.0));  // none valid yet
@@ -293,20 +302,20 @@ void ElasticVolume::add_cell_matrix(std::size_t c, const glm::dmat3& r, double w
       for (std::size_t b = a; b < 8; ++b)
         blocks[i++] = glm::mat3(r_fill * k[a][b] * rt);
   }
-  const auto& slots = s.matrix.cell_slots(c);
+  const auto& slots = matrix.cell_slots(c);
   std::size_t i = 0;
   for (std::size_t a = 0; a < 8; ++a) {
     for (std::size_t b = a; b < 8; ++b, ++i) {
       const glm::mat3 block = scale * blocks[i];
-      s.matrix.add(slots[a * 8 + b], block);
-      if (b != a) s.matrix.add(slots[b * 8 + a], glm::transpose(block));
+      matrix.add(slots[a * 8 + b], block);
+      if (b != a) matrix.add(slots[b * 8 + a], glm::transpose(block));
     }
   }
 }
 
 void ElasticVolume::assemble_elements(bool with_matrix, double warp_tolerance, double scale) {
   Solver& s = *solver_;
-  if (with_matrix) s.matrix.set_zero();
+  if (with_matrix) s.matrix(lattice_).set_zero();  // built here on first use
   std::fill(s.force.begin(), s.force.end(), glm::dvec3(0.0));
   for (std::size_t c = 0; c < lattice_.cells.size(); ++c) {
     const auto& cell = lattice_.cells[c];
@@ -371,6 +380,10 @@ void ElasticVolume::assemble_elements(bool with_matrix, double warp_tolerance, d
       s.force[i] += releasing_[i];
 }
 
+void ElasticVolume::build_step_matrix() {
+  (void)solver_->matrix(lattice_);
+}
+
 std::vector<glm::dvec3> ElasticVolume::node_forces() {
   assemble_elements(false, 0.0, 1.0);
   return solver_->force;
@@ -414,6 +427,7 @@ void ElasticVolume::set_surroundings_load(std::vector<glm::dvec3> load) {
 void ElasticVolume::assemble(std::span<const EmbeddedPoint> points, const glm::dvec3& centre,
                              double radius, double penalty, bool with_matrix, PressResult& out) {
   Solver& s = *solver_;
+  BlockMatrix& matrix = s.matrix(lattice_);
   assemble_elements(with_matrix, 0.0, 1.0);
   // Contact: each surface point inside the probe (or holding a multiplier) pushed out along the
   // probe's normal, F = max(0, multiplier - penalty * gap).
@@ -434,12 +448,12 @@ void ElasticVolume::assemble(std::span<const EmbeddedPoint> points, const glm::d
     const glm::dvec3 normal = d / dist;
     const glm::dmat3 nn = glm::outerProduct(normal, normal) * penalty;
     const auto& cell = lattice_.cells[ep.cell];
-    const auto& slots = s.matrix.cell_slots(ep.cell);
+    const auto& slots = matrix.cell_slots(ep.cell);
     for (std::size_t a = 0; a < 8; ++a) {
       s.force[cell[a]] += ep.weights[a] * push * normal;
       if (!with_matrix) continue;
       for (std::size_t b = 0; b < 8; ++b)
-        s.matrix.add(slots[a * 8 + b], glm::mat3((ep.weights[a] * ep.weights[b]) * nn));
+        matrix.add(slots[a * 8 + b], glm::mat3((ep.weights[a] * ep.weights[b]) * nn));
     }
     probe -= push * normal;
   }

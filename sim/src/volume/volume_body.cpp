@@ -146,6 +146,7 @@ VolumeBody::VolumeBody(const SoftBody& body, const VolumeOptions& options)
                                   : 20.0 * volume_.youngs_modulus_Pa() * volume_.finest_cell_m();
   embed_slots(body);
   hold_anchored(body);
+  volume_.build_step_matrix();
 }
 
 void VolumeBody::hold_anchored(const SoftBody& body) {
@@ -175,6 +176,11 @@ void VolumeBody::refocus(SoftBody& body, const glm::dvec3& centre_m) {
 }
 
 void VolumeBody::rebuild(SoftBody& body, ElasticVolume next) {
+  take_motion(std::move(next));
+  embed_again(body);
+}
+
+void VolumeBody::take_motion(ElasticVolume next) {
   // The new nodes where the old lattice has moved their rest positions to; a node far from
   // every old cell (none should be: both fill the same surface) moves with the supports.
   const HexLattice& old = volume_.lattice();
@@ -192,11 +198,19 @@ void VolumeBody::rebuild(SoftBody& body, ElasticVolume next) {
   BlockMatrix::expand(v, next.lattice().hanging);
   const glm::dvec3 held_velocity = volume_.held_velocity();
   volume_ = std::move(next);
+  volume_.set_state(x, v);
+  volume_.set_held_velocity(held_velocity);
+}
+
+void VolumeBody::embed_again(SoftBody& body) {
+  // Holding a node puts it at rest: the motion it has is put back after.
+  const std::vector<glm::dvec3> x(volume_.positions().begin(), volume_.positions().end());
+  const std::vector<glm::dvec3> v(volume_.velocities().begin(), volume_.velocities().end());
   std::fill(embedded_.begin(), embedded_.end(), std::uint8_t{0});
   embed_slots(body);
   hold_anchored(body);
   volume_.set_state(x, v);
-  volume_.set_held_velocity(held_velocity);
+  volume_.build_step_matrix();
   write_surface(body);
   ++lattice_version_;
 }
@@ -292,19 +306,25 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
     rest_sheet.entry_m.push_back(to_rest(sheet.entry_m[k]));
     rest_sheet.tip_m.push_back(to_rest(sheet.tip_m[k]));
   }
+  bool refined = false;
   if (options_.cut_refine_factor > 1 && volume_.lattice().cell_span.empty() && body.closed()) {
     // The cells the sheet passes through, or passes within half a fine cell of, split before
-    // they part.
+    // they part. The vertices are embedded in the refined lattice only if nothing parts (they
+    // are embedded in the separated one below otherwise).
     const std::vector<TwoLevelOptions::Box> boxes =
         boxes_along(rest_sheet, options_.cell_m / options_.cut_refine_factor);
-    rebuild(body, build_volume(body, options_, boxes, options_.cut_refine_factor));
+    take_motion(build_volume(body, options_, boxes, options_.cut_refine_factor));
+    refined = true;
   }
   const HexLattice& old = volume_.lattice();
   HexLattice lattice = old;
   const LatticeSeparation separation =
       separate_along_sheet(lattice, rest_sheet, volume_.finest_cell_m());
   if (separation.new_nodes == 0) {
-    sync_topology(body);
+    if (refined)
+      embed_again(body);
+    else
+      sync_topology(body);
     return 0;
   }
   // The nodes' motion and loads: a copy moves as its node did and takes the share of its load
@@ -364,6 +384,7 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
   hold_anchored(body);
   volume_.set_state(nx, nv);
   volume_.set_held_velocity(held_velocity);
+  volume_.build_step_matrix();
   write_surface(body);
   return separation.separated_faces;
 }

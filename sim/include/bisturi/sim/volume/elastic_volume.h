@@ -150,6 +150,9 @@ class ElasticVolume {
   /// left after t is exp(-t / time_s)): after a cut, the wound's walls let go of what held them
   /// as tissue relaxes, over a second rather than at once. 0: at once.
   void fade_in_from(std::span<const glm::dvec3> before, double time_s);
+  /// Builds the step's matrix now instead of in the first advance(), so that no step allocates
+  /// (a volume that only gives forces never needs one).
+  void build_step_matrix();
   [[nodiscard]] double finest_cell_m() const { return finest_cell_m_; }
   [[nodiscard]] double youngs_modulus_Pa() const { return youngs_Pa_; }
 

@@ -37,8 +37,8 @@ struct LatticeSeparation {
 /// Separates `lattice` along `sheet` (extended `reach_m` out of the surface beyond each entry
 /// point, so cells holding little tissue are parted too), adding its triangles to
 /// lattice.cut_sheet. In a two-level lattice a face parts between two cells of one size, where
-/// none of its nodes hangs or is shared with a cell of the other size. Throws std::invalid_argument for a sheet of fewer
-/// than two samples.
+/// none of its nodes hangs or is shared with a cell of the other size. Throws std::invalid_argument
+/// for a sheet of fewer than two samples.
 LatticeSeparation separate_along_sheet(HexLattice& lattice, const BladeSheet& sheet,
                                        double reach_m);
 

@@ -140,6 +140,11 @@ class VolumeBody {
   /// The volume built again from `next_lattice` (the same surface), its nodes taking the
   /// current lattice's motion where they are, every vertex embedded again.
   void rebuild(SoftBody& body, ElasticVolume next);
+  /// The first half of rebuild: `next` takes the current lattice's motion and replaces it; the
+  /// vertices stay embedded in the old one until embed_again.
+  void take_motion(ElasticVolume next);
+  /// The second half: every vertex embedded again, the anchored ones held, the surface written.
+  void embed_again(SoftBody& body);
   /// Embeds the alive vertex slots not embedded yet (at their rest positions).
   void embed_slots(const SoftBody& body);
   /// Holds the nodes of the cells holding an anchored vertex.
