@@ -159,6 +159,8 @@ void VolumeBody::hold_anchored(const SoftBody& body) {
 
 bool VolumeBody::should_follow(const glm::dvec3& point_m) const {
   if (!options_.refine_follows || options_.refine_factor <= 1) return false;
+  // A lattice built again from the surface would have no wounds: once one is cut, the box stays.
+  if (separated_faces_ > 0) return false;
   const glm::dvec3 d = glm::abs(point_m - options_.refine_centre_m);
   return std::max({d.x, d.y, d.z}) > 0.5 * options_.refine_half_width_m;
 }
@@ -368,14 +370,22 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
 
   // Every vertex embedded again on its side: the lips by the surface's side of the incision,
   // the rest by where they are.
+  // The earlier cuts' lips keep the sides they were given.
   const std::vector<std::int8_t> sides = lip_sides(body, cut, volume_.lattice());
+  lip_side_.resize(mesh.vertex_capacity(), 0);
+  for (const auto* lips : {&cut.path, &cut.new_vertices, &cut.floor_vertices})
+    for (const VertexId v : *lips)
+      lip_side_[v.idx] = sides[v.idx];
   embedding_.resize(mesh.vertex_capacity());
   embedded_.assign(mesh.vertex_capacity(), 0);
   loaded_.resize(mesh.vertex_capacity(), 0);
   for (std::uint32_t i = 0; i < mesh.vertex_capacity(); ++i) {
-    if (!mesh.alive(VertexId(i))) continue;
+    if (!mesh.alive(VertexId(i))) {
+      lip_side_[i] = 0;
+      continue;
+    }
     const auto e =
-        embed_point_on_side(volume_.lattice(), body.rest_position(VertexId(i)), sides[i]);
+        embed_point_on_side(volume_.lattice(), body.rest_position(VertexId(i)), lip_side_[i]);
     if (!e) continue;
     embedding_[i] = *e;
     embedded_[i] = 1;

@@ -36,7 +36,8 @@ struct VolumeOptions {
   double refine_half_width_m = 0.0;
   /// The refined box follows the first haptic probe: when its contact on this body is more
   /// than half the half width from the box's centre, the lattice is built again about it
-  /// (VolumeBody::refocus), and the cells it left are coarse again.
+  /// (VolumeBody::refocus), and the cells it left are coarse again. Once a cut has parted
+  /// the volume the box stays where it is (a lattice built again would have no wound).
   bool refine_follows = false;
   ElasticMaterial material;
   ElasticLaw law = ElasticLaw::Corotational;
@@ -163,7 +164,11 @@ class VolumeBody {
   double target_stiffness_N_per_m_ = 0.0;
   std::vector<EmbeddedPoint> embedding_;  ///< per vertex slot
   std::vector<std::uint8_t> embedded_;    ///< per vertex slot
-  std::vector<PointLoad> loads_;          // scratch
+  /// Per vertex slot: the side of its cut a lip is embedded on (+1 or -1; 0 for every other
+  /// vertex, embedded by where it lies). A lip lies on its sheet at rest, where its position
+  /// cannot tell the sides apart: every later cut embeds it again on the side it was given.
+  std::vector<std::int8_t> lip_side_;
+  std::vector<PointLoad> loads_;  // scratch
   /// Per haptic probe: its contact's loads in this step (their stiffness only) and normal.
   std::vector<std::vector<PointLoad>> probe_loads_;
   std::vector<glm::dvec3> probe_normal_;
