@@ -509,12 +509,8 @@ TEST(SimVolumeBody, ASecondCutAfterTheSplitPartsTheFineCellsItMeetsAndKeepsEvery
   EXPECT_GT(widest_gap(w.world.body(0), second).width_m, 1e-5);
 }
 
-TEST(SimVolumeBody, ASecondCutFarFromTheSplitPartsTheCoarseCellsItCrossesAndOpens) {
-  // The first cut split the cells along it; a second down the sphere's side, 8 mm and more from
-  // it, meets only coarse cells: it parts their faces (as a one-level lattice's cut does), the
-  // surface stays closed and valid, every vertex stays embedded on its side, and the wound opens.
-  Wound w = cut_sphere(300.0, 0.004, 3);
-  ASSERT_GT(w.separated, 0u);
+/// A second cut, 5 mm deep down the sphere's side (+x), 8 mm and more from cut_sphere's.
+CutResult cut_down_the_side(SimWorld& world) {
   std::vector<glm::dvec3> entry, tip;
   for (int k = 0; k <= 12; ++k) {
     const double z = -0.007 + 0.001 * k;
@@ -522,9 +518,18 @@ TEST(SimVolumeBody, ASecondCutFarFromTheSplitPartsTheCoarseCellsItCrossesAndOpen
     entry.push_back(kCentre_m + glm::dvec3(x, 0.0, z));
     tip.push_back(kCentre_m + glm::dvec3(x - 0.005, 0.0, z));
   }
+  return world.cut(0, entry, {}, tip);
+}
+
+TEST(SimVolumeBody, ASecondCutFarFromTheSplitPartsTheCoarseCellsItCrossesAndOpens) {
+  // The first cut split the cells along it; a second down the sphere's side, 8 mm and more from
+  // it, meets only coarse cells: it parts their faces (as a one-level lattice's cut does), the
+  // surface stays closed and valid, every vertex stays embedded on its side, and the wound opens.
+  Wound w = cut_sphere(300.0, 0.004, 3);
+  ASSERT_GT(w.separated, 0u);
   const std::size_t first_parted = w.separated;
   const CutResult first = w.cut;
-  w.cut = w.world.cut(0, entry, {}, tip);  // the wound measured below is the second cut's
+  w.cut = cut_down_the_side(w.world);  // the wound measured below is the second cut's
   ASSERT_FALSE(w.cut.new_vertices.empty());
   const std::size_t parted = w.world.separated_faces(0) - first_parted;
   EXPECT_GT(parted, 0u);
@@ -555,15 +560,8 @@ TEST(SimVolumeBody, ASecondCutLeavesTheFirstWoundOpen) {
   const CutResult first = w.cut;
   const double open_before = widest_gap(w.world.body(0), first).width_m;
   ASSERT_GT(open_before, 5e-4);
-  std::vector<glm::dvec3> entry, tip;
-  for (int k = 0; k <= 12; ++k) {
-    const double z = -0.007 + 0.001 * k;
-    const double x = std::sqrt(kRadius_m * kRadius_m - z * z);
-    entry.push_back(kCentre_m + glm::dvec3(x, 0.0, z));
-    tip.push_back(kCentre_m + glm::dvec3(x - 0.005, 0.0, z));
-  }
   const std::size_t first_parted = w.world.separated_faces(0);
-  (void)w.world.cut(0, entry, {}, tip);
+  (void)cut_down_the_side(w.world);
   ASSERT_GT(w.world.separated_faces(0), first_parted);
   const double open_after = widest_gap(w.world.body(0), first).width_m;
   EXPECT_NEAR(open_after, open_before, 0.05 * open_before);
