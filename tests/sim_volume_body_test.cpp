@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -509,27 +510,31 @@ TEST(SimVolumeBody, ASecondCutAfterTheSplitPartsTheFineCellsItMeetsAndKeepsEvery
   EXPECT_GT(widest_gap(w.world.body(0), second).width_m, 1e-5);
 }
 
-/// A second cut, 5 mm deep down the sphere's side (+x), 8 mm and more from cut_sphere's.
-CutResult cut_down_the_side(SimWorld& world) {
+/// A second cut, `depth_m` deep down the sphere's side (+x), 8 mm and more from cut_sphere's.
+CutResult cut_down_the_side(SimWorld& world, double depth_m = 0.005) {
   std::vector<glm::dvec3> entry, tip;
   for (int k = 0; k <= 12; ++k) {
     const double z = -0.007 + 0.001 * k;
     const double x = std::sqrt(kRadius_m * kRadius_m - z * z);
     entry.push_back(kCentre_m + glm::dvec3(x, 0.0, z));
-    tip.push_back(kCentre_m + glm::dvec3(x - 0.005, 0.0, z));
+    tip.push_back(kCentre_m + glm::dvec3(x - depth_m, 0.0, z));
   }
   return world.cut(0, entry, {}, tip);
 }
 
-TEST(SimVolumeBody, ASecondCutFarFromTheSplitPartsTheCoarseCellsItCrossesAndOpens) {
+TEST(SimVolumeBody, ASecondCutFarFromTheFirstSplitsItsOwnCellsAndOpens) {
   // The first cut split the cells along it; a second down the sphere's side, 8 mm and more from
-  // it, meets only coarse cells: it parts their faces (as a one-level lattice's cut does), the
-  // surface stays closed and valid, every vertex stays embedded on its side, and the wound opens.
+  // it, splits the coarse cells along its own sheet (the lattice built again, the first wound
+  // separated again) and parts them: the surface stays closed and valid, every vertex stays
+  // embedded on its side, and the wound opens.
   Wound w = cut_sphere(300.0, 0.004, 3);
   ASSERT_GT(w.separated, 0u);
   const std::size_t first_parted = w.separated;
   const CutResult first = w.cut;
+  const auto begin = std::chrono::steady_clock::now();
   w.cut = cut_down_the_side(w.world);  // the wound measured below is the second cut's
+  const double cut_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin).count();
   ASSERT_FALSE(w.cut.new_vertices.empty());
   const std::size_t parted = w.world.separated_faces(0) - first_parted;
   EXPECT_GT(parted, 0u);
@@ -544,8 +549,10 @@ TEST(SimVolumeBody, ASecondCutFarFromTheSplitPartsTheCoarseCellsItCrossesAndOpen
     w.world.step({1.0, 1.0, 1.0});
   EXPECT_TRUE(w.world.take_events().empty());
   const Gap open = widest_gap(w.world.body(0), w.cut);
-  std::printf("second cut far away: %zu coarse faces parted, it opened %.3f mm in 1 s\n", parted,
-              open.width_m * 1e3);
+  std::printf(
+      "second cut far away: %zu faces parted (the cut took %.1f ms), it opened %.3f mm in "
+      "1 s\n",
+      parted, cut_ms, open.width_m * 1e3);
   EXPECT_GT(open.width_m, 5e-4);
   EXPECT_GT(open.across_m, 0.8 * open.width_m);
 }
@@ -571,6 +578,50 @@ TEST(SimVolumeBody, ASecondCutLeavesTheFirstWoundOpen) {
   EXPECT_GT(widest_gap(w.world.body(0), first).width_m, 0.9 * open_before);
   std::printf("first wound %.3f mm before the second cut, %.3f mm just after\n", open_before * 1e3,
               open_after * 1e3);
+}
+
+TEST(SimVolumeBody, AShallowSecondCutSplitsItsOwnCellsAndTheFirstWoundStaysOpen) {
+  // Two cuts 1.2 mm deep in 3 mm cells, the second down the side, far from the first: each
+  // splits the cells along it, so both part the tissue as deep as the blade went (a fine cell
+  // more at most), where the second cut alone in coarse cells would part them 3 mm deep. The
+  // lattice built again for the second keeps the first wound: separated again along its sheet,
+  // each node moving on its own side, it goes on as the same wound with no second cut does.
+  constexpr double kDepth_m = 0.0012;
+  Wound w = cut_sphere(300.0, kDepth_m, 3);
+  Wound alone = cut_sphere(300.0, kDepth_m, 3);
+  const auto step_both = [&](int steps) {
+    for (int s = 0; s < steps; ++s) {
+      w.world.step({1.0, 1.0, 1.0});
+      alone.world.step({1.0, 1.0, 1.0});
+    }
+  };
+  step_both(500);
+  const double open_before = widest_gap(w.world.body(0), w.cut).width_m;
+  ASSERT_GT(open_before, 1e-4);
+  const std::size_t first_parted = w.world.separated_faces(0);
+  const CutResult second = cut_down_the_side(w.world, kDepth_m);
+  ASSERT_FALSE(second.new_vertices.empty());
+  EXPECT_GT(w.world.separated_faces(0), first_parted);
+  ASSERT_TRUE(validate(w.world.body(0).mesh()).ok());
+  EXPECT_TRUE(w.world.body(0).closed());
+  EXPECT_EQ(w.world.volume(0)->embedded_vertices(), w.world.body(0).mesh().num_vertices());
+  const Parted parted = parted_faces(w.world.volume(0)->volume().lattice());
+  EXPECT_LT(parted.deepest_m, kDepth_m + 0.001);
+  const double open_after = widest_gap(w.world.body(0), w.cut).width_m;
+  EXPECT_NEAR(open_after, open_before, 0.01 * open_before);
+  step_both(1000);
+  EXPECT_TRUE(w.world.take_events().empty());
+  const Gap opened = widest_gap(w.world.body(0), second);
+  EXPECT_GT(opened.width_m, 1e-4);
+  const double first_later = widest_gap(w.world.body(0), w.cut).width_m;
+  const double alone_later = widest_gap(alone.world.body(0), alone.cut).width_m;
+  EXPECT_NEAR(first_later, alone_later, 0.15 * alone_later);
+  std::printf(
+      "shallow second cut: parted down to %.2f mm, opened %.3f mm in 1 s; the first "
+      "wound %.3f mm before it, %.3f mm just after, %.3f mm 1 s later (%.3f mm with no "
+      "second cut)\n",
+      parted.deepest_m * 1e3, opened.width_m * 1e3, open_before * 1e3, open_after * 1e3,
+      first_later * 1e3, alone_later * 1e3);
 }
 
 }  // namespace

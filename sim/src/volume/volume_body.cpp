@@ -4,6 +4,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <set>
 #include <string>
 
@@ -137,6 +138,34 @@ std::vector<TwoLevelOptions::Box> boxes_along(const BladeSheet& sheet, double fi
   return boxes;
 }
 
+/// Per node of a separated lattice, its cells' tissue (volume times fill), and per node of the
+/// lattice it was separated from (`origin` maps one to the other), the sum over its copies: a
+/// node's load is shared among its copies by their tissue.
+struct TissueShares {
+  std::vector<double> of_node, of_origin;
+  TissueShares(const HexLattice& lattice, std::span<const std::uint32_t> origin,
+               std::size_t origins)
+      : of_node(lattice.rest.size(), 0.0), of_origin(origins, 0.0) {
+    for (std::size_t c = 0; c < lattice.cells.size(); ++c) {
+      const glm::dvec3 h = lattice.cell_sides(c);
+      for (const std::uint32_t n : lattice.cells[c])
+        of_node[n] += h.x * h.y * h.z * lattice.fill[c];
+    }
+    for (std::size_t n = 0; n < of_node.size(); ++n)
+      of_origin[origin[n]] += of_node[n];
+  }
+  /// Per node, its share of its origin's value.
+  [[nodiscard]] std::vector<glm::dvec3> share(std::span<const std::uint32_t> origin,
+                                              std::span<const glm::dvec3> of) const {
+    std::vector<glm::dvec3> out(of_node.size());
+    for (std::size_t n = 0; n < of_node.size(); ++n) {
+      const std::uint32_t o = origin[n];
+      out[n] = of_origin[o] > 0.0 ? of[o] * (of_node[n] / of_origin[o]) : glm::dvec3(0.0);
+    }
+    return out;
+  }
+};
+
 }  // namespace
 
 VolumeBody::VolumeBody(const SoftBody& body, const VolumeOptions& options)
@@ -210,11 +239,76 @@ void VolumeBody::embed_again(SoftBody& body) {
   const std::vector<glm::dvec3> v(volume_.velocities().begin(), volume_.velocities().end());
   std::fill(embedded_.begin(), embedded_.end(), std::uint8_t{0});
   embed_slots(body);
+  // The lips of earlier cuts on their own sides.
+  for (std::uint32_t i = 0; i < lip_side_.size(); ++i) {
+    if (lip_side_[i] == 0 || !embedded_[i]) continue;
+    if (const auto e =
+            embed_point_on_side(volume_.lattice(), body.rest_position(VertexId(i)), lip_side_[i]))
+      embedding_[i] = *e;
+  }
   hold_anchored(body);
   volume_.set_state(x, v);
   volume_.build_step_matrix();
   write_surface(body);
   ++lattice_version_;
+}
+
+void VolumeBody::split_again(const SoftBody& body) {
+  // The lattice from the surface with every cut's cells split, separated along the earlier
+  // cuts' sheets again in their order; `origin` takes its nodes to the unseparated one's.
+  ElasticVolume unseparated = build_volume(body, options_, cut_boxes_, options_.cut_refine_factor);
+  HexLattice lattice = unseparated.lattice();
+  std::vector<std::uint32_t> origin(lattice.rest.size());
+  for (std::uint32_t n = 0; n < origin.size(); ++n)
+    origin[n] = n;
+  for (const BladeSheet& sheet : cut_sheets_) {
+    const LatticeSeparation separation =
+        separate_along_sheet(lattice, sheet, unseparated.finest_cell_m());
+    std::vector<std::uint32_t> composed(separation.origin.size());
+    for (std::size_t n = 0; n < composed.size(); ++n)
+      composed[n] = origin[separation.origin[n]];
+    origin = std::move(composed);
+  }
+  // Each node moves as the current lattice moves it in a cell on the node's own side of the
+  // wounds: read in the old cell that holds a point just inside one of the node's new cells
+  // (the walls lie on cell faces, so that cell lies on the same side). Where the split cells
+  // are the old ones, that is the node's old motion exactly.
+  const HexLattice& old = volume_.lattice();
+  std::vector<std::uint32_t> a_cell(lattice.rest.size(), UINT32_MAX);
+  for (std::uint32_t c = 0; c < lattice.cells.size(); ++c)
+    for (const std::uint32_t n : lattice.cells[c])
+      if (a_cell[n] == UINT32_MAX) a_cell[n] = c;
+  std::vector<glm::dvec3> x(lattice.rest.size()), v(lattice.rest.size());
+  for (std::size_t n = 0; n < x.size(); ++n) {
+    const glm::dvec3& rest = lattice.rest[n];
+    std::optional<EmbeddedPoint> in_old;
+    if (a_cell[n] != UINT32_MAX)
+      in_old = embed_point(old, rest + 0.01 * (lattice.cell_centre(a_cell[n]) - rest));
+    if (in_old) {
+      const EmbeddedPoint at = embed_point_in(old, in_old->cell, rest);
+      x[n] = embedded_position(old, volume_.positions(), at);
+      v[n] = embedded_position(old, volume_.velocities(), at);
+    } else if (!motion_at(old, volume_.positions(), rest, x[n]) ||
+               !motion_at(old, volume_.velocities(), rest, v[n])) {
+      x[n] = rest + volume_.held_offset();
+      v[n] = volume_.held_velocity();
+    }
+  }
+  BlockMatrix::expand(x, lattice.hanging);
+  BlockMatrix::expand(v, lattice.hanging);
+  // The surroundings' load of the unseparated lattice, each node's shared among its copies (the
+  // separated lattice's own would hold the earlier wounds shut).
+  std::vector<glm::dvec3> load;
+  if (!unseparated.surroundings_load().empty())
+    load = TissueShares(lattice, origin, unseparated.lattice().rest.size())
+               .share(origin, unseparated.surroundings_load());
+  const glm::dvec3 held_velocity = volume_.held_velocity();
+  ElasticVolume next(std::move(lattice), options_.material, options_.law);
+  next.set_resting_tension(unseparated.resting_tension_Pa());
+  next.set_surroundings_load(std::move(load));
+  next.set_state(x, v);
+  next.set_held_velocity(held_velocity);
+  volume_ = std::move(next);
 }
 
 void VolumeBody::embed_slots(const SoftBody& body) {
@@ -309,13 +403,17 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
     rest_sheet.tip_m.push_back(to_rest(sheet.tip_m[k]));
   }
   bool refined = false;
-  if (options_.cut_refine_factor > 1 && volume_.lattice().cell_span.empty() && body.closed()) {
+  if (options_.cut_refine_factor > 1 && !(options_.refine_half_width_m > 0.0) && body.closed()) {
     // The cells the sheet passes through, or passes within half a fine cell of, split before
-    // they part. The vertices are embedded in the refined lattice only if nothing parts (they
-    // are embedded in the separated one below otherwise).
+    // they part, with those of the earlier cuts. The vertices are embedded in the refined
+    // lattice only if nothing parts (they are embedded in the separated one below otherwise).
     const std::vector<TwoLevelOptions::Box> boxes =
         boxes_along(rest_sheet, options_.cell_m / options_.cut_refine_factor);
-    take_motion(build_volume(body, options_, boxes, options_.cut_refine_factor));
+    cut_boxes_.insert(cut_boxes_.end(), boxes.begin(), boxes.end());
+    if (cut_sheets_.empty())
+      take_motion(build_volume(body, options_, cut_boxes_, options_.cut_refine_factor));
+    else
+      split_again(body);
     refined = true;
   }
   const HexLattice& old = volume_.lattice();
@@ -329,31 +427,19 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
       sync_topology(body);
     return 0;
   }
+  cut_sheets_.push_back(rest_sheet);
   // The nodes' motion and loads: a copy moves as its node did and takes the share of its load
   // from the surroundings that its cells' tissue holds.
   const std::size_t nodes = lattice.rest.size();
   std::vector<glm::dvec3> nx(nodes), nv(nodes), load;
-  std::vector<double> tissue(nodes, 0.0), tissue_of_origin(old.rest.size(), 0.0);
-  for (std::size_t c = 0; c < lattice.cells.size(); ++c) {
-    const glm::dvec3 h = lattice.cell_sides(c);
-    for (const std::uint32_t n : lattice.cells[c])
-      tissue[n] += h.x * h.y * h.z * lattice.fill[c];
-  }
   for (std::size_t n = 0; n < nodes; ++n) {
     const std::uint32_t o = separation.origin[n];
     nx[n] = volume_.positions()[o];
     nv[n] = volume_.velocities()[o];
-    tissue_of_origin[o] += tissue[n];
   }
-  // A node's force or load, shared among its copies by their tissue.
+  const TissueShares tissue(lattice, separation.origin, old.rest.size());
   const auto share = [&](std::span<const glm::dvec3> of_origin) {
-    std::vector<glm::dvec3> out(nodes);
-    for (std::size_t n = 0; n < nodes; ++n) {
-      const std::uint32_t o = separation.origin[n];
-      out[n] = tissue_of_origin[o] > 0.0 ? of_origin[o] * (tissue[n] / tissue_of_origin[o])
-                                         : glm::dvec3(0.0);
-    }
-    return out;
+    return tissue.share(separation.origin, of_origin);
   };
   if (!volume_.surroundings_load().empty()) load = share(volume_.surroundings_load());
   const glm::dvec3 held_velocity = volume_.held_velocity();

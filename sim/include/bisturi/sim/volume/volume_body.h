@@ -146,6 +146,11 @@ class VolumeBody {
   void take_motion(ElasticVolume next);
   /// The second half: every vertex embedded again, the anchored ones held, the surface written.
   void embed_again(SoftBody& body);
+  /// A later cut's split: the lattice built again with the cells along every cut so far split
+  /// (cut_boxes_), separated along the earlier cuts' sheets again, each node taking the current
+  /// lattice's motion on its own side of the wounds; the vertices stay embedded in the old one
+  /// (as take_motion). What an earlier wound had still to let go of its tension, it lets go now.
+  void split_again(const SoftBody& body);
   /// Embeds the alive vertex slots not embedded yet (at their rest positions).
   void embed_slots(const SoftBody& body);
   /// Holds the nodes of the cells holding an anchored vertex.
@@ -168,6 +173,10 @@ class VolumeBody {
   /// vertex, embedded by where it lies). A lip lies on its sheet at rest, where its position
   /// cannot tell the sides apart: every later cut embeds it again on the side it was given.
   std::vector<std::int8_t> lip_side_;
+  /// The cells every cut split (cut_refine_factor), and the sheets (rest frame) of the cuts that
+  /// parted the volume, in order: a later cut's split builds the lattice again from them.
+  std::vector<TwoLevelOptions::Box> cut_boxes_;
+  std::vector<BladeSheet> cut_sheets_;
   std::vector<PointLoad> loads_;  // scratch
   /// Per haptic probe: its contact's loads in this step (their stiffness only) and normal.
   std::vector<std::vector<PointLoad>> probe_loads_;
