@@ -148,13 +148,24 @@ TEST(LiverScene, TheDrawnLiverRidesOnTheVolumeAndIsCutWithIt) {
   }
 }
 
+/// The liver's drawn surface on its volume's lattice as it is now.
+DrawnSurface drawn_liver(LiverProcedure& liver) {
+  return DrawnSurface(
+      *build_drawn_surface(liver.scene.solids[0], "liver.toml"), &liver.sim.world().body(0),
+      std::make_shared<const sim::HexLattice>(liver.sim.world().volume(0)->volume().lattice()));
+}
+
+/// Moves the drawn surface with the volume's nodes as they are now.
+void follow_volume(DrawnSurface& drawn, const sim::VolumeBody& volume) {
+  const auto x = volume.volume().positions();
+  drawn.follow(std::vector<glm::dvec3>(x.begin(), x.end()));
+}
+
 TEST(LiverScene, TheScriptedCutOpensAWoundThatWidensOverTheNextSecond) {
   LiverProcedure liver;
   SessionSim& sim = liver.sim;
   const sim::VolumeBody* volume = sim.world().volume(0);
-  DrawnSurface drawn(*build_drawn_surface(liver.scene.solids[0], "liver.toml"),
-                     &sim.world().body(0),
-                     std::make_shared<const sim::HexLattice>(volume->volume().lattice()));
+  DrawnSurface drawn = drawn_liver(liver);
   const std::size_t nodes = volume->volume().lattice().rest.size();
   std::int64_t k = 1;
   for (; sim.incisions().empty(); ++k)
@@ -167,10 +178,7 @@ TEST(LiverScene, TheScriptedCutOpensAWoundThatWidensOverTheNextSecond) {
   drawn.use_lattice(std::make_shared<const sim::HexLattice>(volume->volume().lattice()));
   ASSERT_TRUE(drawn.cut(sim.incisions().front().points_m, sim.incisions().front().tips_m));
   EXPECT_TRUE(validate(drawn.mesh()).ok());
-  const auto follow = [&] {
-    const auto x = volume->volume().positions();
-    drawn.follow(std::vector<glm::dvec3>(x.begin(), x.end()));
-  };
+  const auto follow = [&] { follow_volume(drawn, *volume); };
   follow();
   const double at_cut = drawn.opening_mm();
   std::vector<double> opening;  // every 50 ms for a second
@@ -190,6 +198,68 @@ TEST(LiverScene, TheScriptedCutOpensAWoundThatWidensOverTheNextSecond) {
   EXPECT_GT(opening.back(), 2.0);
   std::printf("the drawn wound opened %.2f mm at 0.1 s, %.2f at 0.5 s, %.2f at 1 s\n", opening[1],
               opening[9], opening.back());
+}
+
+TEST(LiverScene, ASecondCutOnTheUpperSurfaceOpensAndTheFirstWoundStaysOpen) {
+  // After the scripted cut, a second 30 mm across the liver's upper surface, 6 mm deep, far
+  // from the first: it splits and parts the coarse cells along it (the lattice built again, the
+  // first wound separated again), both surfaces stay closed and valid, the steps run clean, the
+  // second wound opens, and the drawn first wound goes on opening as it did.
+  LiverProcedure liver;
+  SessionSim& sim = liver.sim;
+  const sim::VolumeBody* volume = sim.world().volume(0);
+  DrawnSurface drawn = drawn_liver(liver);
+  const auto follow = [&] { follow_volume(drawn, *volume); };
+  std::int64_t k = 1;
+  for (; sim.incisions().empty(); ++k)
+    (void)liver.step(k);
+  drawn.use_lattice(std::make_shared<const sim::HexLattice>(volume->volume().lattice()));
+  ASSERT_TRUE(drawn.cut(sim.incisions().front().points_m, sim.incisions().front().tips_m));
+  for (int s = 0; s < 250; ++s, ++k)
+    (void)liver.step(k);
+  follow();
+  const double first_before = drawn.opening_mm();
+  ASSERT_GT(first_before, 0.5);
+
+  // The second blade: surface points along x through the palpation target, the tips 6 mm in.
+  const sim::SoftBody& body = sim.world().body(0);
+  std::vector<glm::dvec3> entry, tip;
+  for (int i = -15; i <= 15; i += 2) {
+    const glm::dvec3 near = sim::scene_to_sim(glm::dvec3(135.3 + i, 78.8, 179.1));
+    const sim::SurfacePoint q = sim.world().bvh(0).closest_point(body, near, 0.02);
+    ASSERT_TRUE(q.found);
+    entry.push_back(q.point_m);
+    tip.push_back(q.point_m - 0.006 * q.normal);
+  }
+  const std::size_t parted_before = volume->separated_faces();
+  const sim::CutResult second = sim.world().cut(0, entry, {}, tip);
+  ASSERT_FALSE(second.new_vertices.empty());
+  EXPECT_GT(volume->separated_faces(), parted_before);
+  EXPECT_TRUE(validate(body.mesh()).ok());
+  EXPECT_TRUE(body.closed());
+  EXPECT_EQ(volume->embedded_vertices(), body.mesh().num_vertices());
+  drawn.use_lattice(std::make_shared<const sim::HexLattice>(volume->volume().lattice()));
+  ASSERT_TRUE(drawn.cut(entry, tip));
+  EXPECT_TRUE(validate(drawn.mesh()).ok());
+  follow();
+  const double first_after = drawn.opening_mm();  // the first wound is still the widest
+  EXPECT_NEAR(first_after, first_before, 0.05 * first_before);
+  (void)sim.world().take_events();
+  for (int s = 0; s < 500; ++s, ++k)
+    (void)liver.step(k);
+  EXPECT_TRUE(sim.world().take_events().empty());
+  follow();
+  double second_open = 0.0;
+  for (std::size_t i = 0; i < second.new_vertices.size(); ++i)
+    second_open = std::max(second_open, glm::length(body.position(second.new_vertices[i]) -
+                                                    body.position(second.path[i + 1])));
+  EXPECT_GT(second_open, 2e-4);
+  EXPECT_GT(drawn.opening_mm(), first_before);  // the first wound went on opening
+  std::printf(
+      "second cut: %zu faces parted, opened %.2f mm in 1 s; the drawn first wound %.2f mm "
+      "before it, %.2f mm just after, %.2f mm 1 s later\n",
+      volume->separated_faces() - parted_before, second_open * 1e3, first_before, first_after,
+      drawn.opening_mm());
 }
 
 TEST(DrawnSurface, ItFollowsAnAffineMotionExactlyAndAgainOnANewLattice) {
