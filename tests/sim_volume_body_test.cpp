@@ -13,6 +13,7 @@
 #include <vector>
 
 #include <glm/geometric.hpp>
+#include <glm/vec2.hpp>
 
 #include "bisturi/scene/dlfl_validate.h"
 #include "bisturi/sim/tissue.h"
@@ -485,20 +486,27 @@ TEST(SimVolumeBody, AShallowCutPartsTheTissueAsDeepAsTheBladeWentOnceItsCellsAre
   EXPECT_GT(open.across_m, 0.8 * open.width_m);
 }
 
+/// A cut over the top of the sphere: blade points at (x, y) = from + k step for k = 0..steps,
+/// on the surface, the tips `depth_m` straight down.
+CutResult cut_over_the_top(SimWorld& world, glm::dvec2 from, glm::dvec2 step, int steps,
+                           double depth_m) {
+  std::vector<glm::dvec3> entry, tip;
+  for (int k = 0; k <= steps; ++k) {
+    const glm::dvec2 xy = from + double(k) * step;
+    const double z = std::sqrt(kRadius_m * kRadius_m - xy.x * xy.x - xy.y * xy.y);
+    entry.push_back(kCentre_m + glm::dvec3(xy, z));
+    tip.push_back(kCentre_m + glm::dvec3(xy, z - depth_m));
+  }
+  return world.cut(0, entry, {}, tip);
+}
+
 TEST(SimVolumeBody, ASecondCutAfterTheSplitPartsTheFineCellsItMeetsAndKeepsEveryVertex) {
   // The first cut split the cells along it; a second, 1 mm beside it and longer, parts the fine
   // cells it meets (and the coarse ones past the split): the surface stays closed and valid,
   // every vertex embedded, and the steps after it run clean.
   Wound w = cut_sphere(300.0, 0.004, 3);
   ASSERT_GT(w.separated, 0u);
-  std::vector<glm::dvec3> entry, tip;
-  for (int k = 0; k <= 20; ++k) {
-    const double x = -0.010 + 0.001 * k, y = 0.001;
-    const double z = std::sqrt(kRadius_m * kRadius_m - x * x - y * y);
-    entry.push_back(kCentre_m + glm::dvec3(x, y, z));
-    tip.push_back(kCentre_m + glm::dvec3(x, y, z - 0.004));
-  }
-  const CutResult second = w.world.cut(0, entry, {}, tip);
+  const CutResult second = cut_over_the_top(w.world, {-0.010, 0.001}, {0.001, 0.0}, 20, 0.004);
   ASSERT_FALSE(second.new_vertices.empty());
   EXPECT_GT(w.world.separated_faces(0), w.separated);
   ASSERT_TRUE(validate(w.world.body(0).mesh()).ok());
@@ -622,6 +630,32 @@ TEST(SimVolumeBody, AShallowSecondCutSplitsItsOwnCellsAndTheFirstWoundStaysOpen)
       "second cut)\n",
       parted.deepest_m * 1e3, opened.width_m * 1e3, open_before * 1e3, open_after * 1e3,
       first_later * 1e3, alone_later * 1e3);
+}
+
+TEST(SimVolumeBody, ACutAcrossAnEarlierWoundKeepsBothSurfacesWhole) {
+  // A second cut at right angles across the first wound, 3 mm deep: the surface stays closed and
+  // valid, every vertex embedded, the lattice parts along the new sheet, the steps run clean and
+  // the first wound stays open (the tissue across it now let go, a little less than before).
+  Wound w = cut_sphere(300.0, 0.004, 3);
+  for (int s = 0; s < 300; ++s)
+    w.world.step({1.0, 1.0, 1.0});
+  const double first_before = widest_gap(w.world.body(0), w.cut).width_m;
+  const std::size_t first_parted = w.world.separated_faces(0);
+  const CutResult across = cut_over_the_top(w.world, {0.002, -0.006}, {0.0, 0.001}, 12, 0.003);
+  ASSERT_FALSE(across.new_vertices.empty());
+  EXPECT_GT(w.world.separated_faces(0), first_parted);
+  ASSERT_TRUE(validate(w.world.body(0).mesh()).ok());
+  EXPECT_TRUE(w.world.body(0).closed());
+  EXPECT_EQ(w.world.volume(0)->embedded_vertices(), w.world.body(0).mesh().num_vertices());
+  for (int s = 0; s < 500; ++s)
+    w.world.step({1.0, 1.0, 1.0});
+  EXPECT_TRUE(w.world.take_events().empty());
+  const double first_after = widest_gap(w.world.body(0), w.cut).width_m;
+  EXPECT_GT(first_after, 0.8 * first_before);
+  std::printf(
+      "a cut across the wound: %zu faces parted; the first wound %.3f mm before it, %.3f "
+      "mm half a second later\n",
+      w.world.separated_faces(0) - first_parted, first_before * 1e3, first_after * 1e3);
 }
 
 }  // namespace
