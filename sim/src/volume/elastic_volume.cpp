@@ -401,6 +401,13 @@ void ElasticVolume::fade_in_from(std::span<const glm::dvec3> before, double time
   releasing_ = std::move(now);
 }
 
+void ElasticVolume::set_releasing(std::vector<glm::dvec3> load, double time_s) {
+  if (!load.empty() && load.size() != x_.size())
+    throw std::invalid_argument("ElasticVolume::set_releasing: one load per node");
+  releasing_ = time_s > 0.0 ? std::move(load) : std::vector<glm::dvec3>{};
+  release_s_ = time_s;
+}
+
 void ElasticVolume::set_resting_tension(double tension_Pa) {
   if (!std::isfinite(tension_Pa) || tension_Pa < 0.0)
     throw std::invalid_argument("resting tension must be finite and >= 0 Pa");

@@ -94,8 +94,12 @@ void VolumeBody::split_again(const SoftBody& body) {
   // Each node moves as the current lattice moves it in a cell on the node's own side of the
   // wounds: read in the old cell that holds a point just inside one of the node's new cells
   // (the walls lie on cell faces, so that cell lies on the same side). Where the split cells
-  // are the old ones, that is the node's old motion exactly.
+  // are the old ones, that is the node's old motion exactly. A node where an old one was takes
+  // what that one had still to let go of (the fading load lies on the earlier wounds' walls,
+  // whose cells are the old ones).
   const HexLattice& old = volume_.lattice();
+  const std::span<const glm::dvec3> old_release = volume_.releasing();
+  std::vector<glm::dvec3> release(old_release.empty() ? 0 : lattice.rest.size(), glm::dvec3(0.0));
   std::vector<std::uint32_t> a_cell(lattice.rest.size(), UINT32_MAX);
   for (std::uint32_t c = 0; c < lattice.cells.size(); ++c)
     for (const std::uint32_t n : lattice.cells[c])
@@ -110,6 +114,8 @@ void VolumeBody::split_again(const SoftBody& body) {
       const EmbeddedPoint at = embed_point_in(old, in_old->cell, rest);
       x[n] = embedded_position(old, volume_.positions(), at);
       v[n] = embedded_position(old, volume_.velocities(), at);
+      for (std::size_t q = 0; q < 8 && !release.empty(); ++q)
+        if (at.weights[q] > 1.0 - 1e-9) release[n] = old_release[old.cells[at.cell][q]];
     } else if (!motion_at(old, volume_.positions(), rest, x[n]) ||
                !motion_at(old, volume_.velocities(), rest, v[n])) {
       x[n] = rest + volume_.held_offset();
@@ -130,6 +136,7 @@ void VolumeBody::split_again(const SoftBody& body) {
   next.set_surroundings_load(std::move(load));
   next.set_state(x, v);
   next.set_held_velocity(held_velocity);
+  next.set_releasing(std::move(release), volume_.release_time_s());
   volume_ = std::move(next);
 }
 

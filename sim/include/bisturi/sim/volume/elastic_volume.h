@@ -150,6 +150,12 @@ class ElasticVolume {
   /// left after t is exp(-t / time_s)): after a cut, the wound's walls let go of what held them
   /// as tissue relaxes, over a second rather than at once. 0: at once.
   void fade_in_from(std::span<const glm::dvec3> before, double time_s);
+  /// The fading load now (per node, N; empty without one) and its time constant.
+  [[nodiscard]] std::span<const glm::dvec3> releasing() const { return releasing_; }
+  [[nodiscard]] double release_time_s() const { return release_s_; }
+  /// Replaces the fading load (one per node, or empty), fading over `time_s` from now: a
+  /// lattice built again carries what the old one had still to let go of.
+  void set_releasing(std::vector<glm::dvec3> load, double time_s);
   /// Builds the step's matrix now instead of in the first advance(), so that no step allocates
   /// (a volume that only gives forces never needs one).
   void build_step_matrix();

@@ -148,8 +148,8 @@ class VolumeBody {
   void embed_again(SoftBody& body);
   /// A later cut's split: the lattice built again with the cells along every cut so far split
   /// (cut_boxes_), separated along the earlier cuts' sheets again, each node taking the current
-  /// lattice's motion on its own side of the wounds; the vertices stay embedded in the old one
-  /// (as take_motion). What an earlier wound had still to let go of its tension, it lets go now.
+  /// lattice's motion on its own side of the wounds and what it had still to let go of (the
+  /// fading load); the vertices stay embedded in the old one (as take_motion).
   void split_again(const SoftBody& body);
   /// Embeds the alive vertex slots not embedded yet (at their rest positions).
   void embed_slots(const SoftBody& body);
