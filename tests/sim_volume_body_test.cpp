@@ -486,6 +486,13 @@ TEST(SimVolumeBody, AShallowCutPartsTheTissueAsDeepAsTheBladeWentOnceItsCellsAre
   EXPECT_GT(open.across_m, 0.8 * open.width_m);
 }
 
+/// After a cut: the surface valid and closed, every vertex embedded in the volume.
+void expect_whole(const SimWorld& world) {
+  ASSERT_TRUE(validate(world.body(0).mesh()).ok());
+  EXPECT_TRUE(world.body(0).closed());
+  EXPECT_EQ(world.volume(0)->embedded_vertices(), world.body(0).mesh().num_vertices());
+}
+
 /// A cut over the top of the sphere: blade points at (x, y) = from + k step for k = 0..steps,
 /// on the surface, the tips `depth_m` straight down.
 CutResult cut_over_the_top(SimWorld& world, glm::dvec2 from, glm::dvec2 step, int steps,
@@ -509,9 +516,7 @@ TEST(SimVolumeBody, ASecondCutAfterTheSplitPartsTheFineCellsItMeetsAndKeepsEvery
   const CutResult second = cut_over_the_top(w.world, {-0.010, 0.001}, {0.001, 0.0}, 20, 0.004);
   ASSERT_FALSE(second.new_vertices.empty());
   EXPECT_GT(w.world.separated_faces(0), w.separated);
-  ASSERT_TRUE(validate(w.world.body(0).mesh()).ok());
-  EXPECT_TRUE(w.world.body(0).closed());
-  EXPECT_EQ(w.world.volume(0)->embedded_vertices(), w.world.body(0).mesh().num_vertices());
+  ASSERT_NO_FATAL_FAILURE(expect_whole(w.world));
   for (int s = 0; s < 300; ++s)
     w.world.step({1.0, 1.0, 1.0});
   EXPECT_TRUE(w.world.take_events().empty());
@@ -546,9 +551,7 @@ TEST(SimVolumeBody, ASecondCutFarFromTheFirstSplitsItsOwnCellsAndOpens) {
   ASSERT_FALSE(w.cut.new_vertices.empty());
   const std::size_t parted = w.world.separated_faces(0) - first_parted;
   EXPECT_GT(parted, 0u);
-  ASSERT_TRUE(validate(w.world.body(0).mesh()).ok());
-  EXPECT_TRUE(w.world.body(0).closed());
-  EXPECT_EQ(w.world.volume(0)->embedded_vertices(), w.world.body(0).mesh().num_vertices());
+  ASSERT_NO_FATAL_FAILURE(expect_whole(w.world));
   EXPECT_GT(expect_each_vertex_on_its_side(w, &first), w.cut.path.size());
   // Closed at the cut, but for the first wound's strain: the cells on either side of the new
   // one were already moving, and each lip follows its own.
@@ -611,9 +614,7 @@ TEST(SimVolumeBody, AShallowSecondCutSplitsItsOwnCellsAndTheFirstWoundStaysOpen)
   const CutResult second = cut_down_the_side(w.world, kDepth_m);
   ASSERT_FALSE(second.new_vertices.empty());
   EXPECT_GT(w.world.separated_faces(0), first_parted);
-  ASSERT_TRUE(validate(w.world.body(0).mesh()).ok());
-  EXPECT_TRUE(w.world.body(0).closed());
-  EXPECT_EQ(w.world.volume(0)->embedded_vertices(), w.world.body(0).mesh().num_vertices());
+  ASSERT_NO_FATAL_FAILURE(expect_whole(w.world));
   const Parted parted = parted_faces(w.world.volume(0)->volume().lattice());
   EXPECT_LT(parted.deepest_m, kDepth_m + 0.001);
   const double open_after = widest_gap(w.world.body(0), w.cut).width_m;
@@ -645,9 +646,7 @@ TEST(SimVolumeBody, ACutAcrossAnEarlierWoundKeepsBothSurfacesWhole) {
   const CutResult across = cut_over_the_top(w.world, {0.002, -0.006}, {0.0, 0.001}, 12, 0.003);
   ASSERT_FALSE(across.new_vertices.empty());
   EXPECT_GT(w.world.separated_faces(0), first_parted);
-  ASSERT_TRUE(validate(w.world.body(0).mesh()).ok());
-  EXPECT_TRUE(w.world.body(0).closed());
-  EXPECT_EQ(w.world.volume(0)->embedded_vertices(), w.world.body(0).mesh().num_vertices());
+  ASSERT_NO_FATAL_FAILURE(expect_whole(w.world));
   for (int s = 0; s < 500; ++s)
     w.world.step({1.0, 1.0, 1.0});
   EXPECT_TRUE(w.world.take_events().empty());

@@ -176,14 +176,24 @@ void VolumeBody::embed_again(SoftBody& body) {
   // Holding a node puts it at rest: the motion it has is put back after.
   const std::vector<glm::dvec3> x(volume_.positions().begin(), volume_.positions().end());
   const std::vector<glm::dvec3> v(volume_.velocities().begin(), volume_.velocities().end());
-  std::fill(embedded_.begin(), embedded_.end(), std::uint8_t{0});
-  embed_slots(body);
-  // The lips of earlier cuts on their own sides.
-  for (std::uint32_t i = 0; i < lip_side_.size(); ++i) {
-    if (lip_side_[i] == 0 || !embedded_[i]) continue;
-    if (const auto e =
-            embed_point_on_side(volume_.lattice(), body.rest_position(VertexId(i)), lip_side_[i]))
-      embedding_[i] = *e;
+  // Every vertex on its side of the wounds: a lip on the side its cut gave it, the others by
+  // where they lie (in a lattice with no wound, simply the cell they lie in).
+  const Dlfl& mesh = body.mesh();
+  const std::size_t slots = mesh.vertex_capacity();
+  lip_side_.resize(slots, 0);
+  embedding_.resize(slots);
+  embedded_.assign(slots, 0);
+  loaded_.resize(slots, 0);
+  for (std::uint32_t i = 0; i < slots; ++i) {
+    if (!mesh.alive(VertexId(i))) {
+      lip_side_[i] = 0;
+      continue;
+    }
+    const auto e =
+        embed_point_on_side(volume_.lattice(), body.rest_position(VertexId(i)), lip_side_[i]);
+    if (!e) continue;
+    embedding_[i] = *e;
+    embedded_[i] = 1;
   }
   hold_anchored(body);
   volume_.set_state(x, v);

@@ -251,36 +251,16 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
   next.set_state(nx, nv);
   next.fade_in_from(share(volume_.node_forces()), options_.tension_release_s);
   volume_ = std::move(next);
+  volume_.set_held_velocity(held_velocity);
   separated_faces_ += separation.separated_faces;
 
-  // Every vertex embedded again on its side: the lips by the surface's side of the incision,
-  // the rest by where they are.
-  // The earlier cuts' lips keep the sides they were given.
+  // This cut's lips by the surface's side of the incision; the earlier cuts' keep theirs.
   const std::vector<std::int8_t> sides = lip_sides(body, cut, volume_.lattice());
   lip_side_.resize(mesh.vertex_capacity(), 0);
   for (const auto* lips : {&cut.path, &cut.new_vertices, &cut.floor_vertices})
     for (const VertexId v : *lips)
       lip_side_[v.idx] = sides[v.idx];
-  embedding_.resize(mesh.vertex_capacity());
-  embedded_.assign(mesh.vertex_capacity(), 0);
-  loaded_.resize(mesh.vertex_capacity(), 0);
-  for (std::uint32_t i = 0; i < mesh.vertex_capacity(); ++i) {
-    if (!mesh.alive(VertexId(i))) {
-      lip_side_[i] = 0;
-      continue;
-    }
-    const auto e =
-        embed_point_on_side(volume_.lattice(), body.rest_position(VertexId(i)), lip_side_[i]);
-    if (!e) continue;
-    embedding_[i] = *e;
-    embedded_[i] = 1;
-  }
-  ++lattice_version_;
-  hold_anchored(body);
-  volume_.set_state(nx, nv);
-  volume_.set_held_velocity(held_velocity);
-  volume_.build_step_matrix();
-  write_surface(body);
+  embed_again(body);
   return separation.separated_faces;
 }
 

@@ -144,7 +144,8 @@ class VolumeBody {
   /// The first half of rebuild: `next` takes the current lattice's motion and replaces it; the
   /// vertices stay embedded in the old one until embed_again.
   void take_motion(ElasticVolume next);
-  /// The second half: every vertex embedded again, the anchored ones held, the surface written.
+  /// The second half (and a cut's last step): every vertex embedded again on its side of the
+  /// wounds (lip_side_), the anchored ones held, the surface written.
   void embed_again(SoftBody& body);
   /// A later cut's split: the lattice built again with the cells along every cut so far split
   /// (cut_boxes_), separated along the earlier cuts' sheets again, each node taking the current
