@@ -5,14 +5,15 @@
 #include <exception>
 #include <iostream>
 
+#include "bisturi/runtime/heap_policy.h"
 #include "bisturi/runtime/version.h"
+#include "cohort_command.h"
 #include "device_command.h"
 #include "extract_command.h"
 #include "measure_command.h"
 #include "mesh_command.h"
 #include "mesh_demo.h"
 #include "pipeline_command.h"
-#include "cohort_command.h"
 #include "render_command.h"
 #include "run_command.h"
 #include "segment_command.h"
@@ -118,6 +119,8 @@ int main(int argc, char** argv) {
   // Libraries report failures as exceptions that name the element and the reason; the user sees
   // that message, never a crash.
   try {
+    // Before any frame: the renderer's per-frame memory stays in the process (heap_policy.h).
+    (void)bisturi::runtime::keep_freed_heap();
     return run(argc, argv);
   } catch (const std::exception& e) {
     std::cerr << "bisturi: error: " << e.what() << "\n";
