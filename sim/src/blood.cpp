@@ -54,17 +54,18 @@ std::uint64_t cell_key(std::int64_t x, std::int64_t y, std::int64_t z) {
   return u(x) << 42 | u(y) << 21 | u(z);
 }
 
-/// Calls visit(b) for each entry b of `cells` (sorted by key) in the 27 cells round the one
-/// holding a point: the three cells along z are neighbours in key order, so one column a run.
-/// The points must come in the order of their cells' keys: each column's start then only moves
-/// on, and a cursor per column walks the entries once instead of a search per cell.
+/// Calls visit(first, last) for the entries [first, last) of `cells` (sorted by key) in each
+/// column of the 27 cells round the one holding a point: the three cells along z are neighbours
+/// in key order, so one run a column. The points must come in the order of their cells' keys:
+/// each column's start then only moves on, and a cursor per column walks the entries once
+/// instead of a search per cell.
 class NearCells {
  public:
   NearCells(const std::vector<std::pair<std::uint64_t, std::uint32_t>>& cells, double h)
       : cells_(cells), h_(h) {}
 
   template <class Visit>
-  void visit(const glm::dvec3& at, Visit&& visit) {
+  void visit_columns(const glm::dvec3& at, Visit&& visit) {
     const std::int64_t cx = cell_of(at.x, h_), cy = cell_of(at.y, h_), cz = cell_of(at.z, h_);
     std::size_t column = 0;
     for (std::int64_t dx = -1; dx <= 1; ++dx)
@@ -73,8 +74,10 @@ class NearCells {
         std::size_t& b = cursor_[column];
         while (b < cells_.size() && cells_[b].first < low)
           ++b;
-        for (std::size_t e = b; e < cells_.size() && cells_[e].first <= low + 2; ++e)
-          visit(e);
+        std::size_t e = b;
+        while (e < cells_.size() && cells_[e].first <= low + 2)
+          ++e;
+        if (e > b) visit(b, e);
       }
   }
 
@@ -212,28 +215,39 @@ void Blood::list_neighbours(std::uint8_t pass) {
     }
     if (count > here.size()) {
       // A cell of more than 64 particles in the pass (blood packed far past its rest density).
-      near.visit(p_[begin], [&](std::size_t b) {
-        const auto j = static_cast<std::uint32_t>(b);
-        if (listed(j)) return;
-        const bool both = active_[j] == pass;
-        for (std::size_t a = begin; a < end; ++a) {
-          if (active_[a] != pass || (both && b <= a)) continue;
-          if (glm::length2(p_[a] - p_[b]) >= h2) continue;
-          pairs_.emplace_back(static_cast<std::uint32_t>(a), j);
+      near.visit_columns(p_[begin], [&](std::size_t first, std::size_t last) {
+        for (std::size_t b = first; b < last; ++b) {
+          const auto j = static_cast<std::uint32_t>(b);
+          if (listed(j)) continue;
+          const bool both = active_[j] == pass;
+          for (std::size_t a = begin; a < end; ++a) {
+            if (active_[a] != pass || (both && b <= a)) continue;
+            if (glm::length2(p_[a] - p_[b]) >= h2) continue;
+            pairs_.emplace_back(static_cast<std::uint32_t>(a), j);
+          }
         }
       });
     } else if (count > 0) {
-      // A pair of particles both in the pass is found once, from the earlier of the two.
-      near.visit(p_[begin], [&](std::size_t b) {
-        const auto j = static_cast<std::uint32_t>(b);
-        if (listed(j)) return;
-        const bool both = active_[j] == pass;
-        const glm::dvec3& q = p_[b];
-        // here[] ascends: past the first at or after b, a pair both in the pass is found from b.
-        for (std::size_t k = 0; k < count && !(both && b <= here[k]); ++k) {
-          if (glm::length2(p_[here[k]] - q) >= h2) continue;
-          pairs_.emplace_back(here[k], j);
+      // A pair of particles both in the pass is found once, from the earlier of the two. Each
+      // candidate is written and kept by moving past it when within reach, without a branch:
+      // which candidates are within reach is as good as random to the branch predictor.
+      near.visit_columns(p_[begin], [&](std::size_t first, std::size_t last) {
+        std::size_t kept = pairs_.size();
+        pairs_.resize(kept + count * (last - first));  // room for all, not initialised
+        NeighbourPair* out = pairs_.data();
+        for (std::size_t b = first; b < last; ++b) {
+          const auto j = static_cast<std::uint32_t>(b);
+          if (listed(j)) continue;
+          const bool both = active_[j] == pass;
+          const glm::dvec3 q = p_[b];
+          // here[] ascends: past the first at or after b, a pair both in the pass is found
+          // from b.
+          for (std::size_t k = 0; k < count && !(both && b <= here[k]); ++k) {
+            out[kept] = NeighbourPair(here[k], j);
+            kept += glm::length2(p_[here[k]] - q) < h2 ? 1 : 0;
+          }
         }
+        pairs_.resize(kept);
       });
     }
     begin = end;

@@ -117,7 +117,15 @@ class Blood {
   std::vector<std::pair<std::uint64_t, std::uint32_t>> oldest_;  ///< scratch: recycle_pooled
   /// Neighbours: each pair of particles within the kernel's reach once (its kernel values are
   /// symmetric, its gradients opposite, so each is computed once for both).
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs_;
+  struct NeighbourPair {
+    std::uint32_t i, j;
+    // Left uninitialised by default: the neighbour search sizes the list for every candidate
+    // and keeps those within reach.
+    // NOLINTNEXTLINE(cppcoreguidelines-pro-type-member-init, modernize-use-equals-default)
+    NeighbourPair() {}
+    NeighbourPair(std::uint32_t a, std::uint32_t b) : i(a), j(b) {}
+  };
+  std::vector<NeighbourPair> pairs_;
   /// Per particle, this iteration: the density and the constraint gradient's sums.
   struct DensitySums {
     glm::dvec3 gradient{0.0};
