@@ -214,5 +214,46 @@ TEST(LiquidWorker, BuildsTheNewestParticlesOnItsThreadAsTheRenderThreadWould) {
   EXPECT_EQ(number, 3u);
 }
 
+/// The mean height of a surface's vertices (mm).
+double mean_z(const Dlfl& mesh) {
+  double sum = 0.0;
+  std::size_t count = 0;
+  for (std::uint32_t v = 0; v < mesh.vertex_capacity(); ++v)
+    if (mesh.alive(VertexId(v))) {
+      sum += mesh.position(VertexId(v)).z;
+      ++count;
+    }
+  return count > 0 ? sum / static_cast<double>(count) : 0.0;
+}
+
+TEST(LiquidWorker, WhileTheBloodIsBehindItBuildsEveryOtherStepAndTheLastWhenItCatchesUp) {
+  std::vector<std::vector<glm::dvec3>> steps(3);  // a pool at 0, 10 and 20 mm
+  for (std::size_t k = 0; k < steps.size(); ++k)
+    for (int i = 0; i < 6; ++i)
+      for (int j = 0; j < 6; ++j)
+        steps[k].push_back({2.4 * i, 2.4 * j, 10.0 * static_cast<double>(k)});
+  LiquidWorker worker;
+  std::uint64_t number = 0;
+  const auto offer = [&](std::size_t step, bool behind) {
+    worker.offer(steps[step], behind);
+    worker.settle();
+    return worker.newest(number);
+  };
+  EXPECT_EQ(offer(0, true), nullptr);  // passed over
+  EXPECT_EQ(offer(0, true), nullptr);  // the same step again: still passed over
+  const std::shared_ptr<const Dlfl> second = offer(1, true);
+  ASSERT_NE(second, nullptr);
+  EXPECT_EQ(number, 1u);
+  EXPECT_NEAR(mean_z(*second), 10.0, 0.5);
+  (void)offer(2, true);  // passed over
+  EXPECT_EQ(number, 1u);
+  // Caught up with no newer step: the one passed over is built.
+  const std::shared_ptr<const Dlfl> third = offer(2, false);
+  EXPECT_EQ(number, 2u);
+  EXPECT_NEAR(mean_z(*third), 20.0, 0.5);
+  (void)offer(2, false);  // built already
+  EXPECT_EQ(number, 2u);
+}
+
 }  // namespace
 }  // namespace bisturi::runtime

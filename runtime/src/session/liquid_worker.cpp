@@ -19,12 +19,21 @@ LiquidWorker::~LiquidWorker() {
   thread_.join();
 }
 
-void LiquidWorker::offer(const std::vector<glm::dvec3>& centres_mm) {
+void LiquidWorker::offer(const std::vector<glm::dvec3>& centres_mm, bool every_other) {
   {
     const std::lock_guard<std::mutex> lock(mutex_);
-    if (centres_mm.size() == offered_.size() &&
-        std::equal(centres_mm.begin(), centres_mm.end(), offered_.begin()))
-      return;
+    const bool seen = centres_mm.size() == seen_.size() &&
+                      std::equal(centres_mm.begin(), centres_mm.end(), seen_.begin());
+    // A set passed over is built once the blood is no longer behind, even if no newer comes.
+    if (seen && !(passed_over_ && !every_other)) return;
+    if (!seen) {
+      seen_.assign(centres_mm.begin(), centres_mm.end());
+      if (every_other && !passed_over_) {
+        passed_over_ = true;
+        return;
+      }
+    }
+    passed_over_ = false;
     offered_.assign(centres_mm.begin(), centres_mm.end());
     pending_ = true;
   }

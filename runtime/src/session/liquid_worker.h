@@ -28,8 +28,10 @@ class LiquidWorker {
   LiquidWorker& operator=(const LiquidWorker&) = delete;
 
   /// The particles now (world mm): the next build uses them, unless newer ones come first. The
-  /// same particles as the last offered (none, at first) start no build.
-  void offer(const std::vector<glm::dvec3>& centres_mm);
+  /// same particles as the last offered (none, at first) start no build. With every_other (the
+  /// blood's thread behind), only every second new set is built: the surface and the blood
+  /// share the core the session leaves free, and the blood, behind, needs it more.
+  void offer(const std::vector<glm::dvec3>& centres_mm, bool every_other = false);
   /// The newest surface built (null before the first) and its number, which grows by one a
   /// build: a caller holding that number has it already.
   [[nodiscard]] std::shared_ptr<const Dlfl> newest(std::uint64_t& number) const;
@@ -43,6 +45,8 @@ class LiquidWorker {
   mutable std::mutex mutex_;
   std::condition_variable changed_;
   std::vector<glm::dvec3> offered_;  ///< under mutex_
+  std::vector<glm::dvec3> seen_;     ///< the newest set offered, built or passed over (mutex_)
+  bool passed_over_ = false;         ///< seen_ was passed over (every_other)
   bool pending_ = false;             ///< offered_ not built yet
   bool building_ = false;
   bool stopping_ = false;

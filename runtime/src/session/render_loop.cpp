@@ -285,6 +285,9 @@ void average_culling(SessionReport::Culling& w) {
 constexpr glm::vec3 kFieldBackground{0.035f, 0.098f, 0.091f};
 /// The drape under the solids: the same green, lit (linear RGB, cloth: no highlight).
 constexpr glm::vec3 kDrapeColour{0.040f, 0.115f, 0.100f};
+/// Blood steps queued on the blood's thread from which its surface is built from every other
+/// step (half the hold's default: falling behind, not yet held).
+constexpr std::uint64_t kBloodBehindToBuildEveryOther = 2;
 
 }  // namespace
 
@@ -570,9 +573,10 @@ void run_render_loop(const RenderLoopContext& c) {
       in.follow(st.nodes_m);
       renderer.update_solid(inner_ids[k], in.mesh());
     }
-    // The blood's surface: the newest particles to its thread, the newest surface it built drawn.
+    // The blood's surface: the newest particles to its thread, the newest surface it built drawn;
+    // while the blood's thread is behind, from every other step it makes (liquid_worker.h).
     if (blood && (!s.blood_mm.empty() || blood_drawn)) {
-      blood->offer(s.blood_mm);
+      blood->offer(s.blood_mm, s.blood_behind >= kBloodBehindToBuildEveryOther);
       std::uint64_t number = 0;
       const std::shared_ptr<const Dlfl> surface = blood->newest(number);
       if (surface && number != blood_surface_drawn) {

@@ -87,6 +87,7 @@ void SnapshotPublisher::publish(const TickOutput& out,
   }
   if (s.incisions.size() != sim_.incisions().size()) s.incisions = sim_.incisions();
   sim_.newest_blood_mm(s.blood_mm);  // the blood's thread's newest step: never waits for one
+  s.blood_behind = sim_.blood_behind();
   s.instruments.resize(sim_.hand_count());
   for (std::size_t h = 0; h < sim_.hand_count(); ++h)
     s.instruments[h] = {sim_.tip_mm(h), sim_.blade_to_mm(h), sim_.grasping(h), sim_.cutting(h)};

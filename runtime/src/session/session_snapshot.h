@@ -63,6 +63,7 @@ struct Snapshot {
   std::vector<SolidState> solids;
   std::vector<InstrumentState> instruments;  ///< one per hand
   std::vector<glm::dvec3> blood_mm;          ///< the blood's particles (sim/blood.h)
+  std::uint64_t blood_behind = 0;            ///< blood steps queued on its thread, not yet made
   std::vector<Incision> incisions;           ///< the cuts made so far (SessionSim::incisions)
   std::uint64_t event_count = 0;
   std::array<EventStamp, 16> recent{};  ///< the last events, by index % size
