@@ -203,31 +203,15 @@ void Blood::list_neighbours(std::uint8_t pass) {
   // Those in flight found all their pairs in the first pass.
   const auto listed = [&](std::uint32_t j) { return pass == 2 && active_[j] == 1; };
   // The particles are in cell order (find_neighbours): a cell's entries are its particles.
-  std::array<std::uint32_t, 64> here{};  // the cell's particles in the pass
-  NearCells near(cells_, h_);            // the cells in key order: begin only grows
+  NearCells near(cells_, h_);  // the cells in key order: begin only grows
   // Cell by cell: the cells around each are looked up once for all its particles in the pass.
   for (std::size_t begin = 0; begin < n;) {
-    std::size_t end = begin, count = 0;
-    for (; end < n && cells_[end].first == cells_[begin].first; ++end) {
-      if (active_[end] != pass) continue;
-      if (count < here.size()) here[count] = static_cast<std::uint32_t>(end);
-      ++count;
-    }
-    if (count > here.size()) {
-      // A cell of more than 64 particles in the pass (blood packed far past its rest density).
-      near.visit_columns(p_[begin], [&](std::size_t first, std::size_t last) {
-        for (std::size_t b = first; b < last; ++b) {
-          const auto j = static_cast<std::uint32_t>(b);
-          if (listed(j)) continue;
-          const bool both = active_[j] == pass;
-          for (std::size_t a = begin; a < end; ++a) {
-            if (active_[a] != pass || (both && b <= a)) continue;
-            if (glm::length2(p_[a] - p_[b]) >= h2) continue;
-            pairs_.emplace_back(static_cast<std::uint32_t>(a), j);
-          }
-        }
-      });
-    } else if (count > 0) {
+    std::size_t end = begin;
+    here_.clear();  // the cell's particles in the pass, ascending
+    for (; end < n && cells_[end].first == cells_[begin].first; ++end)
+      if (active_[end] == pass) here_.push_back(static_cast<std::uint32_t>(end));
+    const std::size_t count = here_.size();
+    if (count > 0) {
       // A pair of particles both in the pass is found once, from the earlier of the two. Each
       // candidate is written and kept by moving past it when within reach, without a branch:
       // which candidates are within reach is as good as random to the branch predictor.
@@ -240,11 +224,11 @@ void Blood::list_neighbours(std::uint8_t pass) {
           if (listed(j)) continue;
           const bool both = active_[j] == pass;
           const glm::dvec3 q = p_[b];
-          // here[] ascends: past the first at or after b, a pair both in the pass is found
+          // here_ ascends: past the first at or after b, a pair both in the pass is found
           // from b.
-          for (std::size_t k = 0; k < count && !(both && b <= here[k]); ++k) {
-            out[kept] = NeighbourPair(here[k], j);
-            kept += glm::length2(p_[here[k]] - q) < h2 ? 1 : 0;
+          for (std::size_t k = 0; k < count && !(both && b <= here_[k]); ++k) {
+            out[kept] = NeighbourPair(here_[k], j);
+            kept += glm::length2(p_[here_[k]] - q) < h2 ? 1 : 0;
           }
         }
         pairs_.resize(kept);

@@ -22,19 +22,18 @@ LiquidWorker::~LiquidWorker() {
 void LiquidWorker::offer(const std::vector<glm::dvec3>& centres_mm, bool every_other) {
   {
     const std::lock_guard<std::mutex> lock(mutex_);
-    const bool seen = centres_mm.size() == seen_.size() &&
-                      std::equal(centres_mm.begin(), centres_mm.end(), seen_.begin());
+    const bool same = centres_mm.size() == offered_.size() &&
+                      std::equal(centres_mm.begin(), centres_mm.end(), offered_.begin());
     // A set passed over is built once the blood is no longer behind, even if no newer comes.
-    if (seen && !(passed_over_ && !every_other)) return;
-    if (!seen) {
-      seen_.assign(centres_mm.begin(), centres_mm.end());
+    if (same && !(passed_over_ && !every_other)) return;
+    if (!same) {
+      offered_.assign(centres_mm.begin(), centres_mm.end());
       if (every_other && !passed_over_) {
         passed_over_ = true;
         return;
       }
     }
     passed_over_ = false;
-    offered_.assign(centres_mm.begin(), centres_mm.end());
     pending_ = true;
   }
   changed_.notify_all();
@@ -59,6 +58,7 @@ void LiquidWorker::run() {
       changed_.wait(lock, [&] { return stopping_ || pending_; });
       if (stopping_) return;
       centres.assign(offered_.begin(), offered_.end());
+      passed_over_ = false;  // a set passed over while a build waited is built now
       pending_ = false;
       building_ = true;
     }

@@ -44,9 +44,8 @@ class LiquidWorker {
   render::LiquidSurface liquid_;  ///< the worker thread's
   mutable std::mutex mutex_;
   std::condition_variable changed_;
-  std::vector<glm::dvec3> offered_;  ///< under mutex_
-  std::vector<glm::dvec3> seen_;     ///< the newest set offered, built or passed over (mutex_)
-  bool passed_over_ = false;         ///< seen_ was passed over (every_other)
+  std::vector<glm::dvec3> offered_;  ///< the newest set offered, built or passed over (mutex_)
+  bool passed_over_ = false;         ///< offered_ was passed over (every_other)
   bool pending_ = false;             ///< offered_ not built yet
   bool building_ = false;
   bool stopping_ = false;

@@ -138,6 +138,7 @@ class Blood {
   std::vector<double> weight_;  ///< scratch: XSPH's kernel weights summed per particle
   std::vector<std::pair<std::uint64_t, std::uint32_t>> cells_;  ///< scratch
   std::vector<std::uint32_t> reorder_;   ///< scratch: the particles' former indices in cell order
+  std::vector<std::uint32_t> here_;      ///< scratch: list_neighbours' particles of one cell
   std::vector<unsigned char> permuted_;  ///< scratch for permute()
   /// Puts a per-particle array in reorder_'s order.
   template <class T>
