@@ -234,7 +234,8 @@ int main(int argc, char** argv) {
     if (a == "--help" || a == "-h") {
       std::printf(
           "label_surface_bench [--repeats N] [--iterations N] [--pass-band K] [--rounds N]\n"
-          "                    [--fit-sweeps N] [--spacing X,Y,Z]... [--json FILE]\n"
+          "                    [--twicing-share W] [--fit-sweeps N] [--spacing X,Y,Z]...\n"
+          "                    [--json FILE]\n"
           "                    [--list-far MM]\n"
           "  surfaces of voxelised analytic solids against the true shape: marching cubes,\n"
           "  constrained smoothing and (when built with VTK) 3D Slicer's VTK pipeline;\n"
@@ -250,6 +251,8 @@ int main(int argc, char** argv) {
       constrained.pass_band = std::atof(argv[++i]);
     } else if (a == "--rounds" && i + 1 < argc) {
       constrained.rounds = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
+    } else if (a == "--twicing-share" && i + 1 < argc) {
+      constrained.twicing_share = std::atof(argv[++i]);
     } else if (a == "--fit-sweeps" && i + 1 < argc) {
       constrained.normal_fit_sweeps = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
     } else if (a == "--list-far" && i + 1 < argc) {

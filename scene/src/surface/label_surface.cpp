@@ -30,6 +30,10 @@ void check_options(const LabelSurfaceOptions& o) {
     throw InputError("label surface: need iterations 0 or >= 2 and a pass band in (0, 2) (got " +
                      std::to_string(o.iterations) + ", " + std::to_string(o.pass_band) + ")");
   }
+  if (!(o.twicing_share >= 0.0 && o.twicing_share <= 2.0)) {
+    throw InputError("label surface: need a twicing share in [0, 2] (got " +
+                     std::to_string(o.twicing_share) + ")");
+  }
 }
 
 // Squared distances along one line of samples (spacing h) to the nearest feature sample (f = 0
@@ -444,13 +448,14 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
   };
   for (std::size_t round = 0; round < o.rounds; ++round) {
     // Round 0 filters the positions; each later one filters what is left between them and the
-    // marching-cubes ones and adds it back (Tukey's twicing: gain 2F - F^2 after two), which
-    // flattens the pass band, so curved parts shrink less while the staircase stays filtered.
+    // marching-cubes ones and adds a share w of it back (Tukey's twicing, gain (1 + w)F - wF^2
+    // after two), which flattens the pass band, so curved parts shrink less while the staircase
+    // stays filtered.
     for (std::size_t v = 0; v < n; ++v)
       input[v] = round == 0 ? Vec3(home[v]) : home[v] - pos[v];
     filter(smoothed);
     for (std::size_t v = 0; v < n; ++v)
-      pos[v] = round == 0 ? smoothed[v] : pos[v] + smoothed[v];
+      pos[v] = round == 0 ? smoothed[v] : pos[v] + o.twicing_share * smoothed[v];
     // Back into the band the voxels allow: along the way from its marching-cubes position (a
     // point of the band), as far as the band goes.
     clamped = 0;
