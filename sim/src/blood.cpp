@@ -11,6 +11,8 @@
 #include <glm/geometric.hpp>
 #include <glm/gtx/norm.hpp>
 
+#include "step_threads.h"
+
 namespace bisturi::sim {
 
 namespace {
@@ -89,7 +91,18 @@ class NearCells {
 
 }  // namespace
 
+Blood::~Blood() = default;
+Blood::Blood(Blood&&) noexcept = default;
+Blood& Blood::operator=(Blood&&) noexcept = default;
+
 Blood::Blood(const BloodOptions& options) : options_(options) {
+  // A helper may share a core with the calling thread (the blood runs on what the session
+  // leaves free): it spins only briefly for the next part before it sleeps. One thread runs
+  // the parts in turn.
+  constexpr unsigned kHelperSpins = 200;
+  team_ = options_.threads > 1
+              ? std::make_unique<StepThreads>(kParts, kHelperSpins, options_.helper_start)
+              : std::make_unique<StepThreads>(kParts, [] {});
   const double spacing = 2.0 * options_.particle_radius_m;
   h_ = 2.0 * spacing;
   const Kernels kernels(h_);
@@ -241,51 +254,81 @@ void Blood::list_neighbours(std::uint8_t pass) {
 void Blood::solve_density() {
   const Kernels kernels(h_);
   const std::size_t n = x_.size();
+  const std::size_t pairs = pairs_.size();
   const double scale = mass_kg_ / rest_density_;
-  sums_.assign(n, DensitySums{glm::dvec3(0.0), mass_kg_ * kernels.poly6(0.0), 0.0});
-  gradient_.resize(pairs_.size());
-  for (std::size_t k = 0; k < pairs_.size(); ++k) {
-    const auto [i, j] = pairs_[k];
-    const glm::dvec3 r = p_[i] - p_[j];
-    const double r2 = glm::dot(r, r);
-    gradient_[k] = glm::dvec3(0.0);  // the position update below uses it again
-    if (r2 >= kernels.h2) continue;  // beyond the kernel: one distance
-    const double w = mass_kg_ * kernels.poly6(r2);
-    sums_[i].density += w;
-    sums_[j].density += w;
-    gradient_[k] = kernels.spiky_gradient(r, r2);
-    const glm::dvec3 g = scale * gradient_[k];
-    const double g2 = glm::dot(g, g);
-    sums_[i].gradient += g;
-    sums_[i].gradient_squares += g2;
-    sums_[j].gradient -= g;
-    sums_[j].gradient_squares += g2;
+  gradient_.resize(pairs);
+  for (unsigned t = 0; t < kParts; ++t) {
+    sums_[t].resize(n);
+    delta_[t].resize(n);
   }
   lambda_.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const DensitySums& s = sums_[i];
-    // Only compression is corrected: a free surface (too few neighbours) is not pulled in. No
-    // particle in flight is near an idle one, so an idle one's lambda is never read.
-    const double c = std::max(0.0, s.density / rest_density_ - 1.0);
-    lambda_[i] =
-        active_[i] ? -c / (s.gradient_squares + glm::length2(s.gradient) + relaxation_) : 0.0;
-  }
-  delta_.assign(n, glm::dvec3(0.0));
-  for (std::size_t k = 0; k < pairs_.size(); ++k) {
-    const auto [i, j] = pairs_[k];
-    const glm::dvec3 d = (lambda_[i] + lambda_[j]) * gradient_[k];
-    delta_[i] += d;
-    delta_[j] -= d;
-  }
+  team_->run([&](unsigned t) {
+    std::vector<DensitySums>& sums = sums_[t];
+    // Each particle's own kernel value once, in the first part's sums.
+    std::fill(sums.begin(), sums.end(),
+              DensitySums{glm::dvec3(0.0), t == 0 ? mass_kg_ * kernels.poly6(0.0) : 0.0, 0.0});
+    const Range r = part_of(pairs, kParts, t);
+    for (std::size_t k = r.begin; k < r.end; ++k) {
+      const auto [i, j] = pairs_[k];
+      const glm::dvec3 r_ij = p_[i] - p_[j];
+      const double r2 = glm::dot(r_ij, r_ij);
+      gradient_[k] = glm::dvec3(0.0);  // the position update below uses it again
+      if (r2 >= kernels.h2) continue;  // beyond the kernel: one distance
+      const double w = mass_kg_ * kernels.poly6(r2);
+      sums[i].density += w;
+      sums[j].density += w;
+      gradient_[k] = kernels.spiky_gradient(r_ij, r2);
+      const glm::dvec3 g = scale * gradient_[k];
+      const double g2 = glm::dot(g, g);
+      sums[i].gradient += g;
+      sums[i].gradient_squares += g2;
+      sums[j].gradient -= g;
+      sums[j].gradient_squares += g2;
+    }
+  });
+  team_->run([&](unsigned t) {
+    const Range r = part_of(n, kParts, t);
+    for (std::size_t i = r.begin; i < r.end; ++i) {
+      const DensitySums& a = sums_[0][i];
+      const DensitySums& b = sums_[1][i];
+      // Only compression is corrected: a free surface (too few neighbours) is not pulled in.
+      // No particle in flight is near an idle one, so an idle one's lambda is never read.
+      const double c = std::max(0.0, (a.density + b.density) / rest_density_ - 1.0);
+      lambda_[i] = active_[i] ? -c / (a.gradient_squares + b.gradient_squares +
+                                      glm::length2(a.gradient + b.gradient) + relaxation_)
+                              : 0.0;
+    }
+  });
+  team_->run([&](unsigned t) {
+    std::vector<glm::dvec3>& delta = delta_[t];
+    std::fill(delta.begin(), delta.end(), glm::dvec3(0.0));
+    const Range r = part_of(pairs, kParts, t);
+    for (std::size_t k = r.begin; k < r.end; ++k) {
+      const auto [i, j] = pairs_[k];
+      const glm::dvec3 d = (lambda_[i] + lambda_[j]) * gradient_[k];
+      delta[i] += d;
+      delta[j] -= d;
+    }
+  });
   // Only particles in flight move.
-  for (std::size_t i = 0; i < n; ++i)
-    if (!pooled_[i]) p_[i] += scale * delta_[i];
+  team_->run([&](unsigned t) {
+    const Range r = part_of(n, kParts, t);
+    for (std::size_t i = r.begin; i < r.end; ++i)
+      if (!pooled_[i]) p_[i] += scale * (delta_[0][i] + delta_[1][i]);
+  });
 }
 
 void Blood::collide(std::span<const BloodSurface> surfaces) {
+  team_->run([&](unsigned t) {
+    const Range part = part_of(x_.size(), kParts, t);
+    collide(surfaces, part.begin, part.end);
+  });
+}
+
+void Blood::collide(std::span<const BloodSurface> surfaces, std::size_t begin, std::size_t end) {
   const double r = options_.particle_radius_m;
   constexpr double kMaxDepth_m = 0.006;  // deeper: the far side of a thin part, not this one
-  for (std::size_t i = 0; i < x_.size(); ++i) {
+  for (std::size_t i = begin; i < end; ++i) {
     touching_[i] = 0;
     for (const BloodSurface& s : surfaces) {
       const auto [lo, hi] = s.bvh->bounds();
@@ -382,20 +425,27 @@ void Blood::step(double dt_s, std::span<const BloodSurface> surfaces) {
       }
     }
     // XSPH: each particle's velocity drawn towards its neighbours' (the blood's viscosity).
-    delta_.assign(n, glm::dvec3(0.0));
-    weight_.assign(n, 0.0);
     const Kernels kernels(h_);
-    for (const auto& [i, j] : pairs_) {
-      const double w = kernels.poly6(glm::length2(p_[i] - p_[j]));
-      const glm::dvec3 dv = w * (v_[j] - v_[i]);
-      delta_[i] += dv;
-      delta_[j] -= dv;
-      weight_[i] += w;
-      weight_[j] += w;
-    }
+    team_->run([&](unsigned t) {
+      std::vector<glm::dvec3>& delta = delta_[t];
+      std::vector<double>& weight = weight_[t];
+      delta.assign(n, glm::dvec3(0.0));
+      weight.assign(n, 0.0);
+      const Range r = part_of(pairs_.size(), kParts, t);
+      for (std::size_t k = r.begin; k < r.end; ++k) {
+        const auto [i, j] = pairs_[k];
+        const double w = kernels.poly6(glm::length2(p_[i] - p_[j]));
+        const glm::dvec3 dv = w * (v_[j] - v_[i]);
+        delta[i] += dv;
+        delta[j] -= dv;
+        weight[i] += w;
+        weight[j] += w;
+      }
+    });
     for (std::size_t i = 0; i < n; ++i) {
       if (pooled_[i]) continue;  // at rest: its velocity stays zero
-      if (weight_[i] > 0.0) v_[i] += options_.viscosity * delta_[i] / weight_[i];
+      const double weight = weight_[0][i] + weight_[1][i];
+      if (weight > 0.0) v_[i] += options_.viscosity * (delta_[0][i] + delta_[1][i]) / weight;
       x_[i] = p_[i];
       // Come to rest on a surface: pooled (still a neighbour of the others, never moved again
       // unless the tissue pushes it).

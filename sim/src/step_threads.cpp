@@ -18,11 +18,17 @@ constexpr std::uint64_t kPartMask = 0xffffffffu;
 
 }  // namespace
 
-StepThreads::StepThreads(unsigned threads) {
+StepThreads::StepThreads(unsigned threads) : StepThreads(threads, 20000, {}) {}
+
+StepThreads::StepThreads(unsigned threads, unsigned spins, const std::function<void()>& on_start)
+    : spins_(spins) {
   claim_.store(kPartMask, std::memory_order_relaxed);  // generation 0: no part to claim
   parts_ = std::max(1u, threads);
   for (unsigned t = 1; t < parts_; ++t)
-    workers_.emplace_back([this] { work(); });
+    workers_.emplace_back([this, on_start] {
+      if (on_start) on_start();
+      work();
+    });
 }
 
 StepThreads::StepThreads(unsigned parts, std::function<void()> after_part)
@@ -85,10 +91,10 @@ void StepThreads::run_claimed_parts() {
 void StepThreads::work() {
   for (;;) {
     std::uint64_t c = claim_.load(std::memory_order_acquire);
-    // Nothing to claim: spin about 50-100 us (the passes of one step follow each other closely,
-    // and a wake-up from sleep costs tens of microseconds), then sleep until the value changes.
-    for (int spin = 0;
-         spin < 20000 && (c & kPartMask) >= size() && !stop_.load(std::memory_order_relaxed);
+    // Nothing to claim: spin a while (the passes of one step follow each other closely, and a
+    // wake-up from sleep costs tens of microseconds), then sleep until the value changes.
+    for (unsigned spin = 0;
+         spin < spins_ && (c & kPartMask) >= size() && !stop_.load(std::memory_order_relaxed);
          ++spin) {
       relax();
       c = claim_.load(std::memory_order_acquire);

@@ -49,9 +49,10 @@ void particle_counts(benchmark::internal::Benchmark* b) {
 }
 
 /// Blood poured from four points 10 mm above the slab until there are `particles`.
-Blood poured_blood(SimWorld& world, std::size_t particles) {
+Blood poured_blood(SimWorld& world, std::size_t particles, unsigned threads = 1) {
   BloodOptions options;
   options.max_particles = particles;
+  options.threads = threads;
   options.floor_z_m = -0.05;
   options.field_min_m = glm::dvec3(-0.2);
   options.field_max_m = glm::dvec3(0.2);
@@ -68,10 +69,11 @@ Blood poured_blood(SimWorld& world, std::size_t particles) {
   return blood;
 }
 
-void BM_BloodStep(benchmark::State& state) {
+/// One step on `threads` threads (the same blood, bit for bit, with one or two).
+void blood_step(benchmark::State& state, unsigned threads) {
   const auto particles = static_cast<std::size_t>(state.range(0));
   SimWorld world = slab_world();
-  Blood blood = poured_blood(world, particles);
+  Blood blood = poured_blood(world, particles, threads);
   const BloodSurface surface{&world.body(0), &world.bvh(0)};
   for (auto _ : state) {
     const auto begin = std::chrono::steady_clock::now();
@@ -83,7 +85,17 @@ void BM_BloodStep(benchmark::State& state) {
   state.counters["pooled"] = static_cast<double>(blood.counts().pooled);
   count_share_of_display_period(state);
 }
+
+void BM_BloodStep(benchmark::State& state) {
+  blood_step(state, 1);
+}
 BENCHMARK(BM_BloodStep)->Apply(particle_counts);
+
+/// Two threads: what a step takes when a second core is free for it.
+void BM_BloodStepTwoThreads(benchmark::State& state) {
+  blood_step(state, 2);
+}
+BENCHMARK(BM_BloodStepTwoThreads)->Apply(particle_counts);
 
 void BM_BloodLiquidSurface(benchmark::State& state) {
   const auto particles = static_cast<std::size_t>(state.range(0));

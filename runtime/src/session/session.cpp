@@ -686,6 +686,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     report.bleeding.hold_at_steps = steps.blood_hold_at;
     report.bleeding.holds = loop.counters().blood_holds;
     report.bleeding.held_s = sim.blood_held_s();
+    report.bleeding.threads = sim.blood_threads();
     for (const double step : sim.blood_step_ms())
       report.blood_step_ms.record(step);
   }

@@ -3,6 +3,7 @@
 #include "bisturi/runtime/session/session_sim.h"
 
 #include "blood_worker.h"
+#include "free_core.h"
 
 #include <algorithm>
 #include <chrono>
@@ -10,6 +11,7 @@
 #include <cstring>
 #include <limits>
 #include <stdexcept>
+#include <thread>
 #include <utility>
 
 #include <glm/geometric.hpp>
@@ -40,6 +42,14 @@ const char* to_string(SessionEventKind kind) {
 }
 
 namespace {
+
+/// The blood's threads on a machine with `cores`: a helper when a core is left free after the
+/// haptic loop, the renderer, the tissue and the blood's own thread; on fewer cores it would
+/// only take turns with the blood's thread and wait for it (sim/blood.h keeps the same bits).
+unsigned blood_threads_for(unsigned cores) {
+  constexpr unsigned kBusyThreads = 4;
+  return cores > kBusyThreads ? 2u : 1u;
+}
 
 sim::Material to_material(const MaterialDescription& m) {
   sim::Material out;
@@ -198,6 +208,8 @@ SessionSim::SessionSim(const SceneDescription& scene, std::vector<BuiltSolid> so
     blood.field_max_m = hi + (hi - lo);
   }
   no_blood_ = sim::Blood(blood);
+  blood.threads = blood_threads_for(std::thread::hardware_concurrency());
+  blood.helper_start = [] { run_only_on_a_free_core(true); };
   out_.other_hands.resize(hands.size() - 1);
   for (std::size_t i = 0; i < hands.size(); ++i) {
     Hand h;

@@ -7,7 +7,10 @@
 // field across drain. Every particle is counted: emitted = in flight + pooled + drained.
 // Deterministic (single-threaded, fixed order), so a replay of the same steps bleeds the same.
 
+#include <array>
 #include <cstdint>
+#include <functional>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -17,6 +20,8 @@
 #include "bisturi/sim/soft_body.h"
 
 namespace bisturi::sim {
+
+class StepThreads;
 
 struct BloodOptions {
   double particle_radius_m = 0.0012;  ///< half the particles' rest spacing
@@ -38,6 +43,12 @@ struct BloodOptions {
   double pool_speed_m_s = 0.01;  ///< slower than this on a surface for pool_steps: pooled
   int pool_steps = 30;
   double surface_friction = 0.5;  ///< the tangential speed kept per contact is 1 - this
+  /// Threads that step the blood (the calling one and helpers). The work over the particles and
+  /// their pairs is cut into the same two parts whatever the count, each summed on its own, so
+  /// the blood comes out the same bits with one thread or two.
+  unsigned threads = 1;
+  /// Called first on each helper's own thread (a scheduling policy, say).
+  std::function<void()> helper_start;
 };
 
 /// Where blood leaves a vessel: a point of the opening and the direction out of the lumen.
@@ -63,6 +74,9 @@ struct BloodCounts {
 class Blood {
  public:
   explicit Blood(const BloodOptions& options = {});
+  ~Blood();
+  Blood(Blood&&) noexcept;
+  Blood& operator=(Blood&&) noexcept;
 
   /// Emits the volume `flow_m3_s` * dt_s (with what earlier calls left over) from `sources` in
   /// turn, each particle at `speed_m_s` along its source's direction; returns how many.
@@ -92,6 +106,8 @@ class Blood {
   void list_neighbours(std::uint8_t pass);
   void solve_density();
   void collide(std::span<const BloodSurface> surfaces);
+  /// The same for the particles [begin, end).
+  void collide(std::span<const BloodSurface> surfaces, std::size_t begin, std::size_t end);
   void remove_drained();
   /// Takes the `count` oldest pooled particles (the first emitted).
   void recycle_pooled(std::size_t count);
@@ -132,10 +148,14 @@ class Blood {
     double density = 0.0;
     double gradient_squares = 0.0;
   };
-  std::vector<DensitySums> sums_;
+  /// The work over pairs and particles goes in kParts parts, each pair's sums into its part's
+  /// arrays, added in part order: the same bits whichever thread runs which part.
+  static constexpr unsigned kParts = 2;
+  std::unique_ptr<StepThreads> team_;
+  std::array<std::vector<DensitySums>, kParts> sums_;
   std::vector<double> lambda_;
-  std::vector<glm::dvec3> delta_;
-  std::vector<double> weight_;  ///< scratch: XSPH's kernel weights summed per particle
+  std::array<std::vector<glm::dvec3>, kParts> delta_;
+  std::array<std::vector<double>, kParts> weight_;              ///< scratch: XSPH's kernel weights
   std::vector<std::pair<std::uint64_t, std::uint32_t>> cells_;  ///< scratch
   std::vector<std::uint32_t> reorder_;   ///< scratch: the particles' former indices in cell order
   std::vector<std::uint32_t> here_;      ///< scratch: list_neighbours' particles of one cell

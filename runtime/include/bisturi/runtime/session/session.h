@@ -205,6 +205,7 @@ struct SessionReport {
     double tissue_waited_ms = 0.0;
     std::uint64_t hold_at_steps = 0, holds = 0;
     double held_s = 0.0;
+    std::uint32_t threads = 1;  ///< threads that step the blood
   } bleeding;
   TimingRecorder blood_step_ms{"ms"};
   /// What the renderer drew and left out, per frame on average, in the frames before the first

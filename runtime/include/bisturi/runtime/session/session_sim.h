@@ -233,6 +233,8 @@ class SessionSim {
   void stall_blood_when(std::atomic<bool>* flag, std::chrono::milliseconds how_long);
   /// Simulated time the blood's clock stood still while vessels bled (s): its lag on the tissue.
   [[nodiscard]] double blood_held_s() const { return blood_held_s_; }
+  /// Threads that step the blood (BloodOptions::threads).
+  [[nodiscard]] unsigned blood_threads() const { return blood_options_.threads; }
   /// The bleeding openings' flow at the last blood step (m^3/s).
   [[nodiscard]] double blood_flow_m3_s() const { return blood_flow_m3_s_; }
   /// How long building body b's volume took (ms; 0 for a membrane).
