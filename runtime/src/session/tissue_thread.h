@@ -101,6 +101,7 @@ class TissueThread {
   std::atomic<std::uint32_t> wake_{0};
   std::atomic<bool> finishing_{false};
   std::atomic<bool> failed_{false};
+  std::atomic<bool> started_{false};  ///< the thread has faulted its heap in
   std::exception_ptr error_;
   std::thread thread_;
 };
