@@ -3,10 +3,14 @@
 
 #include "bisturi/sim/volume/volume_body.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <optional>
 #include <set>
+#include <span>
+#include <vector>
 
 #include <glm/geometric.hpp>
 #include <glm/gtx/norm.hpp>
@@ -18,6 +22,52 @@
 namespace bisturi::sim {
 
 namespace {
+
+/// The alive vertices in order of their x: the nearest to a point is found by walking out from
+/// the point's x both ways until a vertex is further in x alone than the nearest so far.
+class NearestVertex {
+ public:
+  NearestVertex(const Dlfl& mesh, std::span<const glm::dvec3> x) : x_(x) {
+    for (std::uint32_t i = 0; i < mesh.vertex_capacity(); ++i)
+      if (mesh.alive(VertexId(i))) order_.push_back(i);
+    std::sort(order_.begin(), order_.end(),
+              [&](std::uint32_t a, std::uint32_t b) { return x_[a].x < x_[b].x; });
+    for (const std::uint32_t i : order_)
+      keys_.push_back(x_[i].x);
+  }
+  /// The nearest vertex to p, the lowest index of those equally near (as a scan in index order
+  /// finds it); UINT32_MAX when none is alive.
+  [[nodiscard]] std::uint32_t nearest(const glm::dvec3& p) const {
+    double best = INFINITY;
+    std::uint32_t found = UINT32_MAX;
+    const auto consider = [&](std::uint32_t i) {
+      const double d = glm::length2(x_[i] - p);
+      if (d < best || (d == best && i < found)) {
+        best = d;
+        found = i;
+      }
+    };
+    // A vertex dx away in x is at least dx * dx away squared (the sum rounds no lower).
+    const auto start =
+        static_cast<std::size_t>(std::lower_bound(keys_.begin(), keys_.end(), p.x) - keys_.begin());
+    for (std::size_t k = start; k < order_.size(); ++k) {
+      const double dx = keys_[k] - p.x;
+      if (dx * dx > best) break;
+      consider(order_[k]);
+    }
+    for (std::size_t k = start; k-- > 0;) {
+      const double dx = p.x - keys_[k];
+      if (dx * dx > best) break;
+      consider(order_[k]);
+    }
+    return found;
+  }
+
+ private:
+  std::span<const glm::dvec3> x_;
+  std::vector<std::uint32_t> order_;
+  std::vector<double> keys_;
+};
 
 /// Boxes of side `fine_m` round points of `sheet` half that apart (one per half-cell they fall
 /// in: the blade is sampled every step): what the cells along the sheet meet.
@@ -174,17 +224,11 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
   const Dlfl& mesh = body.mesh();
   const auto x = body.positions();
   // The sheet in the rest frame: each point moved back by the nearest vertex's displacement.
+  const NearestVertex nearest(mesh, x);
   const auto to_rest = [&](const glm::dvec3& p) {
-    double best = INFINITY;
-    glm::dvec3 shift(0.0);
-    for (std::uint32_t i = 0; i < mesh.vertex_capacity(); ++i) {
-      if (!mesh.alive(VertexId(i))) continue;
-      const double d = glm::length2(x[i] - p);
-      if (d >= best) continue;
-      best = d;
-      shift = x[i] - body.rest_position(VertexId(i));
-    }
-    return p - shift;
+    const std::uint32_t i = nearest.nearest(p);
+    if (i == UINT32_MAX) return p;
+    return p - (x[i] - body.rest_position(VertexId(i)));
   };
   // A sample (one is taken each tissue step) whose entry and tip are both nearer than a
   // twentieth of a cell to the last one kept adds nothing to the sheet (separate_along_sheet
