@@ -89,6 +89,16 @@ class NearCells {
   std::array<std::size_t, 9> cursor_{};
 };
 
+/// Entry i of the parts' arrays summed, in part order: the same bits whichever thread filled
+/// which part.
+template <class T, std::size_t N>
+T sum_of_parts(const std::array<std::vector<T>, N>& parts, std::size_t i) {
+  T sum = parts[0][i];
+  for (std::size_t t = 1; t < N; ++t)
+    sum = sum + parts[t][i];
+  return sum;
+}
+
 }  // namespace
 
 Blood::~Blood() = default;
@@ -289,14 +299,12 @@ void Blood::solve_density() {
   team_->run([&](unsigned t) {
     const Range r = part_of(n, kParts, t);
     for (std::size_t i = r.begin; i < r.end; ++i) {
-      const DensitySums& a = sums_[0][i];
-      const DensitySums& b = sums_[1][i];
+      const DensitySums s = sum_of_parts(sums_, i);
       // Only compression is corrected: a free surface (too few neighbours) is not pulled in.
       // No particle in flight is near an idle one, so an idle one's lambda is never read.
-      const double c = std::max(0.0, (a.density + b.density) / rest_density_ - 1.0);
-      lambda_[i] = active_[i] ? -c / (a.gradient_squares + b.gradient_squares +
-                                      glm::length2(a.gradient + b.gradient) + relaxation_)
-                              : 0.0;
+      const double c = std::max(0.0, s.density / rest_density_ - 1.0);
+      lambda_[i] =
+          active_[i] ? -c / (s.gradient_squares + glm::length2(s.gradient) + relaxation_) : 0.0;
     }
   });
   team_->run([&](unsigned t) {
@@ -314,7 +322,7 @@ void Blood::solve_density() {
   team_->run([&](unsigned t) {
     const Range r = part_of(n, kParts, t);
     for (std::size_t i = r.begin; i < r.end; ++i)
-      if (!pooled_[i]) p_[i] += scale * (delta_[0][i] + delta_[1][i]);
+      if (!pooled_[i]) p_[i] += scale * sum_of_parts(delta_, i);
   });
 }
 
@@ -426,11 +434,15 @@ void Blood::step(double dt_s, std::span<const BloodSurface> surfaces) {
     }
     // XSPH: each particle's velocity drawn towards its neighbours' (the blood's viscosity).
     const Kernels kernels(h_);
+    for (unsigned t = 0; t < kParts; ++t) {
+      delta_[t].resize(n);
+      weight_[t].resize(n);
+    }
     team_->run([&](unsigned t) {
       std::vector<glm::dvec3>& delta = delta_[t];
       std::vector<double>& weight = weight_[t];
-      delta.assign(n, glm::dvec3(0.0));
-      weight.assign(n, 0.0);
+      std::fill(delta.begin(), delta.end(), glm::dvec3(0.0));
+      std::fill(weight.begin(), weight.end(), 0.0);
       const Range r = part_of(pairs_.size(), kParts, t);
       for (std::size_t k = r.begin; k < r.end; ++k) {
         const auto [i, j] = pairs_[k];
@@ -444,8 +456,8 @@ void Blood::step(double dt_s, std::span<const BloodSurface> surfaces) {
     });
     for (std::size_t i = 0; i < n; ++i) {
       if (pooled_[i]) continue;  // at rest: its velocity stays zero
-      const double weight = weight_[0][i] + weight_[1][i];
-      if (weight > 0.0) v_[i] += options_.viscosity * (delta_[0][i] + delta_[1][i]) / weight;
+      const double weight = sum_of_parts(weight_, i);
+      if (weight > 0.0) v_[i] += options_.viscosity * sum_of_parts(delta_, i) / weight;
       x_[i] = p_[i];
       // Come to rest on a surface: pooled (still a neighbour of the others, never moved again
       // unless the tissue pushes it).

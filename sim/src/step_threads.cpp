@@ -18,7 +18,7 @@ constexpr std::uint64_t kPartMask = 0xffffffffu;
 
 }  // namespace
 
-StepThreads::StepThreads(unsigned threads) : StepThreads(threads, 20000, {}) {}
+StepThreads::StepThreads(unsigned threads) : StepThreads(threads, kDefaultSpins, {}) {}
 
 StepThreads::StepThreads(unsigned threads, unsigned spins, const std::function<void()>& on_start)
     : spins_(spins) {

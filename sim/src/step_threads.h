@@ -21,10 +21,13 @@ constexpr unsigned kMaxThreads = 64;
 
 class StepThreads {
  public:
+  /// Pauses a helper spins for the next job before it sleeps: about 50-100 us.
+  static constexpr unsigned kDefaultSpins = 20000;
+
   explicit StepThreads(unsigned threads);
   /// The same with each helper calling `on_start` first (on its own thread: a scheduling
-  /// policy, say) and spinning `spins` pauses for the next job before it sleeps (20000, about
-  /// 50-100 us, by default; a helper that may share a core with the caller should spin little).
+  /// policy, say) and spinning `spins` pauses for the next job before it sleeps (a helper that
+  /// may share a core with the caller should spin little).
   StepThreads(unsigned threads, unsigned spins, const std::function<void()>& on_start);
   /// A sequential team: no threads; run(job) calls job(0), ..., job(parts - 1) in turn on the
   /// calling thread and `after_part` after each (the multirate far field suspends its fiber
@@ -59,7 +62,7 @@ class StepThreads {
   std::atomic<std::uint64_t> claim_{0};
   std::atomic<unsigned> unfinished_{0};  ///< parts claimed or not, not done yet
   std::atomic<bool> stop_{false};
-  unsigned spins_ = 20000;
+  unsigned spins_ = kDefaultSpins;
 };
 
 /// [begin, end) of part t of n items split into `parts` nearly equal runs, each starting at a

@@ -10,6 +10,7 @@
 #include <optional>
 #include <set>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include <glm/geometric.hpp>
@@ -29,11 +30,8 @@ class NearestVertex {
  public:
   NearestVertex(const Dlfl& mesh, std::span<const glm::dvec3> x) : x_(x) {
     for (std::uint32_t i = 0; i < mesh.vertex_capacity(); ++i)
-      if (mesh.alive(VertexId(i))) order_.push_back(i);
-    std::sort(order_.begin(), order_.end(),
-              [&](std::uint32_t a, std::uint32_t b) { return x_[a].x < x_[b].x; });
-    for (const std::uint32_t i : order_)
-      keys_.push_back(x_[i].x);
+      if (mesh.alive(VertexId(i))) by_x_.emplace_back(x[i].x, i);
+    std::sort(by_x_.begin(), by_x_.end());
   }
   /// The nearest vertex to p, the lowest index of those equally near (as a scan in index order
   /// finds it); UINT32_MAX when none is alive.
@@ -48,25 +46,25 @@ class NearestVertex {
       }
     };
     // A vertex dx away in x is at least dx * dx away squared (the sum rounds no lower).
-    const auto start =
-        static_cast<std::size_t>(std::lower_bound(keys_.begin(), keys_.end(), p.x) - keys_.begin());
-    for (std::size_t k = start; k < order_.size(); ++k) {
-      const double dx = keys_[k] - p.x;
+    const auto start = static_cast<std::size_t>(
+        std::lower_bound(by_x_.begin(), by_x_.end(), std::pair(p.x, std::uint32_t{0})) -
+        by_x_.begin());
+    for (std::size_t k = start; k < by_x_.size(); ++k) {
+      const double dx = by_x_[k].first - p.x;
       if (dx * dx > best) break;
-      consider(order_[k]);
+      consider(by_x_[k].second);
     }
     for (std::size_t k = start; k-- > 0;) {
-      const double dx = p.x - keys_[k];
+      const double dx = p.x - by_x_[k].first;
       if (dx * dx > best) break;
-      consider(order_[k]);
+      consider(by_x_[k].second);
     }
     return found;
   }
 
  private:
   std::span<const glm::dvec3> x_;
-  std::vector<std::uint32_t> order_;
-  std::vector<double> keys_;
+  std::vector<std::pair<double, std::uint32_t>> by_x_;  ///< each alive vertex's x and index
 };
 
 /// Boxes of side `fine_m` round points of `sheet` half that apart (one per half-cell they fall
@@ -222,7 +220,7 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
     return 0;
   }
   const Dlfl& mesh = body.mesh();
-  const auto x = body.positions();
+  const auto& x = body.positions();
   // The sheet in the rest frame: each point moved back by the nearest vertex's displacement.
   const NearestVertex nearest(mesh, x);
   const auto to_rest = [&](const glm::dvec3& p) {

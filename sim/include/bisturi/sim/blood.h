@@ -5,7 +5,8 @@
 // openings at the flow each is given, collide with the tissue's surfaces (their BVHs) and the
 // tray under the field, run down them and pool where they come to rest; those that leave the
 // field across drain. Every particle is counted: emitted = in flight + pooled + drained.
-// Deterministic (single-threaded, fixed order), so a replay of the same steps bleeds the same.
+// Deterministic (fixed order; its work in fixed parts, whichever threads run them), so a replay
+// of the same steps bleeds the same.
 
 #include <array>
 #include <cstdint>
@@ -147,6 +148,9 @@ class Blood {
     glm::dvec3 gradient{0.0};
     double density = 0.0;
     double gradient_squares = 0.0;
+    DensitySums operator+(const DensitySums& o) const {
+      return {gradient + o.gradient, density + o.density, gradient_squares + o.gradient_squares};
+    }
   };
   /// The work over pairs and particles goes in kParts parts, each pair's sums into its part's
   /// arrays, added in part order: the same bits whichever thread runs which part.
