@@ -20,7 +20,8 @@ case "$mode" in
     done
     ls "$work/run/frames/"*.png > /dev/null 2>&1 || fail "no PNG frames"
     for key in haptic_period_ms haptic_period_error_ms step_ms frame_ms motion_to_photon_ms \
-               action_to_response_ms '"p50"' '"p95"' '"p99"' '"max"' overruns missed_deadlines \
+               action_to_response_ms haptic_wake_late_us haptic_spin_us \
+               '"p50"' '"p95"' '"p99"' '"max"' overruns missed_deadlines \
                clamped_forces dropped_frames '"events"' final_state_hash render_fps; do
       grep -q "$key" "$work/run/report.json" || fail "report.json has no $key"
     done
@@ -218,7 +219,7 @@ TOML
     # never reach it (it once did, and raised 250 Hz to 500 where steps were fast). Two tissue
     # threads: the trace records the count and the replay steps on as many.
     for variant in "--tissue-in-haptic-thread" "--tissue-lag 1" "--tissue-hz 250" \
-                   "--tissue-max-load 0.001" "--tissue-threads 2"; do
+                   "--tissue-max-load 0.001" "--tissue-threads 2" "--haptic-spin 50"; do
       name=$(echo "$variant" | tr -d ' -')
       duration=1
       [ "$variant" = "--tissue-hz 250" ] && duration=2
@@ -248,6 +249,15 @@ TOML
       fail "the fixed-rate run changed its tissue rate"
     grep -q '"lowest_hz": 125.0' "$work/tissuemaxload0.001/report.json" ||
       fail "the low load limit did not bring the tissue rate down to an eighth"
+    # A fixed spin is that spin at every tick; the adaptive one stays within 20 to 200 us.
+    spin_range() {
+      awk -F'[:,]' '/"haptic_spin_us"/ { on = 1 } on && /"min"/ { lo = $2 }
+        on && /"max"/ { hi = $2 } on && /}/ { on = 0 } END { printf "%g %g\n", lo, hi }' "$1"
+    }
+    [ "$(spin_range "$work/hapticspin50/report.json")" = "50 50" ] ||
+      fail "--haptic-spin 50 spun $(spin_range "$work/hapticspin50/report.json") us"
+    spin_range "$work/tissuelag1/report.json" | awk '{ exit !($1 >= 20 && $2 <= 200) }' ||
+      fail "the adaptive spin left 20-200 us: $(spin_range "$work/tissuelag1/report.json")"
     echo "lockstep: ok"
     ;;
   forces)

@@ -91,6 +91,12 @@ void add_run_command(CLI::App& app, RunOptions& options, int (*&run)(const RunOp
                   "(1 on this kind of 2-core machine); a number (1-64) fixes it. The trace "
                   "records it, and the replay uses the same count: the state's bits depend on it")
       ->capture_default_str();
+  cmd->add_option("--haptic-spin", options.haptic_spin,
+                  "microseconds the haptic thread spins before each tick after it sleeps: "
+                  "`auto` spins as long as its wakeups have lately come late (the 99th "
+                  "percentile of the last 512, plus 10 us; from 20 to 200 us), so the cores "
+                  "keep the rest; a number (0-1000, 0: sleep only) fixes it")
+      ->capture_default_str();
   cmd->add_option("--inject", options.inject,
                   "make a fault happen at a session time, FAULT@SECONDS (repeatable), to check "
                   "that the force reaches zero and the report says so: " +
@@ -196,6 +202,20 @@ int run_run(const RunOptions& options) {
                                   ": give `auto` or a number from 1 to " +
                                   std::to_string(runtime::kMaxTissueThreads));
     so.tissue_threads = static_cast<std::uint32_t>(n);
+  }
+  if (options.haptic_spin != "auto") {
+    double us = -1.0;
+    std::size_t used = 0;
+    try {
+      us = std::stod(options.haptic_spin, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != options.haptic_spin.size() || !(us >= 0.0 && us <= 1000.0))
+      throw std::invalid_argument("--haptic-spin " + options.haptic_spin +
+                                  ": give `auto` or microseconds from 0 to 1000");
+    so.spin_us = us;
+    so.adaptive_spin = false;
   }
   for (const std::string& f : options.inject)
     so.inject.push_back(runtime::parse_fault(f));
@@ -405,7 +425,9 @@ int run_run(const RunOptions& options) {
         {"frame_ms", summary_json(r.frame_ms)},
         {"render_ms", summary_json(r.render_ms)},
         {"motion_to_photon_ms", summary_json(r.motion_to_photon_ms)},
-        {"action_to_response_ms", summary_json(r.action_to_response_ms)}}},
+        {"action_to_response_ms", summary_json(r.action_to_response_ms)},
+        {"haptic_wake_late_us", summary_json(r.haptic_wake_late_us)},
+        {"haptic_spin_us", summary_json(r.haptic_spin_us)}}},
       {"max_force_N", r.max_force_N},
       {"haptic_write_bounded", r.haptic_write_bounded},
       {"haptic_nominal_period_ms", nominal_ms},

@@ -31,6 +31,7 @@ struct RunOptions {
   double tissue_max_load = 0.75;
   std::uint32_t blood_hold_at = 4;
   std::string tissue_threads = "auto";
+  std::string haptic_spin = "auto";
   bool cpu = false;
   bool print_default_scene = false;
   bool json = false;

@@ -2,6 +2,8 @@
 
 #include "haptic_thread.h"
 
+#include "wakeup_spin.h"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -46,13 +48,23 @@ void run_haptic_thread(HapticLoop& loop, devices::Clock& clock, const HapticPaci
   Nanoseconds next = t0;
   Nanoseconds previous_start{0};
   bool first = true;
+  WakeupSpin wakeup(WakeupSpin::Limits{.ceiling = pacing.spin});
   while (!flags.stop.load(std::memory_order_relaxed)) {
     if (pacing.stop_requested != nullptr && pacing.stop_requested->load()) {
       flags.interrupted.store(true);
       break;
     }
-    if (pacing.spin.count() > 0) {
-      clock.sleep_until(next - pacing.spin);
+    const Nanoseconds spin = pacing.adaptive_spin ? wakeup.spin() : pacing.spin;
+    if (spin.count() > 0) {
+      const Nanoseconds wake_at = next - spin;
+      const bool sleeps = clock.now() < wake_at;  // not behind already
+      clock.sleep_until(wake_at);
+      if (sleeps) {
+        const Nanoseconds late = clock.now() - wake_at;
+        wakeup.woke(late);
+        report.haptic_wake_late_us.record(static_cast<double>(late.count()) * 1e-3);
+      }
+      report.haptic_spin_us.record(static_cast<double>(spin.count()) * 1e-3);
       while (clock.now() < next) {
       }
     } else {

@@ -15,8 +15,10 @@ namespace bisturi::runtime {
 
 struct HapticPacing {
   devices::Nanoseconds period{1'000'000};
-  /// Sleep until this long before each deadline, then spin (0: sleep only).
+  /// Sleep until this long before each deadline, then spin (0: sleep only). Adaptive: at most
+  /// this long, as long as the wakeups need (wakeup_spin.h).
   devices::Nanoseconds spin{0};
+  bool adaptive_spin = false;
   /// The session ends at this session time.
   devices::Nanoseconds duration{0};
   bool realtime_priority = false;

@@ -582,6 +582,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   HapticPacing pacing;
   pacing.period = period;
   pacing.spin = spin;
+  pacing.adaptive_spin = options.adaptive_spin;
   pacing.duration = duration;
   pacing.realtime_priority = options.realtime_priority;
   pacing.stop_requested = options.stop_requested;

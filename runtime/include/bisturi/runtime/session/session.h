@@ -72,7 +72,9 @@ struct SessionOptions {
   bool openxr = true;
   render::DevicePreference render_device = render::DevicePreference::Any;
   /// The haptic thread sleeps until this long before each deadline, then spins (0: sleep only).
+  /// Adaptive: at most this long, as long as its wakeups have lately run late (wakeup_spin.h).
   double spin_us = 200.0;
+  bool adaptive_spin = true;
   /// Ask for SCHED_FIFO for the haptic thread and, just below it, the tissue thread (kept
   /// quietly when refused).
   bool realtime_priority = true;
@@ -244,6 +246,9 @@ struct SessionReport {
   TimingRecorder render_ms{"ms"};  ///< update + render() call
   TimingRecorder motion_to_photon_ms{"ms"};
   TimingRecorder action_to_response_ms{"ms"};
+  /// The haptic thread: how late each sleep before a tick ended, and the spin then (us).
+  TimingRecorder haptic_wake_late_us{"us"};
+  TimingRecorder haptic_spin_us{"us"};
 
   std::uint64_t overruns = 0;          ///< ticks whose work took longer than the period
   std::uint64_t missed_deadlines = 0;  ///< ticks that ended after the next tick was due
