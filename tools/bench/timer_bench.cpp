@@ -1,9 +1,10 @@
 // The machine's own floor for a fixed-rate loop: a thread that does nothing but wake at every
 // period (the haptic thread's sleep-then-spin, SCHED_FIFO when allowed) and counts how late it
 // started. A session cannot miss fewer deadlines than this loop misses on the same machine at the
-// same time, so `bisturi run`'s missed_by_late_wakeup is read against it.
+// same time, so `bisturi run`'s missed_by_late_wakeup is read against it. `--spin-us auto` spins
+// as the session does by default (wakeup_spin.h): as long as the wakeups have lately come late.
 //
-//   timer_bench [--seconds S] [--hz RATE] [--spin-us US] [--json]
+//   timer_bench [--seconds S] [--hz RATE] [--spin-us US|auto] [--json]
 
 #include <pthread.h>
 #include <sched.h>
@@ -17,12 +18,15 @@
 #include <thread>
 #include <vector>
 
+#include "session/wakeup_spin.h"
+
 namespace {
 
 struct Options {
   double seconds = 10.0;
   double hz = 1000.0;
   double spin_us = 200.0;
+  bool adaptive_spin = false;  ///< --spin-us auto: at most spin_us, as the wakeups need
   bool json = false;
 };
 
@@ -31,7 +35,9 @@ void usage() {
       "timer_bench: how late a fixed-rate thread that does no work is woken on this machine\n"
       "  --seconds S   how long to run (default 10)\n"
       "  --hz RATE     loop rate (default 1000)\n"
-      "  --spin-us US  sleep until this long before each deadline, then spin (default 200)\n"
+      "  --spin-us US  sleep until this long before each deadline, then spin (default 200);\n"
+      "                auto: as long as the wakeups have lately come late, 20 to 200 us (the\n"
+      "                99th percentile of the last 512 plus 10 us), as bisturi run does\n"
       "  --json        one JSON object on stdout");
 }
 
@@ -61,7 +67,12 @@ Options parse(int argc, char** argv) {
     } else if (a == "--hz") {
       o.hz = value();
     } else if (a == "--spin-us") {
-      o.spin_us = value();
+      if (i + 1 < argc && std::strcmp(argv[i + 1], "auto") == 0) {
+        o.adaptive_spin = true;
+        ++i;
+      } else {
+        o.spin_us = value();
+      }
     } else if (a == "--json") {
       o.json = true;
     } else {
@@ -82,13 +93,21 @@ int main(int argc, char** argv) {
 
   using Clock = std::chrono::steady_clock;
   const auto period = std::chrono::nanoseconds(static_cast<long long>(1e9 / o.hz));
-  const auto spin = std::chrono::nanoseconds(static_cast<long long>(o.spin_us * 1e3));
+  const auto fixed_spin = std::chrono::nanoseconds(static_cast<long long>(o.spin_us * 1e3));
+  bisturi::runtime::WakeupSpin adaptive(
+      bisturi::runtime::WakeupSpin::Limits{.ceiling = fixed_spin});
+  double spin_sum_us = 0.0;
   const auto ticks = static_cast<std::size_t>(o.seconds * o.hz);
   std::vector<double> late_ms;
   late_ms.reserve(ticks);
   auto next = Clock::now() + period;
   for (std::size_t i = 0; i < ticks; ++i) {
-    std::this_thread::sleep_until(next - spin);
+    const auto spin = o.adaptive_spin ? adaptive.spin() : fixed_spin;
+    spin_sum_us += static_cast<double>(spin.count()) * 1e-3;
+    const auto wake_at = next - spin;
+    const bool sleeps = Clock::now() < wake_at;
+    std::this_thread::sleep_until(wake_at);
+    if (sleeps) adaptive.woke(Clock::now() - wake_at);
     while (Clock::now() < next) {
     }
     late_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - next).count());
@@ -102,6 +121,7 @@ int main(int argc, char** argv) {
   }
   if (!o.json) std::fprintf(stderr, "\n");
   const double period_ms = 1e3 / o.hz;
+  const double spin_mean_us = ticks > 0 ? spin_sum_us / static_cast<double>(ticks) : 0.0;
   const auto missed = static_cast<std::size_t>(
       std::count_if(late_ms.begin(), late_ms.end(), [&](double l) { return l > period_ms; }));
   std::vector<double> sorted = late_ms;
@@ -112,14 +132,15 @@ int main(int argc, char** argv) {
   if (o.json) {
     std::printf(
         "{\"ticks\": %zu, \"realtime_priority\": %s, \"missed_deadlines\": %zu, "
-        "\"late_ms\": {\"p50\": %.6f, \"p99\": %.6f, \"max\": %.6f}}\n",
-        late_ms.size(), realtime ? "true" : "false", missed, at(0.5), at(0.99), at(1.0));
+        "\"late_ms\": {\"p50\": %.6f, \"p99\": %.6f, \"max\": %.6f}, \"spin_us_mean\": %.3f}\n",
+        late_ms.size(), realtime ? "true" : "false", missed, at(0.5), at(0.99), at(1.0),
+        spin_mean_us);
   } else {
     std::printf(
         "%zu ticks at %.0f Hz (%s): %zu started more than a period late; lateness p50 %.4f ms, "
-        "p99 %.4f ms, max %.3f ms\n",
+        "p99 %.4f ms, max %.3f ms; spin %.1f us on average\n",
         late_ms.size(), o.hz, realtime ? "SCHED_FIFO" : "normal priority", missed, at(0.5),
-        at(0.99), at(1.0));
+        at(0.99), at(1.0), spin_mean_us);
   }
   return 0;
 }
