@@ -233,6 +233,28 @@ TEST(Timing, SummaryPercentilesAndThinning) {
   EXPECT_DOUBLE_EQ(small.summary().max, 99.0);
 }
 
+// A full recorder thins a few samples per record: whenever it is read, mid-thinning or not, it
+// holds an evenly spaced subset of what came, in order, within its capacity.
+TEST(Timing, ThinningAFewSamplesPerRecordKeepsAnEvenSubsetInOrder) {
+  constexpr std::size_t kCapacity = 4096;
+  for (const std::size_t count : {kCapacity, kCapacity + 1, kCapacity + 7, 3 * kCapacity + 5,
+                                  10 * kCapacity, 37 * kCapacity + 11}) {
+    TimingRecorder ramp("us", kCapacity);
+    for (std::size_t i = 0; i < count; ++i)
+      ramp.record(static_cast<double>(i));
+    const std::vector<double>& kept = ramp.samples();
+    ASSERT_LE(kept.size(), kCapacity) << count;
+    ASSERT_GE(kept.size(), kCapacity / 2) << count;
+    EXPECT_EQ(kept.front(), 0.0) << count;
+    const double spacing = kept[1] - kept[0];
+    for (std::size_t k = 1; k < kept.size(); ++k)
+      ASSERT_EQ(kept[k] - kept[k - 1], spacing) << count << " samples, at " << k;
+    EXPECT_GT(kept.back() + spacing, static_cast<double>(count - 1)) << "the newest are kept";
+    EXPECT_EQ(ramp.summary().count, count);
+    EXPECT_NEAR(ramp.summary().p50, 0.5 * static_cast<double>(count), spacing) << count;
+  }
+}
+
 TEST(Plots, HistogramAndSeriesArePngFiles) {
   const auto dir =
       std::filesystem::temp_directory_path() / ("bisturi_plots_" + std::to_string(::getpid()));

@@ -20,6 +20,9 @@ double percentile_of_sorted(const std::vector<double>& sorted, double p) {
 TimingRecorder::TimingRecorder(std::string unit, std::size_t capacity)
     : unit_(std::move(unit)), capacity_(std::max<std::size_t>(capacity, 2)) {
   samples_.reserve(capacity_);
+  // A thinning of capacity/2 moves lasts at most capacity/(2 * kMovesPerRecord) + 1 records,
+  // of which every other one at most keeps its sample (the rate is halved first).
+  arriving_.reserve(capacity_ / (4 * kMovesPerRecord) + 4);
 }
 
 void TimingRecorder::record(double value) {
@@ -30,18 +33,34 @@ void TimingRecorder::record(double value) {
     min_ = std::min(min_, value);
   }
   sum_ += value;
+  if (thinning_) thin(kMovesPerRecord);
   if (count_ % stride_ == 0) {
-    if (samples_.size() == capacity_) {
-      // Full: keep every other sample and halve the rate from now on.
-      std::size_t kept = 0;
-      for (std::size_t i = 0; i < samples_.size(); i += 2)
-        samples_[kept++] = samples_[i];
-      samples_.resize(kept);
+    if (!thinning_ && samples_.size() == capacity_) {
+      // Full: keep every other sample, a few more each record, and halve the rate from now on.
+      thinning_ = true;
+      thinned_ = 0;
       stride_ *= 2;
+      thin(kMovesPerRecord);
     }
-    if (count_ % stride_ == 0) samples_.push_back(value);
+    if (count_ % stride_ == 0) (thinning_ ? arriving_ : samples_).push_back(value);
   }
   ++count_;
+}
+
+void TimingRecorder::thin(std::size_t moves) const {
+  const std::size_t kept = (samples_.size() + 1) / 2;
+  for (; moves > 0 && thinned_ < kept; --moves, ++thinned_)
+    samples_[thinned_] = samples_[2 * thinned_];
+  if (thinned_ < kept) return;
+  samples_.resize(kept);
+  samples_.insert(samples_.end(), arriving_.begin(), arriving_.end());  // within the reserve
+  arriving_.clear();
+  thinning_ = false;
+}
+
+const std::vector<double>& TimingRecorder::samples() const {
+  if (thinning_) thin(samples_.size());
+  return samples_;
 }
 
 TimingSummary TimingRecorder::summary() const {
@@ -51,7 +70,7 @@ TimingSummary TimingRecorder::summary() const {
   s.mean = sum_ / static_cast<double>(count_);
   s.max = max_;
   s.min = min_;
-  std::vector<double> sorted = samples_;
+  std::vector<double> sorted = samples();
   std::sort(sorted.begin(), sorted.end());
   s.p50 = percentile_of_sorted(sorted, 50.0);
   s.p95 = percentile_of_sorted(sorted, 95.0);

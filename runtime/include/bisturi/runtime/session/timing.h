@@ -1,7 +1,9 @@
 #pragma once
 // Timing samples of a session (haptic period, step time, frame time, latencies) and their
 // summaries. A recorder preallocates its storage, so recording on the hot path never allocates;
-// when full it keeps every n-th sample (a uniform thinning) so long sessions stay bounded.
+// when full it keeps every n-th sample (a uniform thinning) so long sessions stay bounded. The
+// thinning moves a few samples per record, so no one record (a haptic tick's) pays for a whole
+// buffer.
 
 #include <cstddef>
 #include <string>
@@ -28,13 +30,24 @@ class TimingRecorder {
   void record(double value);
 
   [[nodiscard]] TimingSummary summary() const;
-  [[nodiscard]] const std::vector<double>& samples() const { return samples_; }
+  /// The kept samples, in the order they came (a thinning under way is finished first).
+  [[nodiscard]] const std::vector<double>& samples() const;
   [[nodiscard]] const std::string& unit() const { return unit_; }
   [[nodiscard]] std::size_t count() const { return count_; }
 
  private:
+  /// Samples a thinning moves per record: a full buffer of 2^20 takes 8192 records.
+  static constexpr std::size_t kMovesPerRecord = 64;
+  /// Moves up to `moves` samples of the thinning under way; at its end, the samples that came
+  /// meanwhile follow the kept ones. Const: the readers finish a thinning before they read.
+  void thin(std::size_t moves) const;
+
   std::string unit_;
-  std::vector<double> samples_;
+  mutable std::vector<double> samples_;
+  /// The samples that come while a thinning is under way (reserved for all of them).
+  mutable std::vector<double> arriving_;
+  mutable std::size_t thinned_ = 0;  ///< samples_[2k] moved to k for every k below this
+  mutable bool thinning_ = false;
   std::size_t capacity_;
   std::size_t count_ = 0;
   std::size_t stride_ = 1;  // keep one sample in `stride_` once the buffer has filled
