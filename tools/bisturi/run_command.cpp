@@ -491,8 +491,9 @@ int run_run(const RunOptions& options) {
               << r.eye_width << " x " << r.eye_height << " on " << r.render_device << ")\n"
               << "  haptic period error p99 " << p.p99 << " ms, max " << p.max << " ms; "
               << r.missed_deadlines << " missed deadlines (" << r.missed_by_late_wakeup
-              << " woken late), " << r.overruns << " overruns; step p99 " << r.step_ms.summary().p99
-              << " ms, " << r.late_ticks << " late ticks; tissue at "
+              << " woken late, spinning " << r.haptic_spin_us.summary().p50
+              << " us before a tick at the median), " << r.overruns << " overruns; step p99 "
+              << r.step_ms.summary().p99 << " ms, " << r.late_ticks << " late ticks; tissue at "
               << r.haptic_hz / r.tissue_ticks_per_step << " Hz ("
               << (r.adaptive_tissue_rate ? "adaptive, " : "fixed, ") << r.tissue_rate_changes
               << " changes)\n"
