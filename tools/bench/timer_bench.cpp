@@ -15,9 +15,9 @@
 #include <cstdlib>
 #include <cstring>
 #include <string>
-#include <thread>
 #include <vector>
 
+#include "bisturi/devices/clock.h"
 #include "session/wakeup_spin.h"
 
 namespace {
@@ -91,7 +91,7 @@ int main(int argc, char** argv) {
   p.sched_priority = std::max(1, sched_get_priority_max(SCHED_FIFO) / 2);  // as the session
   const bool realtime = pthread_setschedparam(pthread_self(), SCHED_FIFO, &p) == 0;
 
-  using Clock = std::chrono::steady_clock;
+  bisturi::devices::SteadyClock clock;
   const auto period = std::chrono::nanoseconds(static_cast<long long>(1e9 / o.hz));
   const auto fixed_spin = std::chrono::nanoseconds(static_cast<long long>(o.spin_us * 1e3));
   bisturi::runtime::WakeupSpin adaptive(
@@ -100,20 +100,16 @@ int main(int argc, char** argv) {
   const auto ticks = static_cast<std::size_t>(o.seconds * o.hz);
   std::vector<double> late_ms;
   late_ms.reserve(ticks);
-  auto next = Clock::now() + period;
+  auto next = clock.now() + period;
   for (std::size_t i = 0; i < ticks; ++i) {
     const auto spin = o.adaptive_spin ? adaptive.spin() : fixed_spin;
     spin_sum_us += static_cast<double>(spin.count()) * 1e-3;
-    const auto wake_at = next - spin;
-    const bool sleeps = Clock::now() < wake_at;
-    std::this_thread::sleep_until(wake_at);
-    if (sleeps) adaptive.woke(Clock::now() - wake_at);
-    while (Clock::now() < next) {
-    }
-    late_ms.push_back(std::chrono::duration<double, std::milli>(Clock::now() - next).count());
+    if (const auto late = bisturi::runtime::sleep_then_spin(clock, next, spin))
+      adaptive.woke(*late);
+    late_ms.push_back(std::chrono::duration<double, std::milli>(clock.now() - next).count());
     next += period;
-    if (Clock::now() > next) {  // a whole period behind: skip, as the session does
-      const auto behind = (Clock::now() - next) / period;
+    if (clock.now() > next) {  // a whole period behind: skip, as the session does
+      const auto behind = (clock.now() - next) / period;
       next += period * behind;
     }
     if (!o.json && i % static_cast<std::size_t>(o.hz) == 0)

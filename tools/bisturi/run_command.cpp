@@ -29,6 +29,17 @@ nlohmann::json summary_json(const runtime::TimingRecorder& r) {
           {"p95", s.p95},     {"p99", s.p99},     {"max", s.max},   {"min", s.min}};
 }
 
+/// The number `text` spells, all of it; nothing when it is not one.
+std::optional<double> number_in(const std::string& text) {
+  try {
+    std::size_t used = 0;
+    const double value = std::stod(text, &used);
+    if (used == text.size()) return value;
+  } catch (const std::exception&) {
+  }
+  return std::nullopt;
+}
+
 std::string hex(std::uint64_t v) {
   std::ostringstream s;
   s << "0x" << std::hex << std::setw(16) << std::setfill('0') << v;
@@ -171,14 +182,7 @@ int run_run(const RunOptions& options) {
   so.tissue_max_load = options.tissue_max_load;
   so.blood_hold_at = options.blood_hold_at;
   if (options.tissue_hz != "auto") {
-    double hz = 0.0;
-    try {
-      std::size_t used = 0;
-      hz = std::stod(options.tissue_hz, &used);
-      if (used != options.tissue_hz.size()) hz = 0.0;
-    } catch (const std::exception&) {
-      hz = 0.0;
-    }
+    const double hz = number_in(options.tissue_hz).value_or(0.0);
     const double ratio = hz > 0.0 ? scene.rates.haptic_hz / hz : 0.0;
     const long n = std::lround(ratio);
     if (!(hz > 0.0) || n < 1 || n > 1000 || std::abs(ratio - static_cast<double>(n)) > 1e-9)
@@ -204,14 +208,8 @@ int run_run(const RunOptions& options) {
     so.tissue_threads = static_cast<std::uint32_t>(n);
   }
   if (options.haptic_spin != "auto") {
-    double us = -1.0;
-    std::size_t used = 0;
-    try {
-      us = std::stod(options.haptic_spin, &used);
-    } catch (const std::exception&) {
-      used = 0;
-    }
-    if (used == 0 || used != options.haptic_spin.size() || !(us >= 0.0 && us <= 1000.0))
+    const double us = number_in(options.haptic_spin).value_or(-1.0);
+    if (!(us >= 0.0 && us <= 1000.0))
       throw std::invalid_argument("--haptic-spin " + options.haptic_spin +
                                   ": give `auto` or microseconds from 0 to 1000");
     so.spin_us = us;

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <thread>
 
 #include <glm/geometric.hpp>
@@ -55,20 +56,13 @@ void run_haptic_thread(HapticLoop& loop, devices::Clock& clock, const HapticPaci
       break;
     }
     const Nanoseconds spin = pacing.adaptive_spin ? wakeup.spin() : pacing.spin;
+    const std::optional<Nanoseconds> late = sleep_then_spin(clock, next, spin);
     if (spin.count() > 0) {
-      const Nanoseconds wake_at = next - spin;
-      const bool sleeps = clock.now() < wake_at;  // not behind already
-      clock.sleep_until(wake_at);
-      if (sleeps) {
-        const Nanoseconds late = clock.now() - wake_at;
-        wakeup.woke(late);
-        report.haptic_wake_late_us.record(static_cast<double>(late.count()) * 1e-3);
+      if (late) {
+        wakeup.woke(*late);
+        report.haptic_wake_late_us.record(static_cast<double>(late->count()) * 1e-3);
       }
       report.haptic_spin_us.record(static_cast<double>(spin.count()) * 1e-3);
-      while (clock.now() < next) {
-      }
-    } else {
-      clock.sleep_until(next);
     }
     const Nanoseconds start = clock.now();
     const Nanoseconds t = start - t0;

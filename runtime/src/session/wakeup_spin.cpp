@@ -26,6 +26,18 @@ void WakeupSpin::woke(Nanoseconds late) noexcept {
   if (wakeups_ % kEvery == 0) take_percentile();
 }
 
+std::optional<Nanoseconds> sleep_then_spin(devices::Clock& clock, Nanoseconds deadline,
+                                           Nanoseconds spin) {
+  const Nanoseconds wake_at = deadline - spin;
+  const bool sleeps = clock.now() < wake_at;
+  clock.sleep_until(wake_at);
+  std::optional<Nanoseconds> late;
+  if (sleeps) late = clock.now() - wake_at;
+  while (clock.now() < deadline) {
+  }
+  return late;
+}
+
 void WakeupSpin::take_percentile() noexcept {
   const auto n = static_cast<std::ptrdiff_t>(std::min<std::uint64_t>(wakeups_, kWindow));
   std::copy_n(late_ns_.begin(), n, scratch_.begin());

@@ -10,6 +10,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 
 #include "bisturi/devices/clock.h"
 
@@ -43,5 +44,12 @@ class WakeupSpin {
   std::array<std::int64_t, kWindow> scratch_{};  ///< reordered by the percentile's selection
   std::uint64_t wakeups_ = 0;
 };
+
+/// Sleeps until `spin` before `deadline`, then spins the rest of the way. Gives how late the
+/// sleep ended, or nothing when the deadline less the spin had passed before it (no sleep: the
+/// loop was behind, which says nothing of how late wakeups come).
+std::optional<devices::Nanoseconds> sleep_then_spin(devices::Clock& clock,
+                                                    devices::Nanoseconds deadline,
+                                                    devices::Nanoseconds spin);
 
 }  // namespace bisturi::runtime
