@@ -262,6 +262,32 @@ TEST(TwoLevelLattice, FillsASphereHangsItsFineNodesOnTheCoarseAndEmbedsEveryVert
         << "vertex " << p;
 }
 
+TEST(TwoLevelLattice, SharesTakenOnceBuildTheSameLatticeForAnyBoxesAndOthersAreNotUsed) {
+  const Surface s = uv_sphere(0.01, glm::dvec3(0.001, -0.002, 0.003));
+  const glm::dvec3 top(0.001, -0.002, 0.013), side(0.011, -0.002, 0.003);
+  const glm::dvec3 half(0.004);
+  const TwoLevelOptions none{0.003, 3, {}};
+  const FineShares shares = two_level_fine_shares(s.vertices, s.triangles, none);
+  ASSERT_EQ(shares.share.size(), shares.dims[0] * shares.dims[1] * shares.dims[2]);
+  for (const std::vector<TwoLevelOptions::Box>& boxes :
+       {std::vector<TwoLevelOptions::Box>{{top - half, top + half}},
+        std::vector<TwoLevelOptions::Box>{{top - half, top + half}, {side - half, side + half}}}) {
+    const TwoLevelOptions options{0.003, 3, boxes};
+    const HexLattice fresh = build_two_level_lattice(s.vertices, s.triangles, options);
+    const HexLattice reused =
+        build_two_level_lattice(s.vertices, s.triangles, options, {}, &shares);
+    EXPECT_EQ(reused.cells, fresh.cells);
+    EXPECT_EQ(reused.fill, fresh.fill);
+    EXPECT_EQ(reused.rest, fresh.rest);
+  }
+  // Shares of another grid (a larger solid's box) are not this one's: they are computed again.
+  const Surface larger = uv_sphere(0.012, glm::dvec3(0.001, -0.002, 0.003));
+  const FineShares other = two_level_fine_shares(larger.vertices, larger.triangles, none);
+  const TwoLevelOptions options{0.003, 3, {{top - half, top + half}}};
+  EXPECT_EQ(build_two_level_lattice(s.vertices, s.triangles, options, {}, &other).fill,
+            build_two_level_lattice(s.vertices, s.triangles, options).fill);
+}
+
 TEST(TwoLevelLattice, PressedWhereItIsFineItGivesTheFineLatticesForce) {
   // PressedBlock's block and probe, 1 mm deep, on three lattices: uniform 2.5 mm cells (729),
   // uniform 1.25 mm (4913), and 2.5 mm split in 8 about the probe (1593). The split one's

@@ -12,59 +12,108 @@
 
 namespace bisturi::sim {
 
-HexLattice build_two_level_lattice(std::span<const glm::dvec3> vertices,
-                                   std::span<const std::array<std::uint32_t, 3>> triangles,
-                                   const TwoLevelOptions& options,
-                                   std::span<const glm::dvec3> also_embed) {
-  const double coarse_m = options.coarse_m;
-  const std::uint32_t factor = options.factor;
-  const int fill_samples = options.fill_samples;
+namespace {
+
+/// The fine grid over the surface's box: its low corner, coarse cells per axis and fine side.
+struct FineGrid {
+  glm::dvec3 lo{0.0};
+  std::array<std::size_t, 3> coarse{};
+  double fine_m = 0.0;
+};
+
+FineGrid fine_grid(std::span<const glm::dvec3> vertices,
+                   std::span<const std::array<std::uint32_t, 3>> triangles,
+                   const TwoLevelOptions& options) {
   if (vertices.empty() || triangles.empty())
     throw std::invalid_argument("two-level lattice: the surface is empty");
-  if (!(coarse_m > 0.0) || factor < 1 || fill_samples < 1)
+  if (!(options.coarse_m > 0.0) || options.factor < 1 || options.fill_samples < 1)
     throw std::invalid_argument(
         "two-level lattice: need a positive cell size, factor >= 1 and fill_samples >= 1");
-  const double fine_m = coarse_m / factor;
+  FineGrid g;
+  g.fine_m = options.coarse_m / options.factor;
   glm::dvec3 lo(INFINITY), hi(-INFINITY);
   for (const glm::dvec3& v : vertices) {
     lo = glm::min(lo, v);
     hi = glm::max(hi, v);
   }
-  lo -= glm::dvec3(0.1 * fine_m);
-  hi += glm::dvec3(0.1 * fine_m);
+  lo -= glm::dvec3(0.1 * g.fine_m);
+  hi += glm::dvec3(0.1 * g.fine_m);
   if (options.floor_z_m > lo.z) lo.z = options.floor_z_m;
   if (!(hi.z > lo.z))
     throw std::invalid_argument("two-level lattice: the floor is above the solid");
-  HexLattice lattice;
-  std::array<std::size_t, 3> coarse{};  // coarse cells per axis
-  for (std::size_t a = 0; a < 3; ++a) {
-    coarse[a] = static_cast<std::size_t>(std::ceil((hi[int(a)] - lo[int(a)]) / coarse_m));
-    for (std::size_t i = 0; i <= coarse[a] * factor; ++i)
-      lattice.axis[a].push_back(lo[int(a)] + double(i) * fine_m);
-  }
-  const auto d = lattice.cell_dims();
+  g.lo = lo;
+  for (int a = 0; a < 3; ++a)
+    g.coarse[std::size_t(a)] =
+        static_cast<std::size_t>(std::ceil((hi[a] - lo[a]) / options.coarse_m));
+  return g;
+}
 
-  // Each fine position's inside share (as build_hex_lattice: ray parity, s^3 samples).
-  const int s = fill_samples;
+FineShares shares_on(const FineGrid& g, std::span<const glm::dvec3> vertices,
+                     std::span<const std::array<std::uint32_t, 3>> triangles, std::uint32_t factor,
+                     int s) {
+  FineShares out;
+  out.lo = g.lo;
+  out.fine_m = g.fine_m;
+  out.samples = s;
   std::array<std::vector<double>, 3> samples;
-  for (std::size_t a = 0; a < 3; ++a)
-    for (std::size_t c = 0; c < d[a]; ++c)
+  for (std::size_t a = 0; a < 3; ++a) {
+    out.dims[a] = g.coarse[a] * factor;
+    for (std::size_t c = 0; c < out.dims[a]; ++c)
       for (int q = 0; q < s; ++q)
-        samples[a].push_back(lattice.axis[a][c] + fine_m * (q + 0.5) / s);
+        samples[a].push_back(g.lo[int(a)] + double(c) * g.fine_m + g.fine_m * (q + 0.5) / s);
+  }
   const std::vector<std::uint8_t> inside =
       inside_columns(vertices, triangles, samples[0], samples[1], samples[2]);
-  const auto fine_index = [&](std::size_t i, std::size_t j, std::size_t k) {
-    return (k * d[1] + j) * d[0] + i;
-  };
-  std::vector<double> fill(d[0] * d[1] * d[2], 0.0);
+  const auto& d = out.dims;
+  out.share.assign(d[0] * d[1] * d[2], 0.0);
   const double per_sample = 1.0 / double(s * s * s);
   const std::size_t sx = samples[0].size(), sy = samples[1].size();
   for (std::size_t k = 0; k < samples[2].size(); ++k)
     for (std::size_t j = 0; j < sy; ++j)
       for (std::size_t i = 0; i < sx; ++i)
         if (inside[(k * sy + j) * sx + i])
-          fill[fine_index(i / std::size_t(s), j / std::size_t(s), k / std::size_t(s))] +=
-              per_sample;
+          out.share[((k / std::size_t(s)) * d[1] + j / std::size_t(s)) * d[0] +
+                    i / std::size_t(s)] += per_sample;
+  return out;
+}
+
+}  // namespace
+
+FineShares two_level_fine_shares(std::span<const glm::dvec3> vertices,
+                                 std::span<const std::array<std::uint32_t, 3>> triangles,
+                                 const TwoLevelOptions& options) {
+  return shares_on(fine_grid(vertices, triangles, options), vertices, triangles, options.factor,
+                   options.fill_samples);
+}
+
+HexLattice build_two_level_lattice(std::span<const glm::dvec3> vertices,
+                                   std::span<const std::array<std::uint32_t, 3>> triangles,
+                                   const TwoLevelOptions& options,
+                                   std::span<const glm::dvec3> also_embed,
+                                   const FineShares* shares) {
+  const double coarse_m = options.coarse_m;
+  const std::uint32_t factor = options.factor;
+  const FineGrid grid = fine_grid(vertices, triangles, options);
+  const double fine_m = grid.fine_m;
+  const glm::dvec3 lo = grid.lo;
+  const std::array<std::size_t, 3> coarse = grid.coarse;  // coarse cells per axis
+  HexLattice lattice;
+  for (std::size_t a = 0; a < 3; ++a)
+    for (std::size_t i = 0; i <= coarse[a] * factor; ++i)
+      lattice.axis[a].push_back(lo[int(a)] + double(i) * fine_m);
+  const auto d = lattice.cell_dims();
+  const auto fine_index = [&](std::size_t i, std::size_t j, std::size_t k) {
+    return (k * d[1] + j) * d[0] + i;
+  };
+  // Each fine position's inside share: the earlier build's where the grid is the same (a cut
+  // leaves the surface's box and what it holds as they were).
+  const int s = options.fill_samples;
+  const bool same_grid = shares != nullptr && shares->lo == lo && shares->dims == d &&
+                         shares->fine_m == fine_m && shares->samples == s;
+  FineShares computed;
+  if (!same_grid) computed = shares_on(grid, vertices, triangles, factor, s);
+  const std::vector<double>& fill = same_grid ? shares->share : computed.share;
+  const double per_sample = 1.0 / double(s * s * s);
   std::vector<std::uint8_t> holds_point(fill.size(), 0);
   for (const auto& points : {vertices, also_embed}) {
     for (const glm::dvec3& v : points) {

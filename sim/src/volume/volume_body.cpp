@@ -57,8 +57,45 @@ bool motion_at(const HexLattice& lattice, std::span<const glm::dvec3> field, con
   return true;
 }
 
+namespace {
+
+/// The surface at rest, its alive vertices numbered compactly.
+struct RestSurface {
+  std::vector<glm::dvec3> vertices;
+  std::vector<std::array<std::uint32_t, 3>> triangles;
+};
+
+RestSurface rest_surface(const SoftBody& body) {
+  const Dlfl& mesh = body.mesh();
+  RestSurface out;
+  std::vector<std::uint32_t> compact(mesh.vertex_capacity(), 0);
+  for (std::uint32_t i = 0; i < mesh.vertex_capacity(); ++i) {
+    if (!mesh.alive(VertexId(i))) continue;
+    compact[i] = static_cast<std::uint32_t>(out.vertices.size());
+    out.vertices.push_back(body.rest_position(VertexId(i)));
+  }
+  const auto& indices = body.triangles().indices;
+  out.triangles.resize(indices.size() / 3);
+  for (std::size_t t = 0; t < out.triangles.size(); ++t)
+    for (std::size_t c = 0; c < 3; ++c)
+      out.triangles[t][c] = compact[indices[3 * t + c]];
+  return out;
+}
+
+TwoLevelOptions two_level(const VolumeOptions& options,
+                          const std::vector<TwoLevelOptions::Box>& refine, std::uint32_t factor) {
+  TwoLevelOptions lattice;
+  lattice.coarse_m = options.cell_m;
+  lattice.factor = factor;
+  lattice.refine = refine;
+  return lattice;
+}
+
+}  // namespace
+
 ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options,
-                           const std::vector<TwoLevelOptions::Box>& refine, std::uint32_t factor) {
+                           const std::vector<TwoLevelOptions::Box>& refine, std::uint32_t factor,
+                           const FineShares* shares) {
   if (!body.closed()) {
     throw SimInputError("a volume needs a closed surface: the solid has open boundaries");
   }
@@ -66,37 +103,29 @@ ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options,
     throw SimInputError("volume cell size must be positive, got " + std::to_string(options.cell_m) +
                         " m");
   }
-  // The surface at rest, its alive vertices numbered compactly.
-  const Dlfl& mesh = body.mesh();
-  std::vector<std::uint32_t> compact(mesh.vertex_capacity(), 0);
-  std::vector<glm::dvec3> vertices;
-  for (std::uint32_t i = 0; i < mesh.vertex_capacity(); ++i) {
-    if (!mesh.alive(VertexId(i))) continue;
-    compact[i] = static_cast<std::uint32_t>(vertices.size());
-    vertices.push_back(body.rest_position(VertexId(i)));
-  }
-  const auto& indices = body.triangles().indices;
-  std::vector<std::array<std::uint32_t, 3>> triangles(indices.size() / 3);
-  for (std::size_t t = 0; t < triangles.size(); ++t)
-    for (std::size_t c = 0; c < 3; ++c)
-      triangles[t][c] = compact[indices[3 * t + c]];
+  const RestSurface surface = rest_surface(body);
   if (!refine.empty() && factor > 1) {
-    TwoLevelOptions lattice;
-    lattice.coarse_m = options.cell_m;
-    lattice.factor = factor;
-    lattice.refine = refine;
-    ElasticVolume volume(build_two_level_lattice(vertices, triangles, lattice), options.material,
-                         options.law);
+    ElasticVolume volume(build_two_level_lattice(surface.vertices, surface.triangles,
+                                                 two_level(options, refine, factor), {}, shares),
+                         options.material, options.law);
     volume.set_resting_tension(options.resting_tension_Pa);
     return volume;
   }
   LatticeOptions lattice;
   lattice.finest_m = options.cell_m;
   lattice.coarsest_m = options.cell_m;
-  ElasticVolume volume(build_hex_lattice(vertices, triangles, lattice), options.material,
-                       options.law);
+  ElasticVolume volume(build_hex_lattice(surface.vertices, surface.triangles, lattice),
+                       options.material, options.law);
   volume.set_resting_tension(options.resting_tension_Pa);
   return volume;
+}
+
+FineShares cut_fine_shares(const SoftBody& body, const VolumeOptions& options) {
+  if (options.cut_refine_factor <= 1 || options.refine_half_width_m > 0.0 || !body.closed())
+    return {};
+  const RestSurface surface = rest_surface(body);
+  return two_level_fine_shares(surface.vertices, surface.triangles,
+                               two_level(options, {}, options.cut_refine_factor));
 }
 
 ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options) {
@@ -108,7 +137,9 @@ ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options) {
 }
 
 VolumeBody::VolumeBody(const SoftBody& body, const VolumeOptions& options)
-    : volume_(build_volume(body, options)), options_(options) {
+    : volume_(build_volume(body, options)),
+      options_(options),
+      cut_shares_(cut_fine_shares(body, options)) {
   target_stiffness_N_per_m_ = options.target_stiffness_N_per_m > 0.0
                                   ? options.target_stiffness_N_per_m
                                   : 20.0 * volume_.youngs_modulus_Pa() * volume_.finest_cell_m();

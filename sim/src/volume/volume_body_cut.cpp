@@ -126,7 +126,8 @@ struct TissueShares {
 void VolumeBody::split_again(const SoftBody& body) {
   // The lattice from the surface with every cut's cells split, separated along the earlier
   // cuts' sheets again in their order; `origin` takes its nodes to the unseparated one's.
-  ElasticVolume unseparated = build_volume(body, options_, cut_boxes_, options_.cut_refine_factor);
+  ElasticVolume unseparated =
+      build_volume(body, options_, cut_boxes_, options_.cut_refine_factor, &cut_shares_);
   HexLattice lattice = unseparated.lattice();
   std::vector<std::uint32_t> origin(lattice.rest.size());
   for (std::uint32_t n = 0; n < origin.size(); ++n)
@@ -252,7 +253,8 @@ std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeShe
         boxes_along(rest_sheet, options_.cell_m / options_.cut_refine_factor);
     cut_boxes_.insert(cut_boxes_.end(), boxes.begin(), boxes.end());
     if (cut_sheets_.empty())
-      take_motion(build_volume(body, options_, cut_boxes_, options_.cut_refine_factor));
+      take_motion(
+          build_volume(body, options_, cut_boxes_, options_.cut_refine_factor, &cut_shares_));
     else
       split_again(body);
     refined = true;

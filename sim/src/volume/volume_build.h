@@ -23,9 +23,15 @@ bool motion_at(const HexLattice& lattice, std::span<const glm::dvec3> field, con
                glm::dvec3& out);
 
 /// The volume under `body`: one level of cells of options.cell_m, or, with `refine` boxes and a
-/// factor above 1, two, the cells meeting a box split into factor^3.
+/// factor above 1, two, the cells meeting a box split into factor^3 (`shares`, may be null: the
+/// fine grid's inside shares from an earlier build, build_two_level_lattice).
 ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options,
-                           const std::vector<TwoLevelOptions::Box>& refine, std::uint32_t factor);
+                           const std::vector<TwoLevelOptions::Box>& refine, std::uint32_t factor,
+                           const FineShares* shares = nullptr);
+
+/// The fine grid's inside shares a cut's split builds on (VolumeOptions::cut_refine_factor), at
+/// the body's rest; empty when its cuts split nothing.
+FineShares cut_fine_shares(const SoftBody& body, const VolumeOptions& options);
 
 /// The volume under `body` with options' refined cube (if any) split finer.
 ElasticVolume build_volume(const SoftBody& body, const VolumeOptions& options);

@@ -94,14 +94,34 @@ struct TwoLevelOptions {
   double floor_z_m = -INFINITY;
 };
 
+/// The share of each fine cell of a two-level lattice's grid that lies inside the surface (ray
+/// parity, fill_samples^3 samples a cell): the costly part of a build, and the same for every
+/// build over one solid, whatever the boxes, since a cut does not change what is inside.
+struct FineShares {
+  glm::dvec3 lo{0.0};                 ///< the grid's low corner
+  std::array<std::size_t, 3> dims{};  ///< fine cells per axis
+  double fine_m = 0.0;
+  int samples = 0;
+  std::vector<double> share;  ///< (k * dims[1] + j) * dims[0] + i
+};
+
+/// The fine grid's shares for build_two_level_lattice with these options (refine is unused).
+/// Throws as that does.
+FineShares two_level_fine_shares(std::span<const glm::dvec3> vertices,
+                                 std::span<const std::array<std::uint32_t, 3>> triangles,
+                                 const TwoLevelOptions& options);
+
 /// A lattice of two resolutions: cells of coarse_m over the closed surface, but those meeting
 /// a refine box split into factor^3 cells, the fine nodes on the faces between the two sizes
 /// hanging on the coarse cells' corners. Cells are kept as build_hex_lattice keeps them.
-/// Throws std::invalid_argument on an empty surface or bad options.
+/// `shares` (may be null): the fine grid's shares from an earlier call over the same solid,
+/// used when its grid is this build's (else they are computed). Throws std::invalid_argument on
+/// an empty surface or bad options.
 HexLattice build_two_level_lattice(std::span<const glm::dvec3> vertices,
                                    std::span<const std::array<std::uint32_t, 3>> triangles,
                                    const TwoLevelOptions& options,
-                                   std::span<const glm::dvec3> also_embed = {});
+                                   std::span<const glm::dvec3> also_embed = {},
+                                   const FineShares* shares = nullptr);
 
 /// Node coordinates from lo to hi: cells of `finest` within fine_half_width of `centre`, then
 /// each `growth` times the last up to `coarsest`; with lo_cell > 0 the cells shrink again

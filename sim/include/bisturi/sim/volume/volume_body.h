@@ -178,6 +178,9 @@ class VolumeBody {
   /// parted the volume, in order: a later cut's split builds the lattice again from them.
   std::vector<TwoLevelOptions::Box> cut_boxes_;
   std::vector<BladeSheet> cut_sheets_;
+  /// The inside shares those splits' lattices share, taken at construction: the cut's step
+  /// does not sample the whole solid again.
+  FineShares cut_shares_;
   std::vector<PointLoad> loads_;  // scratch
   /// Per haptic probe: its contact's loads in this step (their stiffness only) and normal.
   std::vector<std::vector<PointLoad>> probe_loads_;
