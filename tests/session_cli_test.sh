@@ -19,8 +19,8 @@ case "$mode" in
       [ -s "$work/run/$f" ] || fail "missing $f"
     done
     ls "$work/run/frames/"*.png > /dev/null 2>&1 || fail "no PNG frames"
-    for key in haptic_period_ms haptic_period_error_ms step_ms frame_ms motion_to_photon_ms \
-               action_to_response_ms haptic_wake_late_us haptic_spin_us \
+    for key in haptic_period_ms haptic_period_error_ms step_ms cut_step_ms frame_ms \
+               motion_to_photon_ms action_to_response_ms haptic_wake_late_us haptic_spin_us \
                '"p50"' '"p95"' '"p99"' '"max"' overruns missed_deadlines \
                clamped_forces dropped_frames '"events"' final_state_hash render_fps; do
       grep -q "$key" "$work/run/report.json" || fail "report.json has no $key"
@@ -284,6 +284,10 @@ TOML
     grep -o '"chatter_rms_N": [0-9.e-]*' "$work/forces.json" |
       awk '{ if ($2 + 0 > 0.05) bad = 1 } END { exit bad }' ||
       { grep -E '"(channel|chatter_rms_N|reversals)"' "$work/forces.json"; fail "a channel chatters"; }
+    # The scripted cut is timed apart: the report counts the steps that cut.
+    cut_steps=$(awk -F'[:,]' '/"cut_step_ms"/ { on = 1 } on && /"count"/ { print $2 + 0; exit }' \
+      "$work/forces/report.json")
+    [ "${cut_steps:-0}" -ge 1 ] || fail "the report times no cut step (cut_step_ms)"
     echo "forces: ok ($channels channels, $at_limit commands at the limit, $clamped clamped)"
     ;;
   rotated)

@@ -10,6 +10,7 @@
 
 #include <glm/geometric.hpp>
 
+#include "bisturi/sim/cutting.h"
 #include "bisturi/sim/grasp.h"
 #include "bisturi/sim/world.h"
 #include "sim_test_shapes.h"
@@ -170,6 +171,41 @@ TEST(SimCollision, TouchingBodiesPushApartAndBvhFollows) {
   EXPECT_GT(gap_after, gap_before);              // pushed away along +x
   EXPECT_EQ(world.bvh(1).rebuilds(), rebuilds);  // refits only
   EXPECT_GE(world.bvh(1).refits(), 100u);
+}
+
+TEST(SimCollision, AfterACutTheBodiesMeetOnTheTrianglesFreshBvhsFind) {
+  CollisionDevice device;
+  SoftBody cut_body(testing::sphere(20, 6.0), Material{});
+  SoftBody other(testing::sphere(20, 6.0), Material{});
+  for (auto& p : other.positions())
+    p.x += 0.011;  // 1 mm into the first
+  SurfaceBvh cut_bvh(device, cut_body), other_bvh(device, other);
+  constexpr double kMargin_m = 0.002;  // wide: the wound's walls meet the other sphere
+  EXPECT_FALSE(cut_bvh.overlapping_triangles(cut_body, other_bvh, other, kMargin_m).empty());
+  // A cut 3 mm deep across the first sphere's side where the two meet: its walls add triangles
+  // (the user geometry rtcCollide works on is kept, its primitive count changed).
+  const double c = 0.0095, r = 0.006;
+  std::vector<glm::dvec3> blade, tips;
+  for (int i = 0; i <= 6; ++i) {
+    const double a = -0.35 + 0.7 * i / 6.0;
+    blade.emplace_back(c + r * std::cos(a), c + 0.0003, c + r * std::sin(a));
+    tips.push_back(c + (r - 0.003) * glm::dvec3(std::cos(a), 0.0, std::sin(a)) +
+                   glm::dvec3(0.0, 0.0003, 0.0));
+  }
+  const std::size_t triangles_before = cut_body.triangles().indices.size();
+  CutOptions walls;
+  walls.blade_tips_m = tips;
+  ASSERT_FALSE(cut_surface(cut_body, blade, walls).path.empty());
+  const std::size_t triangles_after = cut_body.triangles().indices.size();
+  ASSERT_GT(triangles_after, triangles_before);
+  cut_bvh.update(cut_body);
+  const auto kept = cut_bvh.overlapping_triangles(cut_body, other_bvh, other, kMargin_m);
+  SurfaceBvh fresh_cut(device, cut_body), fresh_other(device, other);
+  const auto fresh = fresh_cut.overlapping_triangles(cut_body, fresh_other, other, kMargin_m);
+  EXPECT_TRUE(std::any_of(fresh.begin(), fresh.end(), [&](const auto& pair) {
+    return 3 * std::size_t{pair.first} >= triangles_before;
+  })) << "no wall meets the other sphere";
+  EXPECT_EQ(kept, fresh);
 }
 
 }  // namespace

@@ -88,6 +88,7 @@ struct SurfaceBvh::Impl {
   std::size_t vertex_capacity = 0;
   RTCScene user_scene = nullptr;  // for rtcCollide
   RTCGeometry user_geometry = nullptr;
+  unsigned user_count = 0;         // its primitives
   const SoftBody* body = nullptr;  // for the bounds callback during a commit only
   double margin = 0.0;
   std::uint64_t version = 0;
@@ -128,6 +129,7 @@ struct SurfaceBvh::Impl {
     if (user_scene) rtcReleaseScene(user_scene);
     user_scene = nullptr;
     user_geometry = nullptr;
+    user_count = 0;
   }
 
   /// The body's triangle behind Embree's (instance ID, primID); kDeadTriangle for none.
@@ -449,8 +451,7 @@ struct SurfaceBvh::Impl {
       build(b);
       return;
     }
-    release_user();  // its primitive count changed
-    indices = b.triangles().indices;
+    indices = b.triangles().indices;  // the user geometry's count is set at its next commit
     patch_map.assign_new_faces(b.triangles(), b.positions());
     std::vector<std::vector<std::uint32_t>> split = patch_map.split(b.triangles());
     fill_vertices(b);
@@ -520,12 +521,15 @@ struct SurfaceBvh::Impl {
       rtcSetSceneBuildQuality(user_scene, RTC_BUILD_QUALITY_LOW);
       user_geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
       rtcSetGeometryBuildQuality(user_geometry, RTC_BUILD_QUALITY_REFIT);
-      rtcSetGeometryUserPrimitiveCount(user_geometry, static_cast<unsigned>(indices.size() / 3));
       rtcSetGeometryUserData(user_geometry, this);
       rtcSetGeometryBoundsFunction(user_geometry, &Impl::bounds, this);
       rtcAttachGeometry(user_scene, user_geometry);
       rtcReleaseGeometry(user_geometry);
     }
+    const auto count = static_cast<unsigned>(indices.size() / 3);
+    // A cut changed the count: the same scene builds again (its memory reused), not a new one.
+    if (user_count != count) rtcSetGeometryUserPrimitiveCount(user_geometry, count);
+    user_count = count;
     rtcCommitGeometry(user_geometry);
     rtcCommitScene(user_scene);
     body = nullptr;

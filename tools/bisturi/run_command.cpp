@@ -420,6 +420,7 @@ int run_run(const RunOptions& options) {
         {"haptic_period_error_ms", summary_json(r.haptic_period_error_ms)},
         {"haptic_tick_ms", summary_json(r.tick_ms)},
         {"step_ms", summary_json(r.step_ms)},
+        {"cut_step_ms", summary_json(r.cut_step_ms)},
         {"frame_ms", summary_json(r.frame_ms)},
         {"render_ms", summary_json(r.render_ms)},
         {"motion_to_photon_ms", summary_json(r.motion_to_photon_ms)},

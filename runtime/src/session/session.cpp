@@ -473,6 +473,7 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   const auto publish_step = [&](const TickOutput& out, std::span<const devices::HapticState> states,
                                 double step_ms) {
     report.step_ms.record(step_ms);
+    if (out.topology_changed) report.cut_step_ms.record(step_ms);
     publisher.publish(out, states);
     if (faults.fail_tissue.exchange(false))
       throw std::runtime_error("injected fault: tissue-throw");

@@ -241,7 +241,9 @@ struct SessionReport {
   TimingRecorder haptic_period_ms{"ms"};
   TimingRecorder haptic_period_error_ms{"ms"};  ///< |period - nominal|
   TimingRecorder tick_ms{"ms"};                 ///< the whole tick's work
-  TimingRecorder step_ms{"ms"};    ///< SessionSim::tick (instruments + tissue), its own thread
+  TimingRecorder step_ms{"ms"};  ///< SessionSim::tick (instruments + tissue), its own thread
+  /// The steps among those that cut (a topology change): how long the force waited on a cut.
+  TimingRecorder cut_step_ms{"ms"};
   TimingRecorder frame_ms{"ms"};   ///< between frames handed to the renderer
   TimingRecorder render_ms{"ms"};  ///< update + render() call
   TimingRecorder motion_to_photon_ms{"ms"};
