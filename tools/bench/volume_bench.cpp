@@ -2,6 +2,7 @@
 // sphere of radius 28 mm (1 mm voxels) with its lower third anchored and the probe pressing
 // 0..3 mm into its top and back at 2 Hz, as sim_bench's BM_FullStep does for the membrane.
 // BM_VolumeBuild: building the volume (lattice, elements, embedding) at three cell sizes.
+// BM_VolumeCut: a cut and a second one through the volume, and the split lattice's build.
 // BM_VolumeStep: one 1 ms world step with the body stepped by its volume at three cell sizes:
 // p50/p99, CG iterations, cells and nodes, and in the same run the same step with the body a
 // spring membrane (surface_p50_us) and the ratio of the two p50s. BM_VolumeForceConvergence:
@@ -19,6 +20,7 @@
 
 #include "bisturi/scene/oriented_builder.h"
 #include "bisturi/sim/tissue.h"
+#include "bisturi/sim/volume/hex_lattice.h"
 #include "bisturi/sim/world.h"
 #include "sim_bench_support.h"
 
@@ -218,6 +220,87 @@ void BM_VolumeBetweenSteps(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_VolumeBetweenSteps)->Arg(0)->Arg(2000)->Iterations(1)->Unit(benchmark::kSecond);
+
+// A cut through the organ's volume (cells of the argument, mm, split in 8 along the blade as the
+// liver scene's cut_refine = 2 does): SimWorld::cut with the blade's tips, 1 cm long and 6 mm
+// deep across the top, then a second one 8 mm beside it (the lattice split again along both and
+// parted along the first again): first_cut_ms, second_cut_ms (medians). In the same run, the
+// split lattice built from the inside shares the volume sampled as it was built (what a cut
+// builds on) and by sampling the solid again: lattice_shared_ms, lattice_sampled_ms, and
+// sampled_over_shared.
+double timed_cut_ms(SimWorld& world, double y_m) {
+  const bench::Shape& shape = organ();
+  const double c = shape.centre_mm * 1e-3, r = shape.radius_mm * 1e-3;
+  std::vector<glm::dvec3> blade, tips;
+  for (int i = 0; i <= 10; ++i) {
+    const double x = c - 0.005 + 0.001 * i;
+    const double z = c + std::sqrt(r * r - (x - c) * (x - c) - (y_m - c) * (y_m - c));
+    blade.emplace_back(x, y_m, z + 0.0005);
+    tips.emplace_back(x, y_m, z - 0.006);
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  benchmark::DoNotOptimize(world.cut(0, blade, {}, tips));
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void BM_VolumeCut(benchmark::State& state) {
+  VolumeOptions options = liver_cells(double(state.range(0)));
+  options.cut_refine_factor = 2;
+  const double c = organ().centre_mm * 1e-3;
+  const glm::dvec3 away(1.0);  // the probe far from the organ
+  std::vector<double> first, second, shared, sampled;
+  std::size_t cells = 0;
+  for (auto _ : state) {
+    SimWorld world;
+    world.add_body(anchored_sphere());
+    world.set_volume(0, options);
+    world.prepare();
+    for (int s = 0; s < 10; ++s)
+      world.step(away);
+    first.push_back(timed_cut_ms(world, c));
+    for (int s = 0; s < 10; ++s)
+      world.step(away);
+    second.push_back(timed_cut_ms(world, c + 0.008));
+    cells = world.volume(0)->volume().lattice().cells.size();
+    state.SetIterationTime(first.back() * 1e-3);
+  }
+  // The lattice alone, with a box along the first cut.
+  const SoftBody body = anchored_sphere();
+  std::vector<std::array<std::uint32_t, 3>> triangles(body.triangles().indices.size() / 3);
+  for (std::size_t t = 0; t < triangles.size(); ++t)
+    for (std::size_t k = 0; k < 3; ++k)
+      triangles[t][k] = body.triangles().indices[3 * t + k];
+  TwoLevelOptions two;
+  two.coarse_m = options.cell_m;
+  two.factor = 2;
+  const double top = c + organ().radius_mm * 1e-3;
+  two.refine = {
+      {glm::dvec3(c - 0.006, c - 0.002, top - 0.008), glm::dvec3(c + 0.006, c + 0.002, top)}};
+  const FineShares shares = two_level_fine_shares(body.positions(), triangles, two);
+  for (int k = 0; k < 5; ++k) {
+    for (const bool with_shares : {true, false}) {
+      const auto t0 = std::chrono::steady_clock::now();
+      benchmark::DoNotOptimize(build_two_level_lattice(body.positions(), triangles, two, {},
+                                                       with_shares ? &shares : nullptr));
+      (with_shares ? shared : sampled)
+          .push_back(
+              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                  .count());
+    }
+  }
+  state.counters["cells_after"] = double(cells);
+  state.counters["first_cut_ms"] = percentile(first, 0.5);
+  state.counters["second_cut_ms"] = percentile(second, 0.5);
+  state.counters["lattice_shared_ms"] = percentile(shared, 0.5);
+  state.counters["lattice_sampled_ms"] = percentile(sampled, 0.5);
+  state.counters["sampled_over_shared"] = percentile(sampled, 0.5) / percentile(shared, 0.5);
+}
+BENCHMARK(BM_VolumeCut)
+    ->Arg(6)
+    ->Arg(18)
+    ->UseManualTime()
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(5);
 
 }  // namespace
 
