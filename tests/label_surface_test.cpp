@@ -133,6 +133,59 @@ TEST(LabelSurface, TorusAtThickSlicesIsSmoothClosedAndKeepsItsGenus) {
   }
 }
 
+// The largest distance of a vertex from the true surface.
+double worst_mm(const PolygonMesh& m, const Distance& d) {
+  double worst = 0;
+  for (const auto& p : m.positions)
+    worst = std::max(worst, std::abs(d(p)));
+  return worst;
+}
+
+// Volume enclosed, by the divergence theorem: positive for outward faces.
+double enclosed_mm3(const PolygonMesh& m) {
+  double six = 0;
+  for (std::size_t t = 0; t < m.face_count(); ++t) {
+    const auto tri = m.face(t);
+    six += glm::dot(m.positions[tri[0]], glm::cross(m.positions[tri[1]], m.positions[tri[2]]));
+  }
+  return six / 6.0;
+}
+
+TEST(LabelSurface, SlicesAlongAnyAxisAreInterpolatedAcrossThem) {
+  // A ball (r 12 mm, off the grid's centre) in 1 x 1 x 3 mm slices along z, along x (a sagittal
+  // series) and along y with the world's y axis flipped (a left-handed index frame): read across
+  // its thick axis, each is as close to the ball as the axial one and faces out.
+  const auto ball = [](const dvec3& p) { return glm::length(p - dvec3(0.4, -0.3, 0.2)) - 12.0; };
+  const auto surface_of = [&](dvec3 spacing, glm::dmat3 direction) {
+    Grid<float> g = voxelise(ball, spacing, 16.0);
+    g.geometry.direction = direction;
+    g.geometry.origin = direction * dvec3(-16.0);
+    for (std::int64_t k = 0; k < g.geometry.dims[2]; ++k)  // again, in the turned frame
+      for (std::int64_t j = 0; j < g.geometry.dims[1]; ++j)
+        for (std::int64_t i = 0; i < g.geometry.dims[0]; ++i)
+          g.at(i, j, k) = ball(g.geometry.index_to_world(dvec3(i, j, k))) < 0 ? kLabel : 2.0F;
+    return extract_label_surface_mesh(g, kLabel);
+  };
+  const PolygonMesh axial = surface_of(dvec3(1, 1, 3), glm::dmat3(1.0));
+  const double rms = fit(axial, ball).rms_mm, worst = worst_mm(axial, ball);
+  const double exact = 4.0 / 3.0 * std::acos(-1.0) * 12.0 * 12.0 * 12.0;
+  EXPECT_NEAR(enclosed_mm3(axial) / exact, 1.0, 0.02);
+  glm::dmat3 flip_y(1.0);
+  flip_y[1][1] = -1.0;
+  for (const auto& [spacing, direction] :
+       {std::pair{dvec3(3, 1, 1), glm::dmat3(1.0)}, std::pair{dvec3(1, 3, 1), flip_y}}) {
+    SCOPED_TRACE(spacing.x);
+    const PolygonMesh m = surface_of(spacing, direction);
+    const double turned_rms = fit(m, ball).rms_mm, turned_worst = worst_mm(m, ball);
+    std::printf("slices along %s: RMS %.3f mm, worst %.3f mm (along z: %.3f, %.3f)\n",
+                spacing.x > 1 ? "x" : "y", turned_rms, turned_worst, rms, worst);
+    // Read along z as it is stored, 0.175 and 0.163 mm RMS, 0.58 and 0.61 mm at worst.
+    EXPECT_LT(turned_rms, 1.2 * rms);
+    EXPECT_LT(turned_worst, 1.2 * worst);
+    EXPECT_NEAR(enclosed_mm3(m) / exact, 1.0, 0.02);
+  }
+}
+
 TEST(LabelSurface, ThinPartsStayInTheBandAndDoNotVanish) {
   // A rod 1.2 mm in radius along x (two voxels across at 1 mm) and a sphere, at 1 x 1 x 3 mm:
   // an unconstrained low-pass filter pulls the rod's cross-section in; the band keeps it.

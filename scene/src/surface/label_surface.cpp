@@ -546,12 +546,50 @@ struct LabelIndicator {
   Grid<float> band;
 };
 
+/// The steps above take the slices across k: shape-based interpolation runs between them and
+/// the caps go over the last ones. A map whose samples are furthest apart along i or j (a
+/// sagittal or coronal series), by a fifth more than along k, is read with that axis and k
+/// swapped: its index axes and their spacings and world directions trade places, so every
+/// sample keeps its world position (and marching cubes' winding follows the direction's
+/// handedness). Nearly isotropic maps stay as they are (their repeated slices, if any, lie
+/// across k). `turned` holds the copy; the map itself is returned when it is not turned.
+const Grid<float>& slices_across_k(const Grid<float>& labels, Grid<float>& turned) {
+  const VolumeGeometry& g = labels.geometry;
+  constexpr double kThicker = 1.2;
+  int thick = 2;
+  for (int a = 0; a < 2; ++a)
+    if (g.spacing[a] > kThicker * g.spacing[2] && g.spacing[a] > g.spacing[thick]) thick = a;
+  if (thick == 2) return labels;
+  std::array<int, 3> from{0, 1, 2};  // the axis of `labels` each axis of `turned` is
+  std::swap(from[static_cast<std::size_t>(thick)], from[2]);
+  VolumeGeometry& t = turned.geometry;
+  t.origin = g.origin;
+  for (int a = 0; a < 3; ++a) {
+    const int f = from[static_cast<std::size_t>(a)];
+    t.dims[static_cast<std::size_t>(a)] = g.dims[static_cast<std::size_t>(f)];
+    t.spacing[a] = g.spacing[f];
+    t.direction[a] = g.direction[f];
+  }
+  turned.values.resize(labels.values.size());
+  std::array<std::int64_t, 3> at{};  // the sample of `labels` for (i, j, k) of `turned`
+  for (std::int64_t k = 0; k < t.dims[2]; ++k)
+    for (std::int64_t j = 0; j < t.dims[1]; ++j)
+      for (std::int64_t i = 0; i < t.dims[0]; ++i) {
+        at[static_cast<std::size_t>(from[0])] = i;
+        at[static_cast<std::size_t>(from[1])] = j;
+        at[static_cast<std::size_t>(from[2])] = k;
+        turned.values[t.linear_index(i, j, k)] = labels.values[g.linear_index(at[0], at[1], at[2])];
+      }
+  return turned;
+}
+
 LabelIndicator label_indicator(const Grid<float>& labels, float label,
                                const LabelSurfaceOptions& options, LabelSurfaceStats& s) {
   check_options(options);
   const auto t = Clock::now();
   LabelIndicator out;
-  out.field = label_field(labels, label, s.label_voxels, out.band);
+  Grid<float> turned;
+  out.field = label_field(slices_across_k(labels, turned), label, s.label_voxels, out.band);
   s.indicator_seconds = seconds_since(t);
   return out;
 }

@@ -20,7 +20,8 @@
 //    the band ends, as constrained surface nets keep each vertex in its cell. Thin parts cannot
 //    melt away.
 // Only positions move (outside repeated slices, whose interpolated sign may differ from the
-// indicator's). Figures against the plain extraction and against VTK's 3D Slicer pipeline
+// indicator's). The slices are taken across the axis whose samples lie furthest apart (a
+// sagittal or coronal series as well as an axial one); along k where spacings tie. Figures against the plain extraction and against VTK's 3D Slicer pipeline
 // (vtkDiscreteFlyingEdges3D + vtkWindowedSincPolyDataFilter): tools/bench/label_surface_bench.cpp,
 // table in docs/scene/label-surfaces.md.
 
