@@ -288,6 +288,7 @@ TOML
     cut_steps=$(awk -F'[:,]' '/"cut_step_ms"/ { on = 1 } on && /"count"/ { print $2 + 0; exit }' \
       "$work/forces/report.json")
     [ "${cut_steps:-0}" -ge 1 ] || fail "the report times no cut step (cut_step_ms)"
+    grep -q "the longest cut's" "$work/forces.txt" || fail "the summary does not give the cut's step"
     echo "forces: ok ($channels channels, $at_limit commands at the limit, $clamped clamped)"
     ;;
   rotated)

@@ -485,6 +485,9 @@ int run_run(const RunOptions& options) {
     const auto p = r.haptic_period_error_ms.summary();
     const auto mtp = r.motion_to_photon_ms.summary();
     const auto atr = r.action_to_response_ms.summary();
+    std::ostringstream cut_note;
+    if (const auto cuts = r.cut_step_ms.summary(); cuts.count > 0)
+      cut_note << " (the longest cut's " << cuts.max << " ms)";
     std::cout << "session '" << r.scene << "': " << r.duration_s << " s, " << r.ticks
               << " haptic ticks, " << r.frames << " frames (" << r.render_fps << " frames/s, 2 x "
               << r.eye_width << " x " << r.eye_height << " on " << r.render_device << ")\n"
@@ -492,8 +495,8 @@ int run_run(const RunOptions& options) {
               << r.missed_deadlines << " missed deadlines (" << r.missed_by_late_wakeup
               << " woken late, spinning " << r.haptic_spin_us.summary().p50
               << " us before a tick at the median), " << r.overruns << " overruns; step p99 "
-              << r.step_ms.summary().p99 << " ms, " << r.late_ticks << " late ticks; tissue at "
-              << r.haptic_hz / r.tissue_ticks_per_step << " Hz ("
+              << r.step_ms.summary().p99 << " ms" << cut_note.str() << ", " << r.late_ticks
+              << " late ticks; tissue at " << r.haptic_hz / r.tissue_ticks_per_step << " Hz ("
               << (r.adaptive_tissue_rate ? "adaptive, " : "fixed, ") << r.tissue_rate_changes
               << " changes)\n"
               << "  motion-to-photon p50 " << mtp.p50 << " ms, p99 " << mtp.p99
