@@ -28,17 +28,13 @@ std::vector<CornerId> vertex_corners(const Dlfl& mesh, VertexId v) {
 }
 
 bool on_boundary(const Dlfl& mesh, VertexId v) {
-  for (CornerId c : vertex_corners(mesh, v)) {
-    if (mesh.is_bounding(mesh.face(c))) return true;
-  }
-  return false;
+  return any_corner(mesh, v, [&](CornerId c) { return mesh.is_bounding(mesh.face(c)); });
 }
 
 bool has_real_face(const Dlfl& mesh, VertexId v) {
-  for (CornerId c : vertex_corners(mesh, v)) {
-    if (!mesh.is_bounding(mesh.face(c)) && !mesh.is_point_sphere(c)) return true;
-  }
-  return false;
+  return any_corner(mesh, v, [&](CornerId c) {
+    return !mesh.is_bounding(mesh.face(c)) && !mesh.is_point_sphere(c);
+  });
 }
 
 double point_segment_distance(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b) {

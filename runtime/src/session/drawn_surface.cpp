@@ -24,7 +24,6 @@ DrawnSurface::DrawnSurface(Dlfl drawn, const sim::SoftBody* simulated,
   if (!lattice_ || lattice_->cells.empty())
     throw std::invalid_argument("a drawn surface needs a volume lattice with cells");
   embed_all();
-  mesh_mm_ = body_.mesh();
   follow(lattice_->rest);
   if (simulated != nullptr) anchor_to(*simulated);
 }
@@ -70,11 +69,9 @@ void DrawnSurface::use_lattice(const std::shared_ptr<const sim::HexLattice>& lat
 void DrawnSurface::follow(std::span<const glm::dvec3> nodes_m) {
   if (nodes_m.size() != lattice_->rest.size()) return;  // a snapshot of another lattice
   std::vector<glm::dvec3>& x = body_.positions();
-  auto& drawn = mesh_mm_.positions();
-  for (std::size_t v = 0; v < std::min(x.size(), drawn.size()); ++v) {
+  for (std::size_t v = 0; v < x.size(); ++v)
     x[v] = sim::embedded_position(*lattice_, nodes_m, embedding_[v]);
-    drawn[v] = sim::sim_to_scene(x[v]);
-  }
+  body_.write_positions_to_scene();
 }
 
 bool DrawnSurface::cut(std::span<const glm::dvec3> points_m, std::span<const glm::dvec3> tips_m) {
@@ -109,14 +106,13 @@ bool DrawnSurface::cut(std::span<const glm::dvec3> points_m, std::span<const glm
     embed_all();
   }
   body_.write_positions_to_scene();
-  mesh_mm_ = body_.mesh();
   ++cuts_;
   return true;
 }
 
 double DrawnSurface::opening_mm() const {
   double widest = 0.0;
-  const auto& x = mesh_mm_.positions();
+  const auto& x = body_.mesh().positions();
   for (const auto& [a, b] : lips_)
     widest = std::max(widest, glm::length(x[a] - x[b]));
   return widest;
@@ -124,7 +120,7 @@ double DrawnSurface::opening_mm() const {
 
 double DrawnSurface::gap_mm(std::span<const glm::dvec3> simulated_mm) const {
   double most = 0.0;
-  const auto& drawn = mesh_mm_.positions();
+  const auto& drawn = body_.mesh().positions();
   for (std::size_t v = 0; v < anchor_.size() && v < drawn.size(); ++v) {
     const SurfaceAnchor& a = anchor_[v];
     if (a.weights == glm::dvec3(0.0)) continue;

@@ -51,7 +51,7 @@ class DrawnSurface {
   [[nodiscard]] double rest_gap_mm() const { return rest_gap_mm_; }
   /// What is drawn: the surface at the positions of the last follow() (mm). A cut adds
   /// vertices and faces; the vertices it had keep their indices.
-  [[nodiscard]] const Dlfl& mesh() const { return mesh_mm_; }
+  [[nodiscard]] const Dlfl& mesh() const { return body_.mesh(); }
   /// Cuts made on it so far.
   [[nodiscard]] std::uint64_t cuts() const { return cuts_; }
   /// How far the cuts have opened (mm): the widest distance now between a vertex on a cut's
@@ -70,7 +70,8 @@ class DrawnSurface {
   /// Each vertex's closest point on `simulated` (at rest), and the gap at rest.
   void anchor_to(const sim::SoftBody& simulated);
 
-  /// Only its mesh, rest and current positions are used: sim::cut_surface cuts it.
+  /// Only its mesh (what is drawn, in mm), rest and current positions are used:
+  /// sim::cut_surface cuts it.
   sim::SoftBody body_;
   std::shared_ptr<const sim::HexLattice> lattice_;
   std::vector<sim::EmbeddedPoint> embedding_;  ///< by vertex slot
@@ -79,7 +80,6 @@ class DrawnSurface {
   /// Each cut's opened path vertices and their copies (vertex slots).
   std::vector<std::pair<std::uint32_t, std::uint32_t>> lips_;
   std::vector<SurfaceAnchor> anchor_;  ///< by vertex slot
-  Dlfl mesh_mm_;
   std::uint64_t cuts_ = 0;
   double rest_gap_mm_ = 0.0;
 };
