@@ -50,14 +50,17 @@ void DrawnSurface::anchor_to(const sim::SoftBody& simulated) {
 }
 
 void DrawnSurface::embed_all() {
-  const std::vector<glm::dvec3>& x = body_.positions();
-  embedding_.resize(x.size());
-  for (std::size_t v = 0; v < x.size(); ++v) {
-    const VertexId id{static_cast<std::uint32_t>(v)};
-    if (!body_.mesh().alive(id)) continue;
-    embedding_[v] = *sim::embed_point_on_side(*lattice_, body_.rest_position(id),
-                                              v < side_.size() ? side_[v] : 0);
-  }
+  const std::size_t slots = body_.positions().size();
+  embedding_.resize(slots);
+  for (std::size_t v = 0; v < slots; ++v)
+    embed(v);
+}
+
+void DrawnSurface::embed(std::size_t v) {
+  const VertexId id{static_cast<std::uint32_t>(v)};
+  if (!body_.mesh().alive(id)) return;
+  embedding_[v] = *sim::embed_point_on_side(*lattice_, body_.rest_position(id),
+                                            v < side_.size() ? side_[v] : 0);
 }
 
 void DrawnSurface::use_lattice(const std::shared_ptr<const sim::HexLattice>& lattice) {
@@ -86,6 +89,7 @@ bool DrawnSurface::cut(std::span<const glm::dvec3> points_m, std::span<const glm
   // The far lip's copies keep their originals' closest points on the simulated surface. Where
   // the volume was separated along the cut each lip follows the cells on its side; elsewhere
   // the copies stand in their originals' cells.
+  const std::size_t had = embedding_.size();
   const std::size_t slots = body_.positions().size();
   embedding_.resize(slots);
   anchor_.resize(slots);
@@ -98,12 +102,21 @@ bool DrawnSurface::cut(std::span<const glm::dvec3> points_m, std::span<const glm
       break;
     }
   }
+  // Where the cut parted the volume, each lip goes into a cell on its side, and every vertex the
+  // cut made (the copies, the walls' floor) where it lies; the others keep their cells.
   if (!lattice_->cut_sheet.empty()) {
     const std::vector<std::int8_t> lips = sim::lip_sides(body_, result, *lattice_);
     side_.resize(slots, 0);
-    for (std::size_t v = 0; v < slots; ++v)
-      if (lips[v] != 0) side_[v] = lips[v];
-    embed_all();
+    for (std::size_t v = 0; v < slots; ++v) {
+      if (lips[v] == 0) continue;
+      side_[v] = lips[v];
+      embed(v);
+    }
+    for (std::size_t v = had; v < slots; ++v)
+      embed(v);
+  } else {
+    for (const VertexId floor : result.floor_vertices)
+      embed(floor.idx);
   }
   body_.write_positions_to_scene();
   ++cuts_;

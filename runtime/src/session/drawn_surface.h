@@ -67,6 +67,8 @@ class DrawnSurface {
     glm::dvec3 weights{0.0};
   };
   void embed_all();
+  /// Vertex slot v in its cell of the lattice, on its side of the cuts (nothing for a dead slot).
+  void embed(std::size_t v);
   /// Each vertex's closest point on `simulated` (at rest), and the gap at rest.
   void anchor_to(const sim::SoftBody& simulated);
 
