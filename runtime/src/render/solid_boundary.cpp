@@ -1,6 +1,5 @@
 #include "solid_boundary.h"
 
-#include "bisturi/scene/dlfl_queries.h"
 #include "bisturi/scene/polygon_export.h"
 
 namespace bisturi::render {
@@ -28,8 +27,15 @@ void SolidBoundary::rebuild(const Dlfl& mesh) {
     for (std::uint32_t f = 0; f < mesh.face_capacity(); ++f) {
       const FaceId face{f};
       if (!mesh.alive(face) || mesh.is_bounding(face)) continue;
-      for (const VertexId v : face_vertices(mesh, face))
-        at[v.idx] = static_cast<std::uint8_t>(at[v.idx] | (interior[face] ? 1u : 2u));
+      const std::uint8_t kind = interior[face] ? 1u : 2u;
+      // The corners walked in place: a list of each face's vertices would cost an allocation
+      // for every face of a 20k-vertex drawn surface at each cut.
+      const CornerId first = mesh.first_corner(face);
+      CornerId c = first;
+      do {
+        at[mesh.vertex(c).idx] = static_cast<std::uint8_t>(at[mesh.vertex(c).idx] | kind);
+        c = mesh.next(c);
+      } while (c != first);
     }
     std::vector<std::uint32_t> mouth;
     for (std::uint32_t v = 0; v < at.size(); ++v)
