@@ -1,17 +1,20 @@
 #include "bisturi/runtime/render/chunk_tree.h"
 
 #include <algorithm>
-#include <numeric>
 
 namespace bisturi::render {
 
 namespace {
 
+/// A triangle and its centroid side by side: the splits compare and move them in place rather
+/// than looking each centroid up by the triangle's id.
+struct Item {
+  glm::vec3 centroid;
+  std::uint32_t triangle;
+};
+
 struct Builder {
-  std::span<const glm::vec3> positions;
-  const std::vector<std::uint32_t>& indices;
-  std::vector<glm::vec3> centroids;
-  std::vector<std::uint32_t> order;  // triangle ids
+  std::vector<Item> items;
   std::uint32_t max_triangles;
   ChunkTree tree;
 
@@ -28,19 +31,18 @@ struct Builder {
       glm::vec3 lo(std::numeric_limits<float>::infinity());
       glm::vec3 hi(-std::numeric_limits<float>::infinity());
       for (std::size_t i = begin; i < end; ++i) {
-        lo = glm::min(lo, centroids[order[i]]);
-        hi = glm::max(hi, centroids[order[i]]);
+        lo = glm::min(lo, items[i].centroid);
+        hi = glm::max(hi, items[i].centroid);
       }
       const glm::vec3 extent = hi - lo;
       const int axis =
           extent.x >= extent.y && extent.x >= extent.z ? 0 : (extent.y >= extent.z ? 1 : 2);
       const std::size_t mid = begin + (end - begin) / 2;
-      std::nth_element(order.begin() + static_cast<std::ptrdiff_t>(begin),
-                       order.begin() + static_cast<std::ptrdiff_t>(mid),
-                       order.begin() + static_cast<std::ptrdiff_t>(end),
-                       [&](std::uint32_t a, std::uint32_t b) {
-                         return centroids[a][axis] < centroids[b][axis];
-                       });
+      std::nth_element(
+          items.begin() + static_cast<std::ptrdiff_t>(begin),
+          items.begin() + static_cast<std::ptrdiff_t>(mid),
+          items.begin() + static_cast<std::ptrdiff_t>(end),
+          [axis](const Item& a, const Item& b) { return a.centroid[axis] < b.centroid[axis]; });
       const std::int32_t left = build(begin, mid);
       const std::int32_t right = build(mid, end);
       tree.nodes[static_cast<std::size_t>(node_index)].left = left;
@@ -91,21 +93,20 @@ void ChunkTree::refit(std::span<const glm::vec3> positions,
 ChunkTree build_chunk_tree(std::span<const glm::vec3> positions,
                            std::vector<std::uint32_t>& indices, std::uint32_t max_triangles) {
   const std::size_t triangles = indices.size() / 3;
-  Builder b{positions, indices, {}, {}, std::max<std::uint32_t>(1, max_triangles), {}};
+  Builder b{{}, std::max<std::uint32_t>(1, max_triangles), {}};
   if (triangles == 0) return {};
-  b.centroids.resize(triangles);
+  b.items.resize(triangles);
   for (std::size_t t = 0; t < triangles; ++t) {
-    b.centroids[t] = (positions[indices[3 * t]] + positions[indices[3 * t + 1]] +
-                      positions[indices[3 * t + 2]]) /
-                     3.0f;
+    b.items[t].centroid = (positions[indices[3 * t]] + positions[indices[3 * t + 1]] +
+                           positions[indices[3 * t + 2]]) /
+                          3.0f;
+    b.items[t].triangle = static_cast<std::uint32_t>(t);
   }
-  b.order.resize(triangles);
-  std::iota(b.order.begin(), b.order.end(), 0u);
   b.build(0, triangles);
   std::vector<std::uint32_t> sorted(indices.size());
   for (std::size_t i = 0; i < triangles; ++i) {
     for (std::size_t k = 0; k < 3; ++k)
-      sorted[3 * i + k] = indices[3 * std::size_t{b.order[i]} + k];
+      sorted[3 * i + k] = indices[3 * std::size_t{b.items[i].triangle} + k];
   }
   indices.swap(sorted);
   b.tree.refit(positions, indices);
