@@ -289,6 +289,11 @@ TOML
       "$work/forces/report.json")
     [ "${cut_steps:-0}" -ge 1 ] || fail "the report times no cut step (cut_step_ms)"
     grep -q "the longest cut's" "$work/forces.txt" || fail "the summary does not give the cut's step"
+    # The liver is at rest until the probe reaches it: its volume sleeps through those steps.
+    asleep=$(grep -o '"volume_asleep_share": [0-9.e-]*' "$work/forces/report.json" | head -1 |
+      awk '{print $2}')
+    awk -v s="${asleep:-0}" 'BEGIN { exit !(s > 0.05 && s < 1) }' ||
+      fail "the liver's volume slept through ${asleep:-no} share of the steps"
     echo "forces: ok ($channels channels, $at_limit commands at the limit, $clamped clamped)"
     ;;
   rotated)

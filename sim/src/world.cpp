@@ -40,6 +40,11 @@ void SimWorld::prepare() {
     prepare_body(i);
 }
 
+bool SimWorld::some_volume_asleep() const {
+  return std::any_of(volumes_.begin(), volumes_.end(),
+                     [](const std::unique_ptr<VolumeBody>& v) { return v && v->asleep(); });
+}
+
 void SimWorld::set_volume(std::uint32_t i, const VolumeOptions& options) {
   volumes_.at(i) = std::make_unique<VolumeBody>(bodies_[i], options);
 }

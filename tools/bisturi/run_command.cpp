@@ -326,6 +326,7 @@ int run_run(const RunOptions& options) {
       solid["volume_refocuses"] = s.volume_refocuses;
       solid["volume_longest_refocus_ms"] = s.volume_longest_refocus_ms;
       solid["volume_separated_faces"] = s.volume_separated_faces;
+      solid["volume_asleep_share"] = s.volume_asleep_share;
     }
     if (s.drawn_vertices > 0) {
       solid["drawn"] = {{"vertices", s.drawn_vertices},       {"faces", s.drawn_faces},

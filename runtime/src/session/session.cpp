@@ -670,6 +670,10 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
       report.solids[b].volume_refocuses = volume->refocus_count();
       report.solids[b].volume_longest_refocus_ms = volume->longest_refocus_ms();
       report.solids[b].volume_separated_faces = volume->separated_faces();
+      report.solids[b].volume_asleep_share =
+          volume->steps() > 0
+              ? static_cast<double>(volume->asleep_steps()) / static_cast<double>(volume->steps())
+              : 0.0;
     }
   }
   {

@@ -121,9 +121,14 @@ void TissueThread::step(std::uint64_t j) {
     after_step_(out, states, std::chrono::duration<double, std::milli>(end - begin).count());
   done_.store(j, std::memory_order_release);
   // The rate controller reads the median of the recent steps' busy times: a cut's long step, or
-  // a few steps the machine stole time from, do not move it.
-  recent_ms_[j % recent_ms_.size()] =
+  // a few steps the machine stole time from, do not move it. A step with an organ asleep counts
+  // at least what the last step with every one awake took: the first touch wakes it at full
+  // cost, so its sleep frees the cores without raising the tissue's rate.
+  const double busy_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin).count();
+  const bool some_asleep = sim_.world().some_volume_asleep();
+  if (!some_asleep) last_awake_ms_ = busy_ms;
+  recent_ms_[j % recent_ms_.size()] = some_asleep ? std::max(busy_ms, last_awake_ms_) : busy_ms;
   const std::size_t n = std::min<std::size_t>(j, recent_ms_.size());
   std::array<double, kRecentSteps> sorted{};
   std::copy_n(recent_ms_.begin(), n, sorted.begin());

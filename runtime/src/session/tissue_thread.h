@@ -94,6 +94,7 @@ class TissueThread {
   std::vector<std::uint8_t> blood_held_;  ///< each pending step's blood_held
   static constexpr std::size_t kRecentSteps = 32;
   std::array<double, kRecentSteps> recent_ms_{};  ///< simulation thread only
+  double last_awake_ms_ = 0.0;  ///< the last step with no volume asleep (simulation thread)
   std::atomic<double> median_step_ms_{0.0};
   std::vector<TickOutput> outputs_;
   std::atomic<std::uint64_t> pushed_{0};

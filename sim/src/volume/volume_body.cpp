@@ -204,6 +204,7 @@ void VolumeBody::take_motion(ElasticVolume next) {
 }
 
 void VolumeBody::embed_again(SoftBody& body) {
+  wake();
   // Holding a node puts it at rest: the motion it has is put back after.
   const std::vector<glm::dvec3> x(volume_.positions().begin(), volume_.positions().end());
   const std::vector<glm::dvec3> v(volume_.velocities().begin(), volume_.velocities().end());
@@ -256,6 +257,7 @@ void VolumeBody::embed_slots(const SoftBody& body) {
 }
 
 void VolumeBody::sync_topology(const SoftBody& body) {
+  wake();
   // Slots that died are skipped from now on; new ones (the cut's copies) embedded.
   const Dlfl& mesh = body.mesh();
   for (std::size_t i = 0; i < embedded_.size(); ++i)
@@ -346,10 +348,32 @@ void VolumeBody::write_surface(SoftBody& body) const {
   }
 }
 
+void VolumeBody::count_quiet_step(SoftBody& body, const IntegratorOptions& options) {
+  const auto still = [](const glm::dvec3& v) { return v == glm::dvec3(0.0); };
+  bool quiet = options.sleeping && loads_.empty() && still(volume_.held_velocity());
+  const double slow2 = options_.sleep_speed_m_s * options_.sleep_speed_m_s;
+  for (const glm::dvec3& v : volume_.velocities())
+    quiet = quiet && glm::length2(v) < slow2;
+  // A wound's walls still letting go move the tissue on, however slowly (ElasticVolume's fading
+  // load); a tenth of a millinewton left on a node no longer does.
+  constexpr double kLetGo_N = 1e-4;
+  for (const glm::dvec3& load : volume_.releasing())
+    quiet = quiet && glm::length2(load) < kLetGo_N * kLetGo_N;
+  quiet_steps_ = quiet ? quiet_steps_ + 1 : 0;
+  if (quiet_steps_ < options.sleep_steps) return;
+  // Asleep: at rest where it is, the surface too (the step's saved state is scratch now).
+  saved_x_.assign(volume_.positions().begin(), volume_.positions().end());
+  saved_v_.assign(saved_x_.size(), glm::dvec3(0.0));
+  volume_.set_state(saved_x_, saved_v_);
+  write_surface(body);
+  asleep_ = true;
+}
+
 StepStats VolumeBody::step(SoftBody& body, const IntegratorOptions& options,
                            std::vector<SimEvent>& events, std::uint32_t body_index,
                            std::uint64_t step_index) {
   StepStats stats;
+  ++steps_;
   stats.free_vertices = static_cast<std::uint32_t>(embedded_vertices());
   stats.awake_vertices = stats.free_vertices;
   std::fill(probe_compliance_.begin(), probe_compliance_.end(), 0.0);
@@ -360,6 +384,15 @@ StepStats VolumeBody::step(SoftBody& body, const IntegratorOptions& options,
   }
   if (body.mesh().vertex_capacity() != embedded_.size()) sync_topology(body);
   gather_loads(body);
+  if (asleep_) {
+    if (loads_.empty()) {
+      ++asleep_steps_;
+      stats.awake_vertices = 0;
+      body.clear_forces();
+      return stats;
+    }
+    wake();
+  }
   saved_x_.assign(volume_.positions().begin(), volume_.positions().end());
   saved_v_.assign(volume_.velocities().begin(), volume_.velocities().end());
   const double max_speed2 = options.max_speed_m_s * options.max_speed_m_s;
@@ -400,6 +433,7 @@ StepStats VolumeBody::step(SoftBody& body, const IntegratorOptions& options,
         }
       }
       write_surface(body);
+      count_quiet_step(body, options);
       body.clear_forces();
       return trial;
     }

@@ -216,6 +216,7 @@ std::vector<std::int8_t> lip_sides(const SoftBody& body, const CutResult& cut,
 }
 
 std::size_t VolumeBody::cut(SoftBody& body, const CutResult& cut, const BladeSheet& sheet) {
+  wake();
   if (sheet.entry_m.size() < 2) {
     sync_topology(body);
     return 0;

@@ -67,6 +67,8 @@ class SimWorld {
   void set_volume(std::uint32_t i, const VolumeOptions& options);
   /// Body i's volume, or null when it is a surface model.
   [[nodiscard]] const VolumeBody* volume(std::uint32_t i) const { return volumes_[i].get(); }
+  /// Whether some body's volume slept through the last step (VolumeBody::asleep).
+  [[nodiscard]] bool some_volume_asleep() const;
   /// Body i's anchored part moves at `velocity` from the next step on (VolumeBody::move_support;
   /// a volume only: throws std::invalid_argument for a surface model).
   void move_support(std::uint32_t i, const glm::dvec3& velocity_m_s);

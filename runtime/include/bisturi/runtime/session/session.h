@@ -123,6 +123,8 @@ struct SolidReport {
   double volume_longest_refocus_ms = 0.0;
   /// Lattice faces the cuts separated (the wound's walls in the volume).
   std::size_t volume_separated_faces = 0;
+  /// The share of the tissue's steps the volume slept through (at rest, untouched: skipped).
+  double volume_asleep_share = 0.0;
   /// A finer drawn surface riding on the volume ([solids.drawn]; 0 vertices: the simulated
   /// surface is drawn): its size, build time (surface, embedding and closest points), and how
   /// far it was from the simulated surface at rest and, at most, in any frame drawn (mm).

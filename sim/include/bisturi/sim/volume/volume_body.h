@@ -61,6 +61,11 @@ struct VolumeOptions {
   /// The body's weight is carried by what surrounds it (a scanned organ is at rest in its scan
   /// under its supports): its steps take no gravity.
   bool weight_supported = false;
+  /// Sleeping (with IntegratorOptions::sleeping, after its sleep_steps): a body with no load on
+  /// it, its supports still and no wound still letting go, whose nodes all stayed slower than
+  /// this for sleep_steps steps, stops (its velocities zeroed) and skips its steps until a load,
+  /// a moving support, a cut or a rebuild wakes it.
+  double sleep_speed_m_s = 1e-4;
 };
 
 /// Per vertex slot of `body` just cut by `cut`, the side of `lattice`'s cut sheets each lip
@@ -84,6 +89,16 @@ class VolumeBody {
                  std::uint32_t body_index, std::uint64_t step);
   /// After a topology change: embeds the vertices the body gained (at their rest positions).
   void sync_topology(const SoftBody& body);
+  /// Whether the body is asleep (VolumeOptions::sleep_speed_m_s): its steps skipped.
+  [[nodiscard]] bool asleep() const { return asleep_; }
+  /// Steps taken so far, and of those, how many it slept through.
+  [[nodiscard]] std::uint64_t steps() const { return steps_; }
+  [[nodiscard]] std::uint64_t asleep_steps() const { return asleep_steps_; }
+  /// Wakes it (and starts its count of quiet steps again).
+  void wake() {
+    asleep_ = false;
+    quiet_steps_ = 0;
+  }
   /// After `cut` was made on the body's surface by a blade whose sheet (where it entered the
   /// surface and where its tip was, per sample, in the world now) is `sheet`: separates the
   /// lattice along the sheet and embeds every vertex again, each lip on its own side. The
@@ -115,7 +130,10 @@ class VolumeBody {
   [[nodiscard]] const ElasticVolume& volume() const { return volume_; }
   /// The anchored part (its held cells) moves at `velocity` from the next step on, the rest
   /// following through the elements (ElasticVolume::set_held_velocity): breathing.
-  void move_support(const glm::dvec3& velocity_m_s) { volume_.set_held_velocity(velocity_m_s); }
+  void move_support(const glm::dvec3& velocity_m_s) {
+    if (velocity_m_s != glm::dvec3(0.0)) wake();
+    volume_.set_held_velocity(velocity_m_s);
+  }
   /// How far the anchored part is from where it was built (m).
   [[nodiscard]] glm::dvec3 support_offset() const { return volume_.held_offset(); }
   /// Embedded vertex slots (alive vertices of the body's mesh).
@@ -159,6 +177,8 @@ class VolumeBody {
   /// The body's loads as point loads on the lattice (into loads_).
   void gather_loads(const SoftBody& body);
   void write_surface(SoftBody& body) const;
+  /// After an accepted step: counts it quiet or not, and puts the body to sleep after enough.
+  void count_quiet_step(SoftBody& body, const IntegratorOptions& options);
   /// Probe p's compliance under its patch in the step just taken (dt_s long), as a spring in
   /// series with its coupling (probe_compliance()).
   double probe_step_compliance(std::size_t p, double dt_s);
@@ -189,6 +209,9 @@ class VolumeBody {
   std::vector<double> probe_speed_;
   std::vector<std::uint8_t> loaded_;  // scratch: per vertex slot
   std::vector<glm::dvec3> saved_x_, saved_v_;
+  bool asleep_ = false;
+  int quiet_steps_ = 0;
+  std::uint64_t steps_ = 0, asleep_steps_ = 0;
   std::size_t separated_faces_ = 0;
   std::uint64_t lattice_version_ = 0;
   std::uint64_t refocus_count_ = 0;
