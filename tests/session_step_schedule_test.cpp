@@ -112,6 +112,32 @@ TEST(TissueRateController, HalvesTheRateWhenStepsTakeTooLongAndDoublesItWhenTher
   EXPECT_EQ(n, 1u);
 }
 
+TEST(TissueRateController, ABladeSweepingHalvesAFullRateAtOnceAndHoldsItUntilTheSweepEnds) {
+  TissueRateController c(1, 8, 1.0);
+  // Cheap steps at one tick each; the blade enters: two ticks from the next step on.
+  for (int i = 0; i < 300; ++i)
+    ASSERT_EQ(c.decide(0.2), 1u);
+  EXPECT_EQ(c.decide(0.2, true), 2u);
+  // However cheap, not back to one tick while it sweeps.
+  for (int i = 0; i < 2000; ++i)
+    ASSERT_EQ(c.decide(0.2, true), 2u);
+  // Slow steps still halve it further while cutting.
+  std::uint32_t n = 2;
+  for (int i = 0; i < 100; ++i)
+    n = c.decide(1.8, true);
+  EXPECT_EQ(n, 4u);
+  // The sweep over and the steps cheap again: back to one tick, a halving per pause.
+  for (int i = 0; i < 1000; ++i)
+    n = c.decide(0.2);
+  EXPECT_EQ(n, 1u);
+  // A rate already at two ticks or fewer per step is left as it is; one that allows only one
+  // tick per step (max_ticks 1) too.
+  TissueRateController half(2, 8, 1.0);
+  EXPECT_EQ(half.decide(0.2, true), 2u);
+  TissueRateController only_one(1, 1, 1.0);
+  EXPECT_EQ(only_one.decide(0.2, true), 1u);
+}
+
 TEST(TissueRateController, ALowerLoadLimitHalvesSooner) {
   TissueRateController tight(1, 8, 1.0, 0.25);
   TissueRateController loose(1, 8, 1.0, 0.75);

@@ -12,6 +12,7 @@
 // starts it): both may run on another thread than tick(), and share one lock with it around the
 // device, which the supervisor only tries: it never waits for a tick.
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <cstdint>
@@ -72,7 +73,7 @@ class LiveTickSteps final : public TickSteps {
   }
   std::uint32_t ticks_per_step(std::uint64_t, std::uint32_t n) override {
     // A fixed rate stays fixed (the controller would also lower a rate given too low).
-    return adaptive_ ? controller_.decide(tissue_.median_step_ms()) : n;
+    return adaptive_ ? controller_.decide(tissue_.median_step_ms(), cutting()) : n;
   }
   bool blood_held(std::uint64_t, bool now) override {
     // Held once the blood's thread is blood_hold_at steps behind, until it has caught up to half
@@ -86,6 +87,14 @@ class LiveTickSteps final : public TickSteps {
   std::uint64_t blood_hold_at = 4;
 
  private:
+  /// Whether a hand's blade sweeps after the newest finished step.
+  [[nodiscard]] bool cutting() const {
+    const TickOutput* out = tissue_.output(tissue_.done());
+    if (out == nullptr) return false;
+    return out->cutting || std::any_of(out->other_hands.begin(), out->other_hands.end(),
+                                       [](const HandOutput& h) { return h.cutting; });
+  }
+
   TissueThread& tissue_;
   bool adaptive_;
   TissueRateController controller_;

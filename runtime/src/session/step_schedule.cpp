@@ -65,8 +65,14 @@ TissueRateController::TissueRateController(std::uint32_t ticks_per_step, std::ui
       period_ms_(haptic_period_ms),
       max_load_(max_load) {}
 
-std::uint32_t TissueRateController::decide(double median_step_ms) {
+std::uint32_t TissueRateController::decide(double median_step_ms, bool cutting) {
   ++since_change_;
+  constexpr std::uint32_t kWhileCutting = 2;
+  if (cutting && n_ < kWhileCutting && max_ >= kWhileCutting) {
+    n_ = kWhileCutting;
+    since_change_ = 0;
+    return n_;
+  }
   // 48 steps after a change the median (of 32, TissueThread::median_step_ms) holds steps of the
   // new length only. Going down waits longer: a step that just fits is worse than a longer one.
   const double covered_ms = n_ * period_ms_;
@@ -74,7 +80,7 @@ std::uint32_t TissueRateController::decide(double median_step_ms) {
       n_ < max_) {
     n_ = std::min(max_, 2 * n_);
     since_change_ = 0;
-  } else if (since_change_ >= 256 && n_ > 1 &&
+  } else if (since_change_ >= 256 && n_ > (cutting ? kWhileCutting : 1) &&
              median_step_ms < 0.75 * max_load_ * (covered_ms / 2)) {
     // Back up when the step fits the shorter time with a quarter of its share to spare: a step
     // that only just fitted stayed at the lower rate for good after one busy moment (a cut, the

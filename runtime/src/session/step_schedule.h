@@ -69,14 +69,17 @@ std::uint32_t ticks_per_step_for(double step_ms, double haptic_period_ms, double
 /// max_ticks) when the median step takes more than `max_load` (3/4) of the time it covers,
 /// halves it when the median would take under three quarters of that share of the halved
 /// step's time, with
-/// a pause after each change so the median (of the last 32 steps) can follow.
+/// a pause after each change so the median (of the last 32 steps) can follow. While a blade
+/// sweeps through tissue it keeps at least two ticks per step: the cut it makes at the sweep's
+/// end is one long step (the volume's separation), and steps of one tick catch up from it so
+/// slowly that the force faded on a stale step for 12-20 ticks.
 class TissueRateController {
  public:
   TissueRateController(std::uint32_t ticks_per_step, std::uint32_t max_ticks,
                        double haptic_period_ms, double max_load = 0.75);
-  /// At a hand-over: the median wall time of the recent steps; returns the ticks per step to
-  /// use from the next step on.
-  std::uint32_t decide(double median_step_ms);
+  /// At a hand-over: the median wall time of the recent steps and whether a blade is sweeping
+  /// (the newest step's); returns the ticks per step to use from the next step on.
+  std::uint32_t decide(double median_step_ms, bool cutting = false);
 
  private:
   std::uint32_t n_;
