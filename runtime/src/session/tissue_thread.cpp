@@ -122,13 +122,22 @@ void TissueThread::step(std::uint64_t j) {
   done_.store(j, std::memory_order_release);
   // The rate controller reads the median of the recent steps' busy times: a cut's long step, or
   // a few steps the machine stole time from, do not move it. A step with an organ asleep counts
-  // at least what the last step with every one awake took: the first touch wakes it at full
-  // cost, so its sleep frees the cores without raising the tissue's rate.
+  // at least the median of the recent steps with every one awake: the organ wakes at its full
+  // cost (a touch, another solid's push), so its sleep frees the cores without raising the
+  // tissue's rate.
   const double busy_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin).count();
-  const bool some_asleep = sim_.world().some_volume_asleep();
-  if (!some_asleep) last_awake_ms_ = busy_ms;
-  recent_ms_[j % recent_ms_.size()] = some_asleep ? std::max(busy_ms, last_awake_ms_) : busy_ms;
+  if (sim_.world().some_volume_asleep()) {
+    recent_ms_[j % recent_ms_.size()] = std::max(busy_ms, awake_median_ms_);
+  } else {
+    recent_ms_[j % recent_ms_.size()] = busy_ms;
+    awake_ms_[awake_steps_++ % awake_ms_.size()] = busy_ms;
+    const std::size_t m = std::min<std::size_t>(awake_steps_, awake_ms_.size());
+    std::array<double, kRecentSteps> awake{};
+    std::copy_n(awake_ms_.begin(), m, awake.begin());
+    std::nth_element(awake.begin(), awake.begin() + m / 2, awake.begin() + m);
+    awake_median_ms_ = awake[m / 2];
+  }
   const std::size_t n = std::min<std::size_t>(j, recent_ms_.size());
   std::array<double, kRecentSteps> sorted{};
   std::copy_n(recent_ms_.begin(), n, sorted.begin());

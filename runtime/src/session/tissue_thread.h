@@ -94,7 +94,10 @@ class TissueThread {
   std::vector<std::uint8_t> blood_held_;  ///< each pending step's blood_held
   static constexpr std::size_t kRecentSteps = 32;
   std::array<double, kRecentSteps> recent_ms_{};  ///< simulation thread only
-  double last_awake_ms_ = 0.0;  ///< the last step with no volume asleep (simulation thread)
+  /// The recent steps with no volume asleep, and their median (simulation thread only).
+  std::array<double, kRecentSteps> awake_ms_{};
+  std::uint64_t awake_steps_ = 0;
+  double awake_median_ms_ = 0.0;
   std::atomic<double> median_step_ms_{0.0};
   std::vector<TickOutput> outputs_;
   std::atomic<std::uint64_t> pushed_{0};
