@@ -16,6 +16,14 @@
 namespace bisturi::runtime {
 
 namespace {
+
+/// The median of the first `count` values (all of them once there are as many).
+template <std::size_t N>
+double median_of_first(std::array<double, N> values, std::uint64_t count) {
+  const auto n = static_cast<std::size_t>(std::min<std::uint64_t>(count, N));
+  std::nth_element(values.begin(), values.begin() + n / 2, values.begin() + n);
+  return values[n / 2];
+}
 /// What the tissue thread faults in as it starts: a few times what the default scene's cut
 /// allocates (some 460 pages).
 constexpr std::size_t kPrefaultBytes = std::size_t{16} << 20;
@@ -123,8 +131,8 @@ void TissueThread::step(std::uint64_t j) {
   // The rate controller reads the median of the recent steps' busy times: a cut's long step, or
   // a few steps the machine stole time from, do not move it. A step with an organ asleep counts
   // at least the median of the recent steps with every one awake: the organ wakes at its full
-  // cost (a touch, another solid's push), so its sleep frees the cores without raising the
-  // tissue's rate.
+  // cost (a touch, another solid's push), so its sleep does not make the steps look cheaper
+  // than they are with it awake.
   const double busy_ms =
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - begin).count();
   if (sim_.world().some_volume_asleep()) {
@@ -132,17 +140,9 @@ void TissueThread::step(std::uint64_t j) {
   } else {
     recent_ms_[j % recent_ms_.size()] = busy_ms;
     awake_ms_[awake_steps_++ % awake_ms_.size()] = busy_ms;
-    const std::size_t m = std::min<std::size_t>(awake_steps_, awake_ms_.size());
-    std::array<double, kRecentSteps> awake{};
-    std::copy_n(awake_ms_.begin(), m, awake.begin());
-    std::nth_element(awake.begin(), awake.begin() + m / 2, awake.begin() + m);
-    awake_median_ms_ = awake[m / 2];
+    awake_median_ms_ = median_of_first(awake_ms_, awake_steps_);
   }
-  const std::size_t n = std::min<std::size_t>(j, recent_ms_.size());
-  std::array<double, kRecentSteps> sorted{};
-  std::copy_n(recent_ms_.begin(), n, sorted.begin());
-  std::nth_element(sorted.begin(), sorted.begin() + n / 2, sorted.begin() + n);
-  median_step_ms_.store(sorted[n / 2], std::memory_order_relaxed);
+  median_step_ms_.store(median_of_first(recent_ms_, j), std::memory_order_relaxed);
 }
 
 void TissueThread::run() {
