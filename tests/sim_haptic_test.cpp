@@ -148,6 +148,31 @@ TEST(SimGrasp, GrasperDragsHeldVertices) {
   EXPECT_TRUE(world.take_events().empty());
 }
 
+TEST(SimCollision, AFineSheetSunkIntoACoarseFaceGetsOneContactPerVertexPushingItOut) {
+  // A 20 mm sheet of 0.5 mm cells 0.2 mm under the top face of a 30 mm cube of twelve triangles:
+  // each of its 3,200 triangles pairs with the face's two, and every one of its 1,681 vertices
+  // is inside and must be pushed out along the face's normal, once.
+  WorldOptions options;
+  options.integrator.gravity_m_s2 = glm::dvec3(0.0);
+  SimWorld world(options);
+  world.add_body(SoftBody(build_oriented_manifold(cube_mesh({0.0, 0.0, 0.0}, 30.0)), Material{}));
+  world.add_body(SoftBody(testing::sheet(40, 40, 0.5), Material{}));
+  for (auto& p : world.body(1).positions())
+    p += glm::dvec3(0.005, 0.005, 0.0298);
+  const std::vector<glm::dvec3> before = world.body(1).positions();
+  world.step({1.0, 1.0, 1.0});
+  const std::size_t sheet_vertices = before.size();
+  ASSERT_EQ(sheet_vertices, 41u * 41u);
+  // The sheet's vertices, and at most the cube's eight corners the other way.
+  EXPECT_GE(world.last_contacts(), sheet_vertices);
+  EXPECT_LE(world.last_contacts(), sheet_vertices + 8);
+  for (std::size_t i = 0; i < sheet_vertices; ++i) {
+    const glm::dvec3 moved = world.body(1).positions()[i] - before[i];
+    ASSERT_GT(moved.z, 0.0) << "vertex " << i;
+    ASSERT_LT(std::abs(moved.x) + std::abs(moved.y), 0.1 * moved.z) << "vertex " << i;
+  }
+}
+
 TEST(SimCollision, TouchingBodiesPushApartAndBvhFollows) {
   WorldOptions options;
   options.integrator.gravity_m_s2 = glm::dvec3(0.0);

@@ -91,8 +91,11 @@ TEST(SimVolumeSleep, ASettledOrganSleepsWhereItSettledAndSkipsItsSteps) {
   EXPECT_EQ(largest_gap(alive_positions(body), asleep_at), 0.0);
   EXPECT_LT(largest_gap(alive_positions(body), alive_positions(awake.body(0))), 2e-5);
   EXPECT_GT(awake.last_stats(0).cg_iterations, 0);
-  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i)
-    if (body.mesh().alive(VertexId(i))) EXPECT_EQ(body.velocity(VertexId(i)), glm::dvec3(0.0));
+  for (std::uint32_t i = 0; i < body.mesh().vertex_capacity(); ++i) {
+    if (body.mesh().alive(VertexId(i))) {
+      EXPECT_EQ(body.velocity(VertexId(i)), glm::dvec3(0.0));
+    }
+  }
 }
 
 TEST(SimVolumeSleep, AProbeWakesItInTheStepItTouchesAndPushesAsOnAnAwakeOrgan) {

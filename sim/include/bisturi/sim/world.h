@@ -126,6 +126,8 @@ class SimWorld {
   std::vector<SimEvent> events_;
   std::uint64_t steps_ = 0;
   std::size_t last_contacts_ = 0;
+  std::vector<std::uint8_t> contact_seen_;       ///< scratch: tissue_contacts
+  std::vector<std::uint32_t> contact_vertices_;  ///< scratch: tissue_contacts
 };
 
 }  // namespace bisturi::sim
