@@ -289,6 +289,12 @@ TOML
       "$work/forces/report.json")
     [ "${cut_steps:-0}" -ge 1 ] || fail "the report times no cut step (cut_step_ms)"
     grep -q "the longest cut's" "$work/forces.txt" || fail "the summary does not give the cut's step"
+    # Every step that diverged is listed with its reason (up to 64), as many as it counts.
+    grep -q '"divergences": \[' "$work/forces/report.json" || fail "the report has no divergences"
+    counted=$(grep -o '"divergence_events": [0-9]*' "$work/forces/report.json" | awk '{print $2}')
+    listed=$(grep -c '"reason":' "$work/forces/report.json")
+    [ "$listed" -eq "$((counted < 64 ? counted : 64))" ] ||
+      fail "the report counts ${counted:-no} divergence events and lists $listed"
     # The liver is at rest until the probe reaches it: its volume sleeps through those steps.
     asleep=$(grep -o '"volume_asleep_share": [0-9.e-]*' "$work/forces/report.json" | head -1 |
       awk '{print $2}')

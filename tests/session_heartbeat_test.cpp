@@ -1,6 +1,7 @@
 // The body's own motion through the session's simulation. The heartbeat (sim/pulse.h): the phantom
 // scene's vessel with a lumen pressure of 80/120 mmHg at 72 beats a minute pulses at that
 // period, by an amount a wall of its stiffness gives, and a probe resting on it feels the beat.
+// A step that diverges is kept with its tick, solid and reason for the report.
 // Breathing: the phantom organ's anchored base carried up and back over each breath, the organ
 // following through its volume, and a probe held still feeling it come up.
 
@@ -10,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -213,6 +215,38 @@ Breath breathe(const glm::dvec3& breathing_mm, double seconds, double press_mm) 
   }
   b.divergence_events = sim.divergence_events();
   return b;
+}
+
+TEST(SessionSimDivergence, AStepThatDivergesIsKeptWithItsTickSolidAndReason) {
+  const SceneDescription scene = pulsing_scene(40.0);
+  SessionSim sim(scene, build_solids(scene), std::vector<devices::ForceChannel>{});
+  const devices::HapticState away = tip_at_mm({0.0, 0.0, 500.0});
+  for (int i = 0; i < 10; ++i)
+    (void)sim.tick(away);
+  ASSERT_EQ(sim.divergence_events(), 0u);
+  ASSERT_TRUE(sim.divergences().empty());
+  // A force no step can take: every retry in substeps fails and the vessel freezes.
+  sim::SoftBody& vessel = sim.world().body(kVessel);
+  std::uint32_t v = 0;
+  while (vessel.masses()[v] <= 0.0)
+    ++v;
+  vessel.add_force(VertexId(v), glm::dvec3(std::numeric_limits<double>::quiet_NaN()));
+  (void)sim.tick(away);
+  ASSERT_GE(sim.divergence_events(), 2u);
+  ASSERT_EQ(sim.divergences().size(), sim.divergence_events());
+  for (const Divergence& d : sim.divergences()) {
+    EXPECT_EQ(d.tick, 10u);
+    EXPECT_EQ(d.event.body, kVessel);
+    EXPECT_FALSE(d.event.reason.empty());
+  }
+  EXPECT_EQ(sim.divergences().front().event.kind, sim::SimEventKind::RolledBack);
+  EXPECT_NE(sim.divergences().front().event.reason.find("non-finite"), std::string::npos)
+      << sim.divergences().front().event.reason;
+  EXPECT_EQ(sim.divergences().back().event.kind, sim::SimEventKind::Frozen);
+  // Frozen: no more divergences, and the count and the list agree.
+  for (int i = 0; i < 10; ++i)
+    (void)sim.tick(away);
+  EXPECT_EQ(sim.divergences().size(), sim.divergence_events());
 }
 
 TEST(Breathing, TheOrganRisesAndFallsWithEachBreath) {

@@ -293,6 +293,14 @@ int run_run(const RunOptions& options) {
                               series, r.max_force_N);
   }
 
+  nlohmann::json divergences = nlohmann::json::array();
+  for (const runtime::DivergenceReport& d : r.divergences)
+    divergences.push_back({{"time_s", d.time_s},
+                           {"tick", d.tick},
+                           {"body", d.body},
+                           {"kind", d.frozen ? "frozen" : "rolled-back"},
+                           {"substeps", d.substeps},
+                           {"reason", d.reason}});
   nlohmann::json events = nlohmann::json::array();
   for (const runtime::EventReport& e : r.events)
     events.push_back({{"kind", runtime::to_string(e.event.kind)},
@@ -474,6 +482,7 @@ int run_run(const RunOptions& options) {
          r.recording_error.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.recording_error)},
         {"injected", injected}}},
       {"events", events},
+      {"divergences", divergences},
       {"final_state_hash", hex(r.final_state_hash)},
       {"trace", r.trace.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.trace.string())},
       {"headset", nlohmann::json::parse(runtime::to_json(r.headset))},

@@ -701,6 +701,11 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
     report.rate_limited_forces += guard->rate_limit_count();
   }
   report.divergence_events = sim.divergence_events();
+  for (const Divergence& d : sim.divergences()) {
+    report.divergences.push_back(
+        {static_cast<double>(d.tick) / scene.rates.haptic_hz, d.tick, sim.body_name(d.event.body),
+         d.event.kind == bisturi::sim::SimEventKind::Frozen, d.event.substeps, d.event.reason});
+  }
   report.render_fps = report.frames > 1 && report.frame_ms.count() > 0
                           ? 1000.0 / report.frame_ms.summary().mean
                           : 0.0;

@@ -338,9 +338,10 @@ const TickOutput& SessionSim::tick(std::span<const devices::HapticState> states,
     hand.contact = h.contact;
     if (!h.contact) hand.withdrawing = false;
   }
-  for (const sim::SimEvent& e : world_.take_events()) {
-    (void)e;
+  for (sim::SimEvent& e : world_.take_events()) {
     ++divergence_events_;
+    // Kept for the report, up to a bound: a solid rolled back at every step must not grow it.
+    if (divergences_.size() < kKeptDivergences) divergences_.push_back({ticks_, std::move(e)});
   }
   for (std::size_t i = 0; i < hands_.size(); ++i) {
     finger_contacts(hands_[i], out_.hand(i), tips_m_[i], states[i].finger_joint_angles_rad);

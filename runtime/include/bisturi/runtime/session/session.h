@@ -153,6 +153,16 @@ struct EventReport {
   double response_ms = -1.0;
 };
 
+/// A solid's step that diverged (SessionSim::divergences), for the report.
+struct DivergenceReport {
+  double time_s = 0.0;
+  std::uint64_t tick = 0;
+  std::string body;     ///< the solid's name
+  bool frozen = false;  ///< the solid was frozen (else the step was rolled back and retried)
+  int substeps = 1;     ///< of the attempt that failed
+  std::string reason;   ///< "energy rose by ...", "non-finite state", "vertex ... faster than"
+};
+
 struct ForceSample {
   double t_s = 0.0;
   double proxy_N = 0.0;    ///< magnitude of the proxy force on the tip
@@ -311,6 +321,8 @@ struct SessionReport {
   std::string ending;
   std::string error;
   std::vector<EventReport> events;
+  /// The first SessionSim::kKeptDivergences of divergence_events.
+  std::vector<DivergenceReport> divergences;
   std::vector<ForceSample> force;
   double max_force_N = 0.0;
   /// Whether the haptic device's writes return within a bound (false for hidapi's hid_write:

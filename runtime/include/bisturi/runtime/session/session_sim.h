@@ -52,6 +52,13 @@ struct SessionEvent {
   std::string detail;      ///< e.g. "42 vertices held", "path of 9 vertices", the cut error
 };
 
+/// A step of a solid that diverged (sim::SimEvent: rolled back and retried in substeps, or
+/// frozen), at the session tick its step started on (as SessionEvent's).
+struct Divergence {
+  std::uint64_t tick = 0;
+  sim::SimEvent event;
+};
+
 /// A cut that was made: the body and where the blade crossed its surface (metres), as
 /// sim::cut_surface took them. A drawn surface finer than the simulated one is cut along the same
 /// points (drawn_surface.h).
@@ -203,6 +210,9 @@ class SessionSim {
   [[nodiscard]] const std::vector<Incision>& incisions() const { return incisions_; }
   /// Divergence events of the integrator (rollbacks, frozen bodies) so far.
   [[nodiscard]] std::uint64_t divergence_events() const { return divergence_events_; }
+  /// The first kKeptDivergences of them, with why each step failed.
+  [[nodiscard]] const std::vector<Divergence>& divergences() const { return divergences_; }
+  static constexpr std::size_t kKeptDivergences = 64;
   /// Combined state hash of every body (FNV-1a over their SoftBody::state_hash in order).
   [[nodiscard]] std::uint64_t state_hash();
   /// Bleeding: blood leaves a pulsing vessel where a cut opened it, at a flow its lumen pressure
@@ -359,6 +369,7 @@ class SessionSim {
   double haptic_hz_ = 1000.0;
   std::uint32_t step_ticks_ = 1;  ///< ticks the integrator's time step now covers
   std::uint64_t divergence_events_ = 0;
+  std::vector<Divergence> divergences_;
   std::vector<SessionEvent> events_;
   std::vector<Incision> incisions_;
   TickOutput out_;
