@@ -27,6 +27,7 @@
 #include <glm/geometric.hpp>
 
 #include "bisturi/scene/oriented_builder.h"
+#include "bisturi/scene/shapes.h"
 #include "bisturi/scene/volume/marching_cubes.h"
 #include "bisturi/scene/volume/phantoms.h"
 #include "bisturi/sim/collision.h"
@@ -37,11 +38,11 @@ namespace {
 
 using namespace bisturi;
 using namespace bisturi::sim;
+using bench::anchor_below;
 using bench::percentile;
+using bench::probe_tip;
 using bench::Shape;
 using bench::sphere;
-using bench::anchor_below;
-using bench::probe_tip;
 
 /// Radii that give about 2k, 20k and 100k vertices.
 double radius_for(std::int64_t vertices) {
@@ -103,8 +104,7 @@ void full_step(benchmark::State& state, std::int64_t vertices, bool all, int int
     samples.push_back(us);
     // Multirate: the steps that start a far-field period (they end its last job, apply the
     // result to the near region's neighbours and start the next job) apart.
-    (interval > 1 && s % std::uint64_t(interval) == 0 ? period_starts : others)
-        .push_back(us);
+    (interval > 1 && s % std::uint64_t(interval) == 0 ? period_starts : others).push_back(us);
     cg += world.last_stats(id).cg_iterations;
     cg_max = std::max(cg_max, world.last_stats(id).cg_iterations);
     residual = world.last_stats(id).relative_residual;
@@ -268,10 +268,10 @@ BENCHMARK(BM_MultirateAccuracy)
 // How the haptic force depends on the step length: the bench scene's 2 Hz probing for 3.2 s,
 // its sine lowered by the second argument (um; 0 is BM_FullStep's, where the probe reaches
 // 2 mm below the rest top of a sphere that sags away from it under gravity), run
-// with dt = 1 ms / k for k = 1, 2, 4, 8, 16 (the device held over a millisecond's steps), single-rate
-// or multirate with the third argument as far_field_interval.
-// Counters per k: the RMS force (force_k_mN), the RMS difference from the k = 16 run against
-// that run's RMS force (diff_k), and the contact changes per second (flips_k).
+// with dt = 1 ms / k for k = 1, 2, 4, 8, 16 (the device held over a millisecond's steps),
+// single-rate or multirate with the third argument as far_field_interval. Counters per k: the RMS
+// force (force_k_mN), the RMS difference from the k = 16 run against that run's RMS force (diff_k),
+// and the contact changes per second (flips_k).
 void BM_ForceConvergence(benchmark::State& state) {
   const Shape& shape = sphere(radius_for(state.range(0)));
   const double lower = double(state.range(1)) * 1e-6;
@@ -433,6 +433,142 @@ BENCHMARK(BM_TwoBodies)
     ->UseManualTime()
     ->Unit(benchmark::kMicrosecond)
     ->Iterations(5);
+
+// Tissue against tissue at its worst: a 20 mm sheet (the argument's cells per side) sunk
+// 0.2 mm into the top of a 30 mm cube of twelve triangles, so every sheet triangle pairs with
+// the face's two (2 x 2 x cells^2 pairs; at 80 about the 24,000 of a cut vessel lying on the
+// bleeding scene's organ). From the same pairs (rtcCollide's, timed as the broad phase), the
+// contacts both ways (the sheet's vertices out of the cube, the cube's out of the sheet) found
+// as SimWorld does (one nearest-surface query per vertex of a paired triangle) against the
+// peer: every (vertex, triangle) entry of the pairs sorted, the nearest of each vertex's paired
+// triangles taken. Each of the cube's top corners is in a pair with every sheet triangle near
+// it, which is what makes the peer dear. Both push every sheet vertex out; the peer also gives
+// the cube's top corners a contact from the sheet's corner triangle 7 mm away, along its normal
+// (the query finds nothing within the 5 mm a contact reaches).
+struct ContactSide {
+  const SoftBody& from;
+  const SoftBody& onto;
+  const SurfaceBvh& onto_bvh;
+};
+
+bool within_contact(const glm::dvec3& p, const glm::dvec3& q, const glm::dvec3& n) {
+  constexpr double kMargin_m = 0.0005, kMaxDepth_m = 0.005;
+  const double d = glm::dot(p - q, n);
+  return d < kMargin_m && -d <= kMaxDepth_m;
+}
+
+// `pairs`: (triangle of from, triangle of onto).
+std::size_t contacts_by_query(const ContactSide& s,
+                              const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs,
+                              std::vector<std::uint8_t>& seen,
+                              std::vector<std::uint32_t>& vertices) {
+  const auto& fi = s.from.triangles().indices;
+  const auto& x = s.from.positions();
+  seen.assign(x.size(), 0);
+  vertices.clear();
+  for (const auto& [tf, to] : pairs)
+    for (int c = 0; c < 3; ++c) {
+      const std::uint32_t v = fi[3 * std::size_t{tf} + c];
+      if (seen[v] == 0) vertices.push_back(v);
+      seen[v] = 1;
+    }
+  std::sort(vertices.begin(), vertices.end());
+  std::size_t contacts = 0;
+  for (const std::uint32_t v : vertices) {
+    const SurfacePoint q = s.onto_bvh.closest_point(s.onto, x[v], 0.005);
+    contacts += q.found && within_contact(x[v], q.point_m, q.normal) ? 1 : 0;
+  }
+  return contacts;
+}
+
+std::size_t contacts_by_sorted_pairs(
+    const ContactSide& s, const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs,
+    std::vector<std::pair<std::uint32_t, std::uint32_t>>& vt) {
+  const auto& fi = s.from.triangles().indices;
+  const auto& oi = s.onto.triangles().indices;
+  const auto& x = s.from.positions();
+  const auto& xo = s.onto.positions();
+  vt.clear();
+  for (const auto& [tf, to] : pairs)
+    for (int c = 0; c < 3; ++c)
+      vt.emplace_back(fi[3 * std::size_t{tf} + c], to);
+  std::sort(vt.begin(), vt.end());
+  vt.erase(std::unique(vt.begin(), vt.end()), vt.end());
+  std::size_t contacts = 0;
+  for (std::size_t i = 0; i < vt.size();) {
+    const std::uint32_t v = vt[i].first;
+    double best = 1e30;
+    glm::dvec3 best_q(0.0), best_n(0.0);
+    for (; i < vt.size() && vt[i].first == v; ++i) {
+      const std::size_t t = 3 * std::size_t{vt[i].second};
+      const glm::dvec3 a = xo[oi[t]], b = xo[oi[t + 1]], c = xo[oi[t + 2]];
+      glm::dvec3 bc;
+      const glm::dvec3 q = closest_point_on_triangle(x[v], a, b, c, bc);
+      if (glm::length(x[v] - q) < best) {
+        best = glm::length(x[v] - q);
+        best_q = q;
+        best_n = s.onto.orientation() * glm::normalize(glm::cross(b - a, c - a));
+      }
+    }
+    contacts += within_contact(x[v], best_q, best_n) ? 1 : 0;
+  }
+  return contacts;
+}
+
+void BM_TissueContacts(benchmark::State& state) {
+  const auto cells = static_cast<std::size_t>(state.range(0));
+  CollisionDevice device(1);
+  SoftBody cube(build_oriented_manifold(cube_mesh({0.0, 0.0, 0.0}, 30.0)), Material{});
+  SoftBody sheet(build_oriented_manifold(grid_mesh(cells, cells, 20.0 / double(cells), false)),
+                 Material{});
+  for (auto& p : sheet.positions())
+    p += glm::dvec3(0.005, 0.005, 0.0298);
+  SurfaceBvh cube_bvh(device, cube);
+  SurfaceBvh sheet_bvh(device, sheet);
+  const ContactSide sheet_out{sheet, cube, cube_bvh};
+  const ContactSide cube_out{cube, sheet, sheet_bvh};
+  std::vector<double> broad, queries, sorted;
+  std::size_t pairs = 0, by_query = 0, by_sort = 0;
+  std::vector<std::uint8_t> seen;
+  std::vector<std::uint32_t> vertices;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> vt;
+  const auto us = [](auto a, auto b) {
+    return std::chrono::duration<double, std::micro>(b - a).count();
+  };
+  for (auto _ : state) {
+    const auto t0 = std::chrono::steady_clock::now();
+    auto sheet_pairs = sheet_bvh.overlapping_triangles(sheet, cube_bvh, cube, 0.0005);
+    auto cube_pairs = sheet_pairs;
+    for (auto& pr : cube_pairs)
+      std::swap(pr.first, pr.second);
+    const auto t1 = std::chrono::steady_clock::now();
+    by_query = contacts_by_query(sheet_out, sheet_pairs, seen, vertices) +
+               contacts_by_query(cube_out, cube_pairs, seen, vertices);
+    const auto t2 = std::chrono::steady_clock::now();
+    by_sort = contacts_by_sorted_pairs(sheet_out, sheet_pairs, vt) +
+              contacts_by_sorted_pairs(cube_out, cube_pairs, vt);
+    const auto t3 = std::chrono::steady_clock::now();
+    pairs = sheet_pairs.size();
+    broad.push_back(us(t0, t1));
+    queries.push_back(us(t1, t2));
+    sorted.push_back(us(t2, t3));
+    state.SetIterationTime(1e-6 * queries.back());
+  }
+  state.counters["pairs"] = static_cast<double>(pairs);
+  state.counters["broad_us"] = percentile(broad, 0.5);
+  state.counters["queries_us"] = percentile(queries, 0.5);
+  state.counters["sorted_pairs_us"] = percentile(sorted, 0.5);
+  state.counters["peer_over_queries"] = percentile(sorted, 0.5) / percentile(queries, 0.5);
+  state.counters["contacts"] = static_cast<double>(by_query);
+  state.counters["peer_contacts"] = static_cast<double>(by_sort);
+}
+BENCHMARK(BM_TissueContacts)
+    ->Arg(20)
+    ->Arg(40)
+    ->Arg(80)
+    ->UseManualTime()
+    ->Unit(benchmark::kMicrosecond)
+    ->Iterations(20);
 
 // One 5 cm cut over the top of the 20k-vertex sphere (path, face splits, vertex splits, springs,
 // masses, triangles and the BVH rebuilt), on a fresh body each time. SimWorld::cut in its two
