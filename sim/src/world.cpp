@@ -121,52 +121,6 @@ void SimWorld::step(std::span<const glm::dvec3> devices_m, std::span<HapticOutpu
   ++steps_;
 }
 
-namespace {
-
-/// Vertices of `from` against the surface of `onto`: each vertex of a candidate triangle takes
-/// the nearest point of `onto`'s surface within the deepest contact; closer than margin along
-/// that triangle's outward normal (or inside) it gets an implicit penalty contact pushing it
-/// out. One nearest-point query per vertex, however many triangle pairs it shows up in: a
-/// vessel lying along an organ's coarse triangles makes tens of thousands of pairs, which
-/// sorting by vertex took 10 ms a step over. `seen` is scratch (one entry per vertex of `from`).
-std::size_t push_out(SoftBody& from, const SoftBody& onto, const SurfaceBvh& onto_bvh,
-                     const std::vector<std::pair<std::uint32_t, std::uint32_t>>& candidates,
-                     const ContactOptions& options, std::vector<std::uint8_t>& seen,
-                     std::vector<std::uint32_t>& vertices) {
-  const auto& fi = from.triangles().indices;
-  const auto& xf = from.positions();
-  seen.assign(xf.size(), 0);
-  vertices.clear();
-  std::uint32_t last_triangle = std::numeric_limits<std::uint32_t>::max();
-  for (const auto& pair : candidates) {
-    const std::uint32_t tf = pair.first;
-    if (tf == last_triangle) continue;  // its vertices are in already
-    last_triangle = tf;
-    for (int c = 0; c < 3; ++c) {
-      const std::uint32_t v = fi[3 * std::size_t{tf} + c];
-      if (seen[v] != 0) continue;
-      seen[v] = 1;
-      vertices.push_back(v);
-    }
-  }
-  std::sort(vertices.begin(), vertices.end());  // contacts in vertex order, as the pairs were
-  const double reach = std::max(options.margin_m, options.max_depth_m);
-  std::size_t contacts = 0;
-  for (const std::uint32_t v : vertices) {
-    if (from.mass(VertexId(v)) <= 0.0) continue;
-    const glm::dvec3& p = xf[v];
-    const SurfacePoint q = onto_bvh.closest_point(onto, p, reach);
-    if (!q.found) continue;
-    const double d = glm::dot(p - q.point_m, q.normal);  // < 0: inside `onto`
-    if (d >= options.margin_m || -d > options.max_depth_m) continue;
-    from.add_contact(VertexId(v), q.normal, options.margin_m - d, options.stiffness_N_per_m);
-    ++contacts;
-  }
-  return contacts;
-}
-
-}  // namespace
-
 void SimWorld::tissue_contacts() {
   last_contacts_ = 0;
   const double margin = options_.contact.margin_m;
@@ -182,16 +136,14 @@ void SimWorld::tissue_contacts() {
       if (glm::any(glm::greaterThan(lo_a - margin, hi_b)) ||
           glm::any(glm::greaterThan(lo_b - margin, hi_a)))
         continue;
-      auto pairs = bvhs_[a].overlapping_triangles(A, bvhs_[b], B, margin);
+      const auto pairs = bvhs_[a].overlapping_triangles(A, bvhs_[b], B, margin);
       if (pairs.empty()) continue;
       // Both ways: A's vertices out of B, B's out of A (each side's push is the other's
       // reaction, spread over its own vertices).
       last_contacts_ +=
-          push_out(A, B, bvhs_[b], pairs, options_.contact, contact_seen_, contact_vertices_);
-      for (auto& pr : pairs)
-        std::swap(pr.first, pr.second);
+          push_out(A, PairSide::First, B, bvhs_[b], pairs, options_.contact, contact_scratch_);
       last_contacts_ +=
-          push_out(B, A, bvhs_[a], pairs, options_.contact, contact_seen_, contact_vertices_);
+          push_out(B, PairSide::Second, A, bvhs_[a], pairs, options_.contact, contact_scratch_);
     }
   }
 }

@@ -31,6 +31,7 @@
 #include "bisturi/scene/volume/marching_cubes.h"
 #include "bisturi/scene/volume/phantoms.h"
 #include "bisturi/sim/collision.h"
+#include "bisturi/sim/tissue_contact.h"
 #include "bisturi/sim/world.h"
 #include "sim_bench_support.h"
 
@@ -438,60 +439,28 @@ BENCHMARK(BM_TwoBodies)
 // 0.2 mm into the top of a 30 mm cube of twelve triangles, so every sheet triangle pairs with
 // the face's two (2 x 2 x cells^2 pairs; at 80 about the 24,000 of a cut vessel lying on the
 // bleeding scene's organ). From the same pairs (rtcCollide's, timed as the broad phase), the
-// contacts both ways (the sheet's vertices out of the cube, the cube's out of the sheet) found
-// as SimWorld does (one nearest-surface query per vertex of a paired triangle) against the
-// peer: every (vertex, triangle) entry of the pairs sorted, the nearest of each vertex's paired
-// triangles taken. Each of the cube's top corners is in a pair with every sheet triangle near
-// it, which is what makes the peer dear. Both push every sheet vertex out; the peer also gives
-// the cube's top corners a contact from the sheet's corner triangle 7 mm away, along its normal
-// (the query finds nothing within the 5 mm a contact reaches).
-struct ContactSide {
-  const SoftBody& from;
-  const SoftBody& onto;
-  const SurfaceBvh& onto_bvh;
-};
-
-bool within_contact(const glm::dvec3& p, const glm::dvec3& q, const glm::dvec3& n) {
-  constexpr double kMargin_m = 0.0005, kMaxDepth_m = 0.005;
-  const double d = glm::dot(p - q, n);
-  return d < kMargin_m && -d <= kMaxDepth_m;
-}
-
-// `pairs`: (triangle of from, triangle of onto).
-std::size_t contacts_by_query(const ContactSide& s,
-                              const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs,
-                              std::vector<std::uint8_t>& seen,
-                              std::vector<std::uint32_t>& vertices) {
-  const auto& fi = s.from.triangles().indices;
-  const auto& x = s.from.positions();
-  seen.assign(x.size(), 0);
-  vertices.clear();
-  for (const auto& [tf, to] : pairs)
-    for (int c = 0; c < 3; ++c) {
-      const std::uint32_t v = fi[3 * std::size_t{tf} + c];
-      if (seen[v] == 0) vertices.push_back(v);
-      seen[v] = 1;
-    }
-  std::sort(vertices.begin(), vertices.end());
-  std::size_t contacts = 0;
-  for (const std::uint32_t v : vertices) {
-    const SurfacePoint q = s.onto_bvh.closest_point(s.onto, x[v], 0.005);
-    contacts += q.found && within_contact(x[v], q.point_m, q.normal) ? 1 : 0;
-  }
-  return contacts;
-}
-
-std::size_t contacts_by_sorted_pairs(
-    const ContactSide& s, const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs,
-    std::vector<std::pair<std::uint32_t, std::uint32_t>>& vt) {
-  const auto& fi = s.from.triangles().indices;
-  const auto& oi = s.onto.triangles().indices;
-  const auto& x = s.from.positions();
-  const auto& xo = s.onto.positions();
+// contacts both ways (the sheet's vertices out of the cube, the cube's out of the sheet) by
+// sim::push_out (one nearest-surface query per vertex) against the peer: every (vertex,
+// triangle) entry of the pairs sorted, the nearest of each vertex's paired triangles taken.
+// Each of the cube's top corners is in a pair with every sheet triangle near it, which is what
+// makes the peer dear. Both push every sheet vertex out; the peer also gives the cube's top
+// corners a contact from the sheet's corner triangle 7 mm away, along its normal (push_out
+// finds nothing within the 5 mm a contact reaches).
+std::size_t peer_contacts(const SoftBody& from, PairSide side, const SoftBody& onto,
+                          const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs,
+                          const ContactOptions& options,
+                          std::vector<std::pair<std::uint32_t, std::uint32_t>>& vt) {
+  const auto& fi = from.triangles().indices;
+  const auto& oi = onto.triangles().indices;
+  const auto& x = from.positions();
+  const auto& xo = onto.positions();
   vt.clear();
-  for (const auto& [tf, to] : pairs)
+  for (const auto& [first, second] : pairs) {
+    const std::uint32_t tf = side == PairSide::First ? first : second;
+    const std::uint32_t to = side == PairSide::First ? second : first;
     for (int c = 0; c < 3; ++c)
       vt.emplace_back(fi[3 * std::size_t{tf} + c], to);
+  }
   std::sort(vt.begin(), vt.end());
   vt.erase(std::unique(vt.begin(), vt.end()), vt.end());
   std::size_t contacts = 0;
@@ -507,10 +476,11 @@ std::size_t contacts_by_sorted_pairs(
       if (glm::length(x[v] - q) < best) {
         best = glm::length(x[v] - q);
         best_q = q;
-        best_n = s.onto.orientation() * glm::normalize(glm::cross(b - a, c - a));
+        best_n = onto.orientation() * glm::normalize(glm::cross(b - a, c - a));
       }
     }
-    contacts += within_contact(x[v], best_q, best_n) ? 1 : 0;
+    const double d = glm::dot(x[v] - best_q, best_n);
+    contacts += d < options.margin_m && -d <= options.max_depth_m ? 1 : 0;
   }
   return contacts;
 }
@@ -525,30 +495,27 @@ void BM_TissueContacts(benchmark::State& state) {
     p += glm::dvec3(0.005, 0.005, 0.0298);
   SurfaceBvh cube_bvh(device, cube);
   SurfaceBvh sheet_bvh(device, sheet);
-  const ContactSide sheet_out{sheet, cube, cube_bvh};
-  const ContactSide cube_out{cube, sheet, sheet_bvh};
+  const ContactOptions options;
+  ContactScratch scratch;
   std::vector<double> broad, queries, sorted;
   std::size_t pairs = 0, by_query = 0, by_sort = 0;
-  std::vector<std::uint8_t> seen;
-  std::vector<std::uint32_t> vertices;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> vt;
   const auto us = [](auto a, auto b) {
     return std::chrono::duration<double, std::micro>(b - a).count();
   };
   for (auto _ : state) {
+    sheet.clear_forces();
+    cube.clear_forces();
     const auto t0 = std::chrono::steady_clock::now();
-    auto sheet_pairs = sheet_bvh.overlapping_triangles(sheet, cube_bvh, cube, 0.0005);
-    auto cube_pairs = sheet_pairs;
-    for (auto& pr : cube_pairs)
-      std::swap(pr.first, pr.second);
+    const auto found = sheet_bvh.overlapping_triangles(sheet, cube_bvh, cube, options.margin_m);
     const auto t1 = std::chrono::steady_clock::now();
-    by_query = contacts_by_query(sheet_out, sheet_pairs, seen, vertices) +
-               contacts_by_query(cube_out, cube_pairs, seen, vertices);
+    by_query = push_out(sheet, PairSide::First, cube, cube_bvh, found, options, scratch) +
+               push_out(cube, PairSide::Second, sheet, sheet_bvh, found, options, scratch);
     const auto t2 = std::chrono::steady_clock::now();
-    by_sort = contacts_by_sorted_pairs(sheet_out, sheet_pairs, vt) +
-              contacts_by_sorted_pairs(cube_out, cube_pairs, vt);
+    by_sort = peer_contacts(sheet, PairSide::First, cube, found, options, vt) +
+              peer_contacts(cube, PairSide::Second, sheet, found, options, vt);
     const auto t3 = std::chrono::steady_clock::now();
-    pairs = sheet_pairs.size();
+    pairs = found.size();
     broad.push_back(us(t0, t1));
     queries.push_back(us(t1, t2));
     sorted.push_back(us(t2, t3));

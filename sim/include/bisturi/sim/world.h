@@ -18,19 +18,10 @@
 #include "bisturi/sim/haptic.h"
 #include "bisturi/sim/integrator.h"
 #include "bisturi/sim/soft_body.h"
+#include "bisturi/sim/tissue_contact.h"
 #include "bisturi/sim/volume/volume_body.h"
 
 namespace bisturi::sim {
-
-struct ContactOptions {
-  bool enabled = true;
-  double margin_m = 0.0005;  ///< contact starts this close to the other surface
-  /// Penalty per vertex; implicit (SoftBody::add_contact), so it may be stiff.
-  double stiffness_N_per_m = 200.0;
-  /// Deeper than this a vertex is taken for a wrong pairing (the far side of a thin part), not
-  /// a penetration, and left alone.
-  double max_depth_m = 0.005;
-};
 
 struct WorldOptions {
   IntegratorOptions integrator;
@@ -126,8 +117,7 @@ class SimWorld {
   std::vector<SimEvent> events_;
   std::uint64_t steps_ = 0;
   std::size_t last_contacts_ = 0;
-  std::vector<std::uint8_t> contact_seen_;       ///< scratch: tissue_contacts
-  std::vector<std::uint32_t> contact_vertices_;  ///< scratch: tissue_contacts
+  ContactScratch contact_scratch_;  ///< tissue_contacts
 };
 
 }  // namespace bisturi::sim
