@@ -205,37 +205,26 @@ void Blood::find_neighbours() {
   permute(resting_);
   permute(touching_);
   permute(serial_);
-  // The pairs with a particle in flight first, then those of the pooled ones they reach. In the
-  // order the cells were searched: fixed by the positions, so the sums come out the same bits
-  // every run.
+  // The pairs with a particle in flight, in the order the cells were searched: fixed by the
+  // positions, so the sums come out the same bits every run.
   pairs_.clear();
-  active_.resize(n);
-  for (std::size_t i = 0; i < n; ++i)
-    active_[i] = pooled_[i] ? 0 : 1;
-  list_neighbours(1);
-  for (const auto& [i, j] : pairs_) {
-    if (active_[i] == 0) active_[i] = 2;
-    if (active_[j] == 0) active_[j] = 2;
-  }
-  list_neighbours(2);
+  list_neighbours();
 }
 
-void Blood::list_neighbours(std::uint8_t pass) {
+void Blood::list_neighbours() {
   const std::size_t n = cells_.size();
   const double h2 = h_ * h_;
-  // Those in flight found all their pairs in the first pass.
-  const auto listed = [&](std::uint32_t j) { return pass == 2 && active_[j] == 1; };
   // The particles are in cell order (find_neighbours): a cell's entries are its particles.
   NearCells near(cells_, h_);  // the cells in key order: begin only grows
-  // Cell by cell: the cells around each are looked up once for all its particles in the pass.
+  // Cell by cell: the cells around each are looked up once for all its particles in flight.
   for (std::size_t begin = 0; begin < n;) {
     std::size_t end = begin;
-    here_.clear();  // the cell's particles in the pass, ascending
+    here_.clear();  // the cell's particles in flight, ascending
     for (; end < n && cells_[end].first == cells_[begin].first; ++end)
-      if (active_[end] == pass) here_.push_back(static_cast<std::uint32_t>(end));
+      if (!pooled_[end]) here_.push_back(static_cast<std::uint32_t>(end));
     const std::size_t count = here_.size();
     if (count > 0) {
-      // A pair of particles both in the pass is found once, from the earlier of the two. Each
+      // A pair of particles both in flight is found once, from the earlier of the two. Each
       // candidate is written and kept by moving past it when within reach, without a branch:
       // which candidates are within reach is as good as random to the branch predictor.
       near.visit_columns(p_[begin], [&](std::size_t first, std::size_t last) {
@@ -244,11 +233,9 @@ void Blood::list_neighbours(std::uint8_t pass) {
         NeighbourPair* out = pairs_.data();
         for (std::size_t b = first; b < last; ++b) {
           const auto j = static_cast<std::uint32_t>(b);
-          if (listed(j)) continue;
-          const bool both = active_[j] == pass;
+          const bool both = pooled_[j] == 0;
           const glm::dvec3 q = p_[b];
-          // here_ ascends: past the first at or after b, a pair both in the pass is found
-          // from b.
+          // here_ ascends: past the first at or after b, a pair both in flight is found from b.
           for (std::size_t k = 0; k < count && !(both && b <= here_[k]); ++k) {
             out[kept] = NeighbourPair(here_[k], j);
             kept += glm::length2(p_[here_[k]] - q) < h2 ? 1 : 0;
@@ -301,10 +288,12 @@ void Blood::solve_density() {
     for (std::size_t i = r.begin; i < r.end; ++i) {
       const DensitySums s = sum_of_parts(sums_, i);
       // Only compression is corrected: a free surface (too few neighbours) is not pulled in.
-      // No particle in flight is near an idle one, so an idle one's lambda is never read.
+      // Pooled blood is a boundary (Akinci et al. 2012, "Versatile rigid-fluid coupling for
+      // incompressible SPH"): it adds to the density of the blood in flight beside it and holds
+      // no constraint of its own, so its pairs with other pooled particles are never listed.
       const double c = std::max(0.0, s.density / rest_density_ - 1.0);
       lambda_[i] =
-          active_[i] ? -c / (s.gradient_squares + glm::length2(s.gradient) + relaxation_) : 0.0;
+          pooled_[i] ? 0.0 : -c / (s.gradient_squares + glm::length2(s.gradient) + relaxation_);
     }
   });
   team_->run([&](unsigned t) {
@@ -326,17 +315,19 @@ void Blood::solve_density() {
   });
 }
 
-void Blood::collide(std::span<const BloodSurface> surfaces) {
+void Blood::collide(std::span<const BloodSurface> surfaces, bool pooled_too) {
   team_->run([&](unsigned t) {
     const Range part = part_of(x_.size(), kParts, t);
-    collide(surfaces, part.begin, part.end);
+    collide(surfaces, pooled_too, part.begin, part.end);
   });
 }
 
-void Blood::collide(std::span<const BloodSurface> surfaces, std::size_t begin, std::size_t end) {
+void Blood::collide(std::span<const BloodSurface> surfaces, bool pooled_too, std::size_t begin,
+                    std::size_t end) {
   const double r = options_.particle_radius_m;
   constexpr double kMaxDepth_m = 0.006;  // deeper: the far side of a thin part, not this one
   for (std::size_t i = begin; i < end; ++i) {
+    if (pooled_[i] && !pooled_too) continue;
     touching_[i] = 0;
     for (const BloodSurface& s : surfaces) {
       const auto [lo, hi] = s.bvh->bounds();
@@ -424,7 +415,8 @@ void Blood::step(double dt_s, std::span<const BloodSurface> surfaces) {
     find_neighbours();
     for (int it = 0; it < options_.iterations; ++it)
       solve_density();
-    collide(surfaces);
+    // The surfaces stand still within a step, and pooled blood does: once a step is enough.
+    collide(surfaces, s == 0);
     for (std::size_t i = 0; i < n; ++i) {
       v_[i] = pooled_[i] ? glm::dvec3(0.0) : (p_[i] - x_[i]) / h;
       if (touching_[i]) {

@@ -99,16 +99,17 @@ class Blood {
   [[nodiscard]] const BloodOptions& options() const { return options_; }
 
  private:
-  /// The neighbour pairs the step needs: those of the particles in flight and of the pooled
-  /// particles next to them (a pool that nothing flows over does not change, and costs nothing).
+  /// The neighbour pairs the step needs: those with a particle in flight (a pool that nothing
+  /// flows over does not change, and costs nothing).
   void find_neighbours();
-  /// Lists the pairs of the particles whose active_ is `pass` with their neighbours, each pair
-  /// once; in the second pass, not again those with a particle in flight.
-  void list_neighbours(std::uint8_t pass);
+  /// Lists the pairs of the particles in flight with their neighbours, each pair once.
+  void list_neighbours();
   void solve_density();
-  void collide(std::span<const BloodSurface> surfaces);
+  /// Pushes the particles in flight, and the pooled ones if `pooled_too`, out of the surfaces.
+  void collide(std::span<const BloodSurface> surfaces, bool pooled_too);
   /// The same for the particles [begin, end).
-  void collide(std::span<const BloodSurface> surfaces, std::size_t begin, std::size_t end);
+  void collide(std::span<const BloodSurface> surfaces, bool pooled_too, std::size_t begin,
+               std::size_t end);
   void remove_drained();
   /// Takes the `count` oldest pooled particles (the first emitted).
   void recycle_pooled(std::size_t count);
@@ -169,9 +170,6 @@ class Blood {
   void permute(std::vector<T>& values);
   /// Scratch: the spiky kernel's gradient for each pair (as pairs_), this iteration.
   std::vector<glm::dvec3> gradient_;
-  /// Per particle, this substep: 0 idle (pooled, nothing in flight near it), 1 in flight, 2
-  /// pooled next to one in flight (its density constraint pushes on that one).
-  std::vector<std::uint8_t> active_;
   std::vector<std::uint8_t> remove_;  ///< scratch
 };
 
