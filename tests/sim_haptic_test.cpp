@@ -128,6 +128,40 @@ TEST(SimHaptic, FrozenBodyGivesNoForce) {
   EXPECT_EQ(out.force_N, glm::dvec3(0.0));
 }
 
+// A vessel decimated to facets its whole length long (a tube of 16 slivers, 60 mm by 2.4 mm):
+// the probe pressing its middle loads the facets round the one it touches, and pushes along
+// their normal, not on the whole tube with the mean of its sides.
+TEST(SimHaptic, AProbeOnASliverLoadsTheFacetsRoundIt) {
+  SoftBody tube(build_oriented_manifold(tube_mesh(6.0, 60.0, 16, 1)), testing::firm_material());
+  const CollisionDevice device;
+  const SurfaceBvh bvh(device, tube);
+  HapticOptions options;
+  options.probe_radius_m = 0.0015;
+  options.max_force_N = 100.0;
+  options.max_force_rate_N_per_s = 1e9;
+  HapticProxy proxy(options);
+  const TouchTarget target{&tube, &bvh};
+  // From outside, then 0.5 mm into the facets over +x at the tube's middle.
+  const glm::dvec3 outside(0.010, 0.0, 0.030);
+  (void)proxy.update(outside, {&target, 1}, 0.001);
+  const glm::dvec3 into(0.006 + 0.0015 - 0.0005, 0.0, 0.030);
+  const HapticOutput out = proxy.update(into, {&target, 1}, 0.001);
+  ASSERT_TRUE(out.contact);
+  EXPECT_GT(out.force_N.x, 0.98 * glm::length(out.force_N)) << "the tube's normal there";
+  std::size_t loaded = 0, far_side = 0;
+  glm::dvec3 reaction(0.0);
+  for (std::uint32_t i = 0; i < tube.mesh().vertex_capacity(); ++i) {
+    const glm::dvec3& f = tube.external_forces()[i];
+    if (glm::length(f) == 0.0) continue;
+    ++loaded;
+    far_side += tube.position(VertexId(i)).x <= 0.0 ? 1 : 0;
+    reaction += f;
+  }
+  EXPECT_GT(loaded, 0u);
+  EXPECT_EQ(far_side, 0u) << "the facets round the touched one, not the tube";
+  EXPECT_LT(glm::length(reaction + out.force_N), 1e-9 * glm::length(out.force_N));
+}
+
 TEST(SimGrasp, GrasperDragsHeldVertices) {
   SimWorld world = sphere_world(HapticOptions{});
   SoftBody& body = world.body(0);

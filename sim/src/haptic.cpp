@@ -17,10 +17,21 @@ glm::dvec3 contact_patch(const SoftBody& body, const SurfaceBvh& bvh, const Surf
   const auto& x = body.positions();
   const auto& idx = body.triangles().indices;
   const std::uint32_t* hit = &idx[3 * std::size_t{at.triangle}];
-  double longest = 0.0;
-  for (int k = 0; k < 3; ++k)
-    longest = std::max(longest, glm::length(x[hit[(k + 1) % 3]] - x[hit[k]]));
-  const double radius = probe_radius_m + longest;
+  // The probe's footprint and about a triangle round it, so the patch holds vertices on a coarse
+  // surface too. A sliver's length says nothing of where the surface bends (its width does): on
+  // a tube decimated to facets the length of the vessel, the longest edge made the patch the
+  // whole vessel, its normal the mean over the tube's sides and its cost a thousand triangles a
+  // step. The patch's facets are those within the probe radius and at most two of the touched
+  // triangle's shortest edges; their corners share the reaction by distance over the probe
+  // radius and its longest edge, which reaches its own corners however long it is.
+  double longest = 0.0, shortest = HUGE_VAL;
+  for (int k = 0; k < 3; ++k) {
+    const double edge = glm::length(x[hit[(k + 1) % 3]] - x[hit[k]]);
+    longest = std::max(longest, edge);
+    shortest = std::min(shortest, edge);
+  }
+  const double radius = probe_radius_m + std::min(longest, 2.0 * shortest);
+  const double reach = probe_radius_m + longest;
   const std::vector<std::uint32_t> tris = bvh.triangles_near(body, at.point_m, radius);
   glm::dvec3 normal(0.0);
   vertices.clear();
@@ -37,7 +48,7 @@ glm::dvec3 contact_patch(const SoftBody& body, const SurfaceBvh& bvh, const Surf
   weights.assign(vertices.size(), 0.0);
   double total = 0.0;
   for (std::size_t i = 0; i < vertices.size(); ++i) {
-    const double d = glm::length(x[vertices[i]] - at.point_m) / radius;
+    const double d = glm::length(x[vertices[i]] - at.point_m) / reach;
     if (d < 1.0 && body.mass(VertexId(vertices[i])) > 0.0) weights[i] = (1.0 - d) * (1.0 - d);
     total += weights[i];
   }
