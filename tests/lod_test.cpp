@@ -277,6 +277,50 @@ TEST(Decimate, OpenTubeKeepsBoundaryLoopsAndVertices) {
     EXPECT_NEAR(std::hypot(p.x, p.y), 1.0, 0.02);
 }
 
+/// The thinnest triangle of a mesh (4 sqrt(3) area over the squared edges' sum) and its longest
+/// edge.
+struct TriangleShapes {
+  double thinnest = 1.0, longest_edge = 0.0;
+};
+TriangleShapes triangle_shapes(const Dlfl& d) {
+  const PolygonMesh m = export_polygons(d).polygons;
+  TriangleShapes s;
+  for (std::size_t f = 0; f < m.face_count(); ++f) {
+    const auto c = m.face(f);
+    if (c.size() != 3) continue;
+    const Vec3 a = m.positions[c[0]], b = m.positions[c[1]], e = m.positions[c[2]];
+    const double edges = glm::dot(b - a, b - a) + glm::dot(e - b, e - b) + glm::dot(a - e, a - e);
+    s.thinnest =
+        std::min(s.thinnest, 2.0 * std::sqrt(3.0) * glm::length(glm::cross(b - a, e - a)) / edges);
+    s.longest_edge =
+        std::max({s.longest_edge, glm::length(b - a), glm::length(e - b), glm::length(a - e)});
+  }
+  return s;
+}
+
+// A vessel's tube, 12 mm across and 60 mm long, decimated to a quarter: the quadrics alone are
+// zero along a straight tube and thin it to slivers most of its length long; with a quality
+// bound no face is thinner than the bound (the tube starts with none) and the tube keeps rings
+// along its length, as a simulated vessel needs to bend.
+TEST(Decimate, AQualityBoundKeepsATubeFromThinningToSlivers) {
+  const PolygonMesh tube = triangulated(tube_mesh(6.0, 60.0, 32, 30));
+  Dlfl plain = build_oriented_manifold(tube);
+  Dlfl bounded = build_oriented_manifold(tube);
+  ASSERT_GT(triangle_shapes(plain).thinnest, 0.3);
+  lod::DecimateOptions opt;
+  opt.target_faces = lod::polygon_face_count(plain) / 4;
+  (void)lod::decimate(plain, opt);
+  opt.min_triangle_quality = 0.3;
+  const auto stats = lod::decimate(bounded, opt);
+  EXPECT_TRUE(stats.reached_target);
+  expect_valid(bounded);
+  const TriangleShapes p = triangle_shapes(plain), b = triangle_shapes(bounded);
+  EXPECT_LT(p.thinnest, 0.1) << "without the bound: slivers";
+  EXPECT_GT(p.longest_edge, 30.0);
+  EXPECT_GE(b.thinnest, 0.3);
+  EXPECT_LT(b.longest_edge, 15.0);
+}
+
 TEST(Decimate, StopsAtTheErrorBound) {
   Dlfl d = build_oriented_manifold(torus_mesh(1.0, 0.35, 120, 60, true));
   lod::DecimateOptions opt;

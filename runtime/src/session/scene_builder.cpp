@@ -19,6 +19,12 @@
 
 namespace bisturi::runtime {
 
+namespace {
+/// The thinnest face a decimated solid's surface may get (lod::DecimateOptions): about five
+/// times as long as wide.
+constexpr double kSimulatedTriangleQuality = 0.3;
+}  // namespace
+
 Dlfl build_solid(const SolidDescription& solid, const std::string& scene_name,
                  const BuildProgress& progress) {
   const std::string where = scene_name + ": solid '" + solid.name + "'";
@@ -87,6 +93,8 @@ if (solid.decimate < 1.0) {
   d.target_faces =
       static_cast<std::size_t>(static_cast<double>(lod::polygon_face_count(mesh)) * solid.decimate);
   d.progress = report("decimate");
+  // A simulated surface bends only where it has vertices: no slivers (lod/decimate.h).
+  d.min_triangle_quality = kSimulatedTriangleQuality;
   lod::decimate(mesh, d);
 }
 if (solid.smooth > 0) {

@@ -17,7 +17,7 @@
 // - Non-manifold junctions: vertices with several rotations are fixed the same way, and a
 //   collapse that would make an edge join one that lives in another rotation is refused.
 // - Geometry: a collapse that would turn a face normal by more than acos(min_normal_cosine) (a
-//   flip or a fold) or leave a degenerate triangle is refused.
+//   flip or a fold), leave a degenerate triangle or (optionally) a sliver is refused.
 //
 // The kept vertex goes to the point that minimises the summed quadric when that 3x3 system is
 // well conditioned, else to the best of the two ends and the midpoint (a fixed end: its own
@@ -41,6 +41,11 @@ struct DecimateOptions {
   double max_error = std::numeric_limits<double>::infinity();
   /// A collapse may not turn any face normal by more than acos(min_normal_cosine).
   double min_normal_cosine = 0.2;
+  /// A collapse may not leave a face thinner than this (4 sqrt(3) area over the squared edges'
+  /// sum: 1 equilateral, 0.17 ten times as long as wide) unless it was thinner before. The
+  /// quadrics alone thin a straight tube to slivers its whole length long, which a simulated
+  /// surface cannot bend along; 0: no bound (drawn levels).
+  double min_triangle_quality = 0.0;
   /// Called with (collapses done, collapses needed for the face target or, without one, the
   /// most that could happen), about every 1% of the work and once at the end.
   std::function<void(std::size_t, std::size_t)> progress;
