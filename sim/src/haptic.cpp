@@ -18,12 +18,11 @@ glm::dvec3 contact_patch(const SoftBody& body, const SurfaceBvh& bvh, const Surf
   const auto& idx = body.triangles().indices;
   const std::uint32_t* hit = &idx[3 * std::size_t{at.triangle}];
   // The probe's footprint and about a triangle round it, so the patch holds vertices on a coarse
-  // surface too. A sliver's length says nothing of where the surface bends (its width does): on
-  // a tube decimated to facets the length of the vessel, the longest edge made the patch the
-  // whole vessel, its normal the mean over the tube's sides and its cost a thousand triangles a
-  // step. The patch's facets are those within the probe radius and at most two of the touched
-  // triangle's shortest edges; their corners share the reaction by distance over the probe
-  // radius and its longest edge, which reaches its own corners however long it is.
+  // surface too: the facets within the probe radius and the touched triangle's longest edge, but
+  // at most two of its shortest. A sliver's length says nothing of where the surface bends (its
+  // width does); by its length a sliver the length of a vessel would take in the whole tube.
+  // Their corners share the reaction by distance over the probe radius and the longest edge,
+  // which reaches the touched triangle's own corners however long it is.
   double longest = 0.0, shortest = HUGE_VAL;
   for (int k = 0; k < 3; ++k) {
     const double edge = glm::length(x[hit[(k + 1) % 3]] - x[hit[k]]);

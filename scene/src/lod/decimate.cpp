@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <numbers>
 #include <queue>
 #include <vector>
 
@@ -26,7 +27,7 @@ using Vec3 = Dlfl::Vec3;
 /// (about 0.17 for a sliver ten times as long as wide). `twice_area`: |(b - a) x (c - a)|.
 double triangle_quality(const Vec3& a, const Vec3& b, const Vec3& c, double twice_area) {
   const double edges = glm::dot(b - a, b - a) + glm::dot(c - b, c - b) + glm::dot(a - c, a - c);
-  return edges > 0.0 ? 2.0 * 1.7320508075688772 * twice_area / edges : 0.0;
+  return edges > 0.0 ? 2.0 * std::numbers::sqrt3 * twice_area / edges : 0.0;
 }
 
 /// Symmetric 4x4 quadric: a00 a01 a02 a03 a11 a12 a13 a22 a23 a33.
