@@ -155,8 +155,10 @@ TEST_F(RenderFieldTest, AnEnclosedSolidShowsOnlyThroughAnOpeningOfItsEnclosure) 
     FrameStats stats;
     int green = 0;
   };
-  const auto look = [&](const Dlfl& organ, bool enclosed) -> std::optional<Seen> {
+  const auto look = [&](const Dlfl& organ, bool enclosed,
+                        bool occlusion = true) -> std::optional<Seen> {
     RendererOptions options;
+    if (occlusion) options.occlusion_cells = kOcclusionCells;
     auto* r = make(options, kSize);
     if (r == nullptr) return std::nullopt;
     const SolidId outer = r->add_solid(organ);
@@ -180,17 +182,21 @@ TEST_F(RenderFieldTest, AnEnclosedSolidShowsOnlyThroughAnOpeningOfItsEnclosure) 
   };
   const auto shut = look(closed, true);
   if (!shut) GTEST_SKIP() << "no Vulkan device";
-  // What the lesion would cost drawn: the closed organ's frame without the enclosure.
+  // What the lesion would cost drawn: the closed organ's frame without any occlusion test.
   const std::size_t lesion_triangles =
-      look(closed, false)->stats.triangles_drawn - shut->stats.triangles_drawn;
+      look(closed, false, false)->stats.triangles_drawn - shut->stats.triangles_drawn;
   EXPECT_GT(lesion_triangles, 0u);
   EXPECT_EQ(shut->green, 0);
   EXPECT_EQ(shut->stats.triangles_culled_occlusion, lesion_triangles);
   EXPECT_EQ(shut->stats.triangles_culled_portal, 0u);
+  // Not declared enclosed, the lesion is still found hidden, behind the organ's near side.
+  const auto undeclared = look(closed, false);
+  EXPECT_EQ(undeclared->stats.triangles_culled_occlusion, lesion_triangles);
+  EXPECT_EQ(undeclared->green, 0);
 
   const Dlfl front = with_opening(closed, centre, 30.0, {0.0, 0.0, 1.0});
   const auto through = look(front, true);
-  const auto unculled = look(front, false);
+  const auto unculled = look(front, false, false);
   EXPECT_EQ(through->stats.triangles_culled_occlusion, 0u);
   EXPECT_EQ(through->stats.triangles_culled_portal, 0u);
   EXPECT_GT(through->green, 100);
@@ -202,6 +208,60 @@ TEST_F(RenderFieldTest, AnEnclosedSolidShowsOnlyThroughAnOpeningOfItsEnclosure) 
   EXPECT_EQ(behind->stats.triangles_culled_occlusion, 0u);
   std::printf("green pixels: closed %d, opened towards the eyes %d, opened behind %d\n",
               shut->green, through->green, behind->green);
+}
+
+TEST_F(RenderFieldTest, OcclusionCullingLeavesEveryPixelAsItWas) {
+  // An organ in chunks of 64 triangles, a sphere wholly behind it, one half behind it, the
+  // drape under them all taking their shadows: with occlusion culling what is hidden is left
+  // out, and both eyes' pixels are those drawn without it, from straight in front (where the
+  // far sphere is hidden) and from a side.
+  const auto draw = [&](bool occlusion, const HeadPose& pose, std::vector<std::uint8_t>& pixels,
+                        int& hidden_level) -> std::optional<FrameStats> {
+    RendererOptions options;
+    options.levels.chunk_triangles = 64;
+    if (occlusion) options.occlusion_cells = kOcclusionCells;
+    auto* r = make(options, kSize);
+    if (r == nullptr) return std::nullopt;
+    Material drape;
+    drape.casts_shadow = false;
+    r->add_solid(drape_sheet({-60.0, -60.0, -242.0}, {60.0, 60.0, -118.0}), drape);
+    r->add_solid(testing::sphere_mm({0.0, 0.0, -150.0}, 30.0));
+    const SolidId hidden = r->add_solid(testing::sphere_mm({0.0, 0.0, -230.0}, 10.0));
+    r->add_solid(testing::sphere_mm({34.0, 0.0, -200.0}, 12.0));
+    r->set_shadow_plane(-244.0);
+    Capture frame;
+    r->set_sink(&frame);
+    const FrameStats stats = r->render(pose);
+    r->flush();
+    pixels = frame.pixels;
+    hidden_level = r->drawn_level(hidden);
+    return stats;
+  };
+  const std::array<HeadPose, 2> poses{testing::at_origin(),
+                                      look_at({40.0, 30.0, 0.0}, {0.0, 0.0, -150.0})};
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    std::vector<std::uint8_t> with, without;
+    int hidden_with = 0, hidden_without = 0;
+    const auto culled = draw(true, poses[k], with, hidden_with);
+    if (!culled) GTEST_SKIP() << "no Vulkan device";
+    const auto plain = draw(false, poses[k], without, hidden_without);
+    std::printf(
+        "pose %zu: %zu triangles drawn with occlusion culling (%zu left out), %zu without\n", k,
+        culled->triangles_drawn, culled->triangles_culled_occlusion, plain->triangles_drawn);
+    EXPECT_GT(culled->triangles_culled_occlusion, 0u) << "pose " << k;
+    EXPECT_EQ(culled->triangles_drawn + culled->triangles_culled_occlusion, plain->triangles_drawn)
+        << "pose " << k;
+    EXPECT_EQ(plain->triangles_culled_occlusion, 0u);
+    if (k == 0) {  // straight in front, the organ hides the far sphere from both eyes
+      EXPECT_EQ(hidden_with, -1) << "the sphere behind the organ was drawn";
+      EXPECT_GE(hidden_without, 0);
+    }
+    ASSERT_EQ(with.size(), without.size());
+    std::size_t differ = 0;
+    for (std::size_t i = 0; i < with.size(); ++i)
+      differ += with[i] != without[i] ? 1 : 0;
+    EXPECT_EQ(differ, 0u) << "pose " << k << ": bytes that occlusion culling changed";
+  }
 }
 
 TEST_F(RenderFieldTest, AnOccludedPartOfASheetIsDarker) {

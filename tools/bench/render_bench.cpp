@@ -1,11 +1,13 @@
 // Stereo rendering throughput: frames per second and frame-time p99 of the multiview renderer on
 // the Vulkan device at hand (lavapipe without a GPU), for scenes of about 100k and 1M triangles at
 // 2 x 1024 x 1024 and 2 x 1440 x 1600, naive (every triangle of every solid, no culling, no level
-// of detail) against culled + LOD, all in one run; reported as ratios. Frames are read back into
+// of detail) against frustum-culled + LOD, and that against frustum-culled + LOD + occlusion
+// culling, all in one run; reported as ratios. Frames are read back into
 // host memory as the headless sink needs them (no PNG encoding). Not a test; run by hand:
-//   build/bin/render_bench [--frames N] [--quick]
+//   build/bin/render_bench [--frames N] [--quick] [--eye PIXELS]
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -54,14 +56,18 @@ struct Result {
   double cpu_ms = 0, wait_ms = 0, upload_mb = 0, index_buffers_made = 0;
 };
 
-Result run(const std::vector<Dlfl>& scene, std::uint32_t w, std::uint32_t h, bool optimised,
+enum class Mode { Naive, CullLod, Occlusion };
+
+Result run(const std::vector<Dlfl>& scene, std::uint32_t w, std::uint32_t h, Mode mode,
            int frames) {
+  const bool optimised = mode != Mode::Naive;
   render::RendererOptions o;
   o.headset.eye_width = w;
   o.headset.eye_height = h;
   o.frustum_culling = optimised;
   o.level_of_detail = optimised;
   o.levels.derived_levels = optimised;
+  if (mode == Mode::Occlusion) o.occlusion_cells = render::kOcclusionCells;
   render::StereoRenderer renderer(o);
   for (const Dlfl& s : scene)
     renderer.add_solid(s);
@@ -112,9 +118,12 @@ Result run(const std::vector<Dlfl>& scene, std::uint32_t w, std::uint32_t h, boo
 int main(int argc, char** argv) {
   int frames = 40;
   bool quick = false;
+  std::uint32_t eye = 0;  // 0: the headset sizes
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--frames") == 0 && i + 1 < argc) frames = std::atoi(argv[++i]);
     if (std::strcmp(argv[i], "--quick") == 0) quick = true;
+    if (std::strcmp(argv[i], "--eye") == 0 && i + 1 < argc)
+      eye = static_cast<std::uint32_t>(std::atoi(argv[++i]));
   }
   try {
     {
@@ -125,27 +134,36 @@ int main(int argc, char** argv) {
     }
     const std::vector<std::size_t> sizes =
         quick ? std::vector<std::size_t>{100000} : std::vector<std::size_t>{100000, 1000000};
-    const std::uint32_t resolutions[2][2] = {{1024, 1024}, {1440, 1600}};
+    const std::vector<std::array<std::uint32_t, 2>> resolutions =
+        eye > 0 ? std::vector<std::array<std::uint32_t, 2>>{{eye, eye}}
+                : std::vector<std::array<std::uint32_t, 2>>{{1024, 1024}, {1440, 1600}};
     // cpu ms: the renderer's own work per frame (plan, stream, record, submit); wait ms: waiting
     // for the frame slot's previous frame (GPU work, read back, sink); MB up: vertex bytes
     // streamed per frame; new ib: index buffers made during the timed frames.
-    std::printf("%-9s %-11s %-8s %8s %9s %9s %8s %11s %9s %7s %7s %7s %6s\n", "triangles",
+    std::printf("%-9s %-11s %-9s %8s %9s %9s %8s %11s %9s %7s %7s %7s %6s\n", "triangles",
                 "per eye", "mode", "fps", "p50 ms", "p99 ms", "draws", "tris drawn", "culled",
                 "cpu ms", "wait ms", "MB up", "new ib");
     for (const std::size_t n : sizes) {
       const std::vector<Dlfl> scene = make_scene(n);
       for (const auto& res : resolutions) {
-        const Result naive = run(scene, res[0], res[1], false, frames);
-        const Result fast = run(scene, res[0], res[1], true, frames);
-        for (const auto* r : {&naive, &fast}) {
+        const Result naive = run(scene, res[0], res[1], Mode::Naive, frames);
+        const Result fast = run(scene, res[0], res[1], Mode::CullLod, frames);
+        const Result occluded = run(scene, res[0], res[1], Mode::Occlusion, frames);
+        for (const auto* r : {&naive, &fast, &occluded}) {
           std::printf(
-              "%-9zu %4ux%-6u %-8s %8.1f %9.1f %9.1f %8.1f %11.0f %9.1f %7.2f %7.2f %7.1f %6.0f\n",
-              n, res[0], res[1], r == &naive ? "naive" : "cull+lod", r->fps, r->p50, r->p99,
-              r->draw_calls, r->triangles, r->culled_chunks, r->cpu_ms, r->wait_ms, r->upload_mb,
-              r->index_buffers_made);
+              "%-9zu %4ux%-6u %-9s %8.1f %9.1f %9.1f %8.1f %11.0f %9.1f %7.2f %7.2f %7.1f %6.0f\n",
+              n, res[0], res[1],
+              r == &naive  ? "naive"
+              : r == &fast ? "cull+lod"
+                           : "+occlude",
+              r->fps, r->p50, r->p99, r->draw_calls, r->triangles, r->culled_chunks, r->cpu_ms,
+              r->wait_ms, r->upload_mb, r->index_buffers_made);
         }
         std::printf("  ratio cull+lod / naive: fps x%.2f, p99 frame time x%.2f\n",
                     fast.fps / naive.fps, fast.p99 / naive.p99);
+        std::printf("  ratio +occlude / cull+lod: fps x%.2f, p99 frame time x%.2f, cpu ms x%.2f\n",
+                    occluded.fps / fast.fps, occluded.p99 / fast.p99,
+                    occluded.cpu_ms / fast.cpu_ms);
         std::fflush(stdout);
       }
     }

@@ -90,6 +90,8 @@ void add_render_command(CLI::App& app, RenderOptions& options, int (*&run)(const
       ->check(CLI::Range(16u, 8192u));
   cmd->add_flag("--per-eye", options.per_eye, "one PNG per eye instead of side by side");
   cmd->add_flag("--no-culling", options.no_culling, "draw every chunk (no frustum culling)");
+  cmd->add_flag("--occlusion", options.occlusion,
+                "leave out what the solids in front hide (occlusion culling on the CPU)");
   cmd->add_flag("--no-lod", options.no_lod, "always draw the full-detail level");
   cmd->add_flag("--cpu", options.cpu, "render on a CPU Vulkan device (lavapipe) even with a GPU");
   cmd->add_flag("--validation", options.validation,
@@ -135,6 +137,7 @@ int run_render(const RenderOptions& options) {
   ro.headset.far_mm = framing.far_mm;
   ro.headset.ipd_mm = framing.ipd_mm;
   ro.frustum_culling = !options.no_culling;
+  if (options.occlusion) ro.occlusion_cells = render::kOcclusionCells;
   ro.level_of_detail = !options.no_lod;
   ro.field_lamp = true;  // nearer surfaces brighter: the orbit reads in depth
   ro.validation = options.validation;
@@ -238,8 +241,8 @@ int run_render(const RenderOptions& options) {
               << summary["chunks_culled_per_frame"].get<double>() << " culled chunks per frame\n  "
               << "triangles culled per frame: " << static_cast<double>(culled_frustum) / n
               << " by the frusta, " << static_cast<double>(culled_occlusion) / n
-              << " hidden inside closed solids, " << static_cast<double>(culled_portal) / n
-              << " seen through no opening\n";
+              << " hidden by solids in front or round them, "
+              << static_cast<double>(culled_portal) / n << " seen through no opening\n";
   }
   if (empty_frames > 0)
     std::cerr << "bisturi render: " << empty_frames << " of " << options.frames

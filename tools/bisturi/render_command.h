@@ -24,6 +24,7 @@ struct RenderOptions {
   std::uint32_t eye_height = 1024;
   bool per_eye = false;
   bool no_culling = false;
+  bool occlusion = false;
   bool no_lod = false;
   bool cpu = false;
   bool validation = false;

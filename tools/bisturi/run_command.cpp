@@ -70,6 +70,8 @@ void add_run_command(CLI::App& app, RunOptions& options, int (*&run)(const RunOp
       ->check(CLI::Range(1u, 100000u));
   cmd->add_flag("--no-openxr", options.no_openxr, "do not try an OpenXR headset");
   cmd->add_flag("--cpu", options.cpu, "render on a CPU Vulkan device (lavapipe) even with a GPU");
+  cmd->add_flag("--occlusion", options.occlusion,
+                "leave out what the solids in front hide (occlusion culling on the CPU)");
   cmd->add_flag("--tissue-in-haptic-thread", options.tissue_in_haptic_thread,
                 "run the soft-tissue step inside the haptic tick instead of on its own thread "
                 "(for comparison)");
@@ -218,6 +220,7 @@ int run_run(const RunOptions& options) {
   for (const std::string& f : options.inject)
     so.inject.push_back(runtime::parse_fault(f));
   if (options.cpu) so.render_device = render::DevicePreference::Cpu;
+  so.occlusion_culling = options.occlusion;
   ProgressLine line;
   so.progress = [&line](const runtime::SessionProgress& p) {
     if (!p.warning.empty()) {

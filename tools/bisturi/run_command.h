@@ -33,6 +33,7 @@ struct RunOptions {
   std::string tissue_threads = "auto";
   std::string haptic_spin = "auto";
   bool cpu = false;
+  bool occlusion = false;
   bool print_default_scene = false;
   bool json = false;
   std::vector<std::string> inject;  ///< FAULT@SECONDS

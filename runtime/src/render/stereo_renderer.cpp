@@ -7,9 +7,11 @@
 #include <deque>
 #include <limits>
 #include <optional>
+#include <span>
 
 #include "bisturi/runtime/render/errors.h"
 #include "bisturi/runtime/render/frustum.h"
+#include "bisturi/runtime/render/occluder_depth.h"
 #include "gpu_buffer.h"
 #include "mesh_pipeline.h"
 #include "openxr_sink_impl.h"
@@ -28,6 +30,12 @@ struct IndexBuffer {
   std::uint64_t generation = 0;
 };
 
+/// A level's edges, for its outline as an occluder (OccluderDepth).
+struct LevelEdges {
+  TriangleEdges edges;
+  std::uint64_t generation = 0;  ///< of the indices they were found in
+};
+
 /// A shadow on the drape: very dark green (linear RGB).
 constexpr glm::vec3 kShadowColour{0.004f, 0.012f, 0.010f};
 
@@ -38,6 +46,7 @@ struct Solid {
   glm::dmat4 pose{1.0};
   bool visible = true;
   std::vector<IndexBuffer> index_buffers;  ///< one per level
+  std::vector<LevelEdges> edges;           ///< one per level, found when it first occludes
   int drawn_level = -1;
   SolidBoundary boundary;         ///< holed: drawn two-sided
   std::int32_t enclosed_by = -1;  ///< the solid whose closed surface it lies inside
@@ -109,9 +118,17 @@ struct Range {
 struct PlannedDraw {
   std::size_t solid;
   std::size_t level;
-  std::size_t first_range;
+  std::size_t first_range;  ///< in the eyes' pass
   std::size_t range_count;
+  std::size_t first_shadow_range;  ///< in the shadows' (occlusion does not cull a shadow)
+  std::size_t shadow_range_count;
   VkDeviceSize vertex_offset;
+};
+
+/// A solid's level that passed the whole-solid tests, before its chunks are culled.
+struct Candidate {
+  std::size_t solid;
+  std::size_t level;
 };
 
 Visibility combine(Visibility a, Visibility b) {
@@ -148,7 +165,10 @@ struct StereoRenderer::Impl {
 
   // Per-frame scratch.
   std::vector<Range> ranges;
+  std::vector<Range> shadow_ranges;
   std::vector<PlannedDraw> draws;
+  std::vector<Candidate> candidates;
+  OccluderDepth occluders;
 
   explicit Impl(const RendererOptions& o) : options(o) {
     if (options.headset.eye_width == 0 || options.headset.eye_height == 0) {
@@ -370,43 +390,84 @@ struct StereoRenderer::Impl {
     return Enclosure::BesidePortals;
   }
 
-  /// Chunks of `level` visible in either eye, as merged index ranges.
+  /// Chunks of `level` visible in either eye, as merged index ranges: into `ranges` those the
+  /// frusta and the occluders leave, into `shadow_ranges` (when `shadows`) those the frusta
+  /// leave.
   void cull_chunks(const ChunkTree& tree, const std::array<Frustum, 2>& frusta,
-                   const glm::dmat4* pose, FrameStats& stats) {
+                   const glm::dmat4* pose, bool shadows, FrameStats& stats) {
     if (tree.nodes.empty()) return;
-    const auto emit = [&](std::uint32_t first_chunk, std::uint32_t count) {
+    const auto append = [&](std::vector<Range>& out, std::uint32_t first_chunk,
+                            std::uint32_t count) {
       for (std::uint32_t c = first_chunk; c < first_chunk + count; ++c) {
         const Chunk& chunk = tree.chunks[c];
-        if (!ranges.empty() &&
-            ranges.back().first_index + ranges.back().index_count == chunk.first_index) {
-          ranges.back().index_count += chunk.index_count;
+        if (!out.empty() && out.back().first_index + out.back().index_count == chunk.first_index) {
+          out.back().index_count += chunk.index_count;
         } else {
-          ranges.push_back({chunk.first_index, chunk.index_count});
+          out.push_back({chunk.first_index, chunk.index_count});
         }
       }
-      stats.chunks_drawn += count;
     };
-    if (!options.frustum_culling) {
-      emit(0, static_cast<std::uint32_t>(tree.chunks.size()));
-      return;
-    }
-    std::array<std::int32_t, 64> stack{};
+    const auto culled = [&](const ChunkNode& node, std::size_t& triangles) {
+      stats.chunks_culled += node.chunk_count;
+      for (std::uint32_t c = node.first_chunk; c < node.first_chunk + node.chunk_count; ++c)
+        triangles += tree.chunks[c].index_count / 3;
+    };
+    const bool occlusion = options.occlusion_cells > 0;
+    // Nodes to visit, with whether the frusta hold them whole (their children need no test).
+    std::array<std::pair<std::int32_t, bool>, 64> stack{};
     std::size_t top = 0;
-    stack[top++] = 0;
+    stack[top++] = {0, !options.frustum_culling};
     while (top > 0) {
-      const ChunkNode& node = tree.nodes[static_cast<std::size_t>(stack[--top])];
+      const auto [index, inside] = stack[--top];
+      const ChunkNode& node = tree.nodes[static_cast<std::size_t>(index)];
       const Aabb box = pose != nullptr ? node.bounds.transformed(*pose) : node.bounds;
-      const Visibility v = combine(frusta[0].classify(box), frusta[1].classify(box));
+      const Visibility v =
+          inside ? Visibility::Inside : combine(frusta[0].classify(box), frusta[1].classify(box));
       if (v == Visibility::Outside) {
-        stats.chunks_culled += node.chunk_count;
-        for (std::uint32_t c = node.first_chunk; c < node.first_chunk + node.chunk_count; ++c)
-          stats.triangles_culled_frustum += tree.chunks[c].index_count / 3;
-      } else if (v == Visibility::Inside || node.left < 0 || top + 2 > stack.size()) {
-        emit(node.first_chunk, node.chunk_count);
+        culled(node, stats.triangles_culled_frustum);
+      } else if (occlusion && occluders.hides(box)) {
+        culled(node, stats.triangles_culled_occlusion);
+        if (shadows) append(shadow_ranges, node.first_chunk, node.chunk_count);
+      } else if ((v == Visibility::Inside && !occlusion) || node.left < 0 ||
+                 top + 2 > stack.size()) {
+        append(ranges, node.first_chunk, node.chunk_count);
+        if (shadows) append(shadow_ranges, node.first_chunk, node.chunk_count);
+        stats.chunks_drawn += node.chunk_count;
       } else {
-        stack[top++] = node.right;  // left first: ranges come out in index order
-        stack[top++] = node.left;
+        // Left first: ranges come out in index order.
+        const bool whole = v == Visibility::Inside;
+        stack[top++] = {node.right, whole};
+        stack[top++] = {node.left, whole};
       }
+    }
+  }
+
+  /// A level's edges, found again when its indices changed.
+  const TriangleEdges& edges_of(Solid& s, std::size_t level_index) {
+    if (s.edges.size() < s.levels->level_count()) s.edges.resize(s.levels->level_count());
+    const SolidLevel& level = s.levels->level(level_index);
+    LevelEdges& cached = s.edges[level_index];
+    if (cached.generation != level.index_generation || cached.generation == 0) {
+      cached.edges = triangle_edges(level.indices, level.vertices.size() / 6);
+      cached.generation = level.index_generation;
+    }
+    return cached.edges;
+  }
+
+  /// Starts the frame's occluders: every solid (not the instruments) at the level planned.
+  void gather_occluders(const std::array<EyeView, 2>& eyes) {
+    if (options.occlusion_cells == 0) return;
+    const std::uint32_t columns = options.occlusion_cells;
+    const auto rows = static_cast<std::uint32_t>(
+        std::max(1.0, std::round(static_cast<double>(columns) * options.headset.eye_height /
+                                 options.headset.eye_width)));
+    occluders.begin({eyes[0].view_projection, eyes[1].view_projection},
+                    {eyes[0].position_mm, eyes[1].position_mm}, columns, rows);
+    for (const Candidate& c : candidates) {
+      Solid& s = solids[c.solid];
+      if (s.instrument) continue;
+      const SolidLevel& level = s.levels->level(c.level);
+      occluders.add(level.vertices, 6, level.indices, edges_of(s, c.level), s.boundary.holed());
     }
   }
 
@@ -422,20 +483,23 @@ struct StereoRenderer::Impl {
     flatten[3][2] = (1.0 - kKeep) * shadow_plane_z_mm + kLift_mm;
     for (const PlannedDraw& d : draws) {
       const Solid& s = solids[d.solid];
-      if (!s.material.casts_shadow) continue;
+      if (!s.material.casts_shadow || d.shadow_range_count == 0) continue;
       vk::DrawConstants constants;
       constants.model = to_float(flatten * (s.instrument ? s.pose : glm::dmat4(1.0)));
       constants.colour = glm::vec4(kShadowColour, 1.0f);
       constants.material = {1.0f, 0.0f, 0.0f, 1.0f};
       constants.interior = glm::vec4(kShadowColour, 0.0f);
-      record_draw(cmd, slot, d, constants, bound, stats);
+      record_draw(cmd, slot, d, constants,
+                  {shadow_ranges.data() + d.first_shadow_range, d.shadow_range_count}, bound,
+                  stats);
     }
   }
 
   /// One planned draw with `constants`: its pipeline (two-sided for a holed solid), its
   /// streamed vertices and index ranges.
   void record_draw(VkCommandBuffer cmd, const FrameSlot& slot, const PlannedDraw& d,
-                   const vk::DrawConstants& constants, VkPipeline& bound, FrameStats& stats) {
+                   const vk::DrawConstants& constants, std::span<const Range> drawn,
+                   VkPipeline& bound, FrameStats& stats) {
     const Solid& s = solids[d.solid];
     const VkPipeline wanted = s.boundary.holed() ? pipeline->two_sided() : pipeline->pipeline();
     if (wanted != bound) {
@@ -448,10 +512,10 @@ struct StereoRenderer::Impl {
     const VkBuffer vertex_buffer = slot.stream.handle();
     vkCmdBindVertexBuffers(cmd, 0, 1, &vertex_buffer, &d.vertex_offset);
     vkCmdBindIndexBuffer(cmd, s.index_buffers[d.level].buffer.handle(), 0, VK_INDEX_TYPE_UINT32);
-    for (std::size_t r = d.first_range; r < d.first_range + d.range_count; ++r) {
-      vkCmdDrawIndexed(cmd, ranges[r].index_count, 1, ranges[r].first_index, 0, 0);
+    for (const Range& r : drawn) {
+      vkCmdDrawIndexed(cmd, r.index_count, 1, r.first_index, 0, 0);
       ++stats.draw_calls;
-      stats.triangles_drawn += ranges[r].index_count / 3;
+      stats.triangles_drawn += r.index_count / 3;
     }
   }
 
@@ -530,10 +594,12 @@ struct StereoRenderer::Impl {
     }
     std::memcpy(slot.uniforms.data(), &uniforms, sizeof(uniforms));
 
-    // Plan: cull solids, pick levels, cull chunks; count the vertex bytes to stream.
+    // Plan: cull solids, pick levels; the occluders from those levels; cull chunks; count the
+    // vertex bytes to stream.
     ranges.clear();
+    shadow_ranges.clear();
     draws.clear();
-    VkDeviceSize stream_bytes = 0;
+    candidates.clear();
     for (std::size_t i = 0; i < solids.size(); ++i) {
       Solid& s = solids[i];
       s.drawn_level = -1;
@@ -557,12 +623,26 @@ struct StereoRenderer::Impl {
           continue;
         }
       }
-      const SolidLevel& level = s.levels->refresh(level_index);
+      s.levels->refresh(level_index);
+      candidates.push_back({i, level_index});
+    }
+    gather_occluders(eyes);
+    VkDeviceSize stream_bytes = 0;
+    const bool shadow_plane = std::isfinite(shadow_plane_z_mm);
+    for (const Candidate& c : candidates) {
+      Solid& s = solids[c.solid];
+      const SolidLevel& level = s.levels->level(c.level);
       const std::size_t first_range = ranges.size();
-      cull_chunks(level.tree, frusta, s.instrument ? &s.pose : nullptr, stats);
-      if (ranges.size() == first_range) continue;
-      s.drawn_level = static_cast<int>(level_index);
-      draws.push_back({i, level_index, first_range, ranges.size() - first_range, stream_bytes});
+      const std::size_t first_shadow_range = shadow_ranges.size();
+      cull_chunks(level.tree, frusta, s.instrument ? &s.pose : nullptr,
+                  shadow_plane && s.material.casts_shadow, stats);
+      const std::size_t range_count = ranges.size() - first_range;
+      const std::size_t shadow_range_count = shadow_ranges.size() - first_shadow_range;
+      if (range_count == 0) ++stats.solids_culled;
+      if (range_count == 0 && shadow_range_count == 0) continue;
+      if (range_count > 0) s.drawn_level = static_cast<int>(c.level);
+      draws.push_back({c.solid, c.level, first_range, range_count, first_shadow_range,
+                       shadow_range_count, stream_bytes});
       stream_bytes += (level.vertices.size() * sizeof(float) + 255) & ~VkDeviceSize{255};
     }
 
@@ -615,13 +695,15 @@ struct StereoRenderer::Impl {
                             &slot.descriptors, 0, nullptr);
     for (const PlannedDraw& d : draws) {
       const Solid& s = solids[d.solid];
+      if (d.range_count == 0) continue;  // hidden, drawn only in the shadows
       vk::DrawConstants constants;
       constants.model = to_float(s.instrument ? s.pose : glm::dmat4(1.0));
       constants.colour = glm::vec4(s.material.colour, 1.0f);
       constants.material = {s.material.ambient, s.material.diffuse, s.material.specular,
                             s.material.shininess};
       constants.interior = glm::vec4(s.material.interior_colour, 0.0f);
-      record_draw(cmd, slot, d, constants, bound, stats);
+      record_draw(cmd, slot, d, constants, {ranges.data() + d.first_range, d.range_count}, bound,
+                  stats);
     }
     record_shadows(cmd, slot, bound, stats);
     vkCmdEndRenderPass(cmd);

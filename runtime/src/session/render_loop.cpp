@@ -327,6 +327,7 @@ void run_render_loop(const RenderLoopContext& c) {
   const double display_period_ms = 1000.0 / report.display_hz;
   render::RendererOptions ro;
   ro.device = options.render_device;
+  if (options.occlusion_culling) ro.occlusion_cells = render::kOcclusionCells;
   ro.headset.ipd_mm = scene.headset.ipd_mm;
   ro.headset.eye_width = report.eye_width;
   ro.headset.eye_height = report.eye_height;

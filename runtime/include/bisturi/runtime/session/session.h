@@ -71,6 +71,8 @@ struct SessionOptions {
   /// Try OpenXR first; without a runtime the PNG sink is used (the report says why).
   bool openxr = true;
   render::DevicePreference render_device = render::DevicePreference::Any;
+  /// Leave out of each frame what the solids in front hide (RendererOptions::occlusion_cells).
+  bool occlusion_culling = false;
   /// The haptic thread sleeps until this long before each deadline, then spins (0: sleep only).
   /// Adaptive: at most this long, as long as its wakeups have lately run late (wakeup_spin.h).
   double spin_us = 200.0;
