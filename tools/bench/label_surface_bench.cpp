@@ -240,7 +240,9 @@ int main(int argc, char** argv) {
           "  surfaces of voxelised analytic solids against the true shape: marching cubes,\n"
           "  constrained smoothing and (when built with VTK) 3D Slicer's VTK pipeline;\n"
           "  each --spacing (mm) replaces the default 0.6,0.6,1.3 and 1,1,3; --list-far writes\n"
-          "  each vertex further than MM from the true surface to stderr, before its row\n");
+          "  each vertex further than MM from the true surface to stderr, before its row;\n"
+          "  --twicing-share W adds back one share W everywhere instead of the one the\n"
+          "  surface's bend sets\n");
       return 0;
     }
     if (a == "--repeats" && i + 1 < argc) {
@@ -252,7 +254,7 @@ int main(int argc, char** argv) {
     } else if (a == "--rounds" && i + 1 < argc) {
       constrained.rounds = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
     } else if (a == "--twicing-share" && i + 1 < argc) {
-      constrained.twicing_share = std::atof(argv[++i]);
+      constrained.twicing_share = constrained.twicing_share_flat = std::atof(argv[++i]);
     } else if (a == "--fit-sweeps" && i + 1 < argc) {
       constrained.normal_fit_sweeps = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
     } else if (a == "--list-far" && i + 1 < argc) {

@@ -30,9 +30,16 @@ void check_options(const LabelSurfaceOptions& o) {
     throw InputError("label surface: need iterations 0 or >= 2 and a pass band in (0, 2) (got " +
                      std::to_string(o.iterations) + ", " + std::to_string(o.pass_band) + ")");
   }
-  if (!(o.twicing_share >= 0.0 && o.twicing_share <= 2.0)) {
-    throw InputError("label surface: need a twicing share in [0, 2] (got " +
+  if (!(o.twicing_share >= 0.0 && o.twicing_share <= 2.0 && o.twicing_share_flat >= 0.0 &&
+        o.twicing_share_flat <= 2.0)) {
+    throw InputError("label surface: need twicing shares in [0, 2] (got " +
+                     std::to_string(o.twicing_share_flat) + " and " +
                      std::to_string(o.twicing_share) + ")");
+  }
+  if (!(o.twicing_bend_flat >= 0.0 && o.twicing_bend_sharp > o.twicing_bend_flat)) {
+    throw InputError("label surface: need twicing bends 0 <= flat < sharp (got " +
+                     std::to_string(o.twicing_bend_flat) + " and " +
+                     std::to_string(o.twicing_bend_sharp) + ")");
   }
 }
 
@@ -394,6 +401,52 @@ void fit_to_smooth_normals(std::span<Vec3> pos, const Neighbours& nb, std::size_
   }
 }
 
+/// Each vertex's share of the filtered residual added back (LabelSurfaceOptions::twicing_share),
+/// by how sharply the surface bends there against its sampling: the largest turn of its normal
+/// to a neighbour per millimetre, times its mean edge length, averaged over its neighbourhood.
+std::vector<double> twicing_shares(std::span<const Vec3> pos, const Neighbours& nb,
+                                   const LabelSurfaceOptions& o) {
+  constexpr int kAveragingSweeps = 5;
+  const std::size_t n = pos.size();
+  std::vector<Vec3> normal(n);
+  for (std::size_t v = 0; v < n; ++v) {
+    Vec3 sum(0.0);
+    for (std::uint32_t k = nb.offsets[v]; k < nb.offsets[v + 1]; ++k)
+      sum += glm::cross(pos[nb.adjacency[k]] - pos[v], pos[nb.before[k]] - pos[v]);
+    const double length = glm::length(sum);
+    normal[v] = length > 0.0 ? sum / length : Vec3(0.0);
+  }
+  std::vector<double> bend(n, 0.0), averaged(n, 0.0);
+  for (std::size_t v = 0; v < n; ++v) {
+    const std::uint32_t b = nb.offsets[v], e = nb.offsets[v + 1];
+    double sharpest = 0.0, edges = 0.0;
+    for (std::uint32_t k = b; k < e; ++k) {
+      const std::uint32_t x = nb.adjacency[k];
+      const double d = glm::length(pos[x] - pos[v]);
+      edges += d;
+      if (d > 0.0) sharpest = std::max(sharpest, glm::length(normal[x] - normal[v]) / d);
+    }
+    bend[v] = b == e ? 0.0 : sharpest * edges / static_cast<double>(e - b);
+  }
+  for (int sweep = 0; sweep < kAveragingSweeps; ++sweep) {
+    for (std::size_t v = 0; v < n; ++v) {
+      const std::uint32_t b = nb.offsets[v], e = nb.offsets[v + 1];
+      double sum = bend[v];
+      for (std::uint32_t k = b; k < e; ++k)
+        sum += bend[nb.adjacency[k]];
+      averaged[v] = sum / static_cast<double>(1 + e - b);
+    }
+    bend.swap(averaged);
+  }
+  std::vector<double> share(n);
+  for (std::size_t v = 0; v < n; ++v) {
+    const double t = std::clamp(
+        (bend[v] - o.twicing_bend_flat) / (o.twicing_bend_sharp - o.twicing_bend_flat), 0.0, 1.0);
+    share[v] = o.twicing_share_flat + t * (o.twicing_share - o.twicing_share_flat);
+  }
+  return share;
+}
+
 void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>& field,
                     const LabelSurfaceOptions& o, LabelSurfaceStats& stats) {
   const auto start = Clock::now();
@@ -430,6 +483,7 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
     }
   };
   std::vector<Vec3> smoothed(n), back(n);
+  std::vector<double> share;  // per vertex, set after the first round
   std::vector<std::uint8_t> held(n, 0);
   constexpr int kSpreadSweeps = 4;
   // From `from` (in the band) towards `to`: as far as the band goes.
@@ -454,8 +508,13 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
     for (std::size_t v = 0; v < n; ++v)
       input[v] = round == 0 ? Vec3(home[v]) : home[v] - pos[v];
     filter(smoothed);
-    for (std::size_t v = 0; v < n; ++v)
-      pos[v] = round == 0 ? smoothed[v] : pos[v] + o.twicing_share * smoothed[v];
+    if (round == 0) {
+      std::copy(smoothed.begin(), smoothed.end(), pos.begin());
+    } else {
+      if (share.empty()) share = twicing_shares(pos, nb, o);
+      for (std::size_t v = 0; v < n; ++v)
+        pos[v] += share[v] * smoothed[v];
+    }
     // Back into the band the voxels allow: along the way from its marching-cubes position (a
     // point of the band), as far as the band goes.
     clamped = 0;

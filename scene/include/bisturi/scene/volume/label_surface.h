@@ -21,9 +21,10 @@
 //    melt away.
 // Only positions move (outside repeated slices, whose interpolated sign may differ from the
 // indicator's). The slices are taken across the axis whose samples lie furthest apart (a
-// sagittal or coronal series as well as an axial one); along k where spacings tie. Figures against the plain extraction and against VTK's 3D Slicer pipeline
-// (vtkDiscreteFlyingEdges3D + vtkWindowedSincPolyDataFilter): tools/bench/label_surface_bench.cpp,
-// table in docs/scene/label-surfaces.md.
+// sagittal or coronal series as well as an axial one); along k where spacings tie. Figures against
+// the plain extraction and against VTK's 3D Slicer pipeline (vtkDiscreteFlyingEdges3D +
+// vtkWindowedSincPolyDataFilter): tools/bench/label_surface_bench.cpp, table in
+// docs/scene/label-surfaces.md.
 
 #include <array>
 #include <cstddef>
@@ -48,10 +49,17 @@ struct LabelSurfaceOptions {
   /// surface bench under VTK's (docs/scene/label-surfaces.md).
   std::size_t rounds = 2;
   /// The share of each later round's filtered residual that is added back (1: Tukey's
-  /// twicing), in [0, 2]. Four fifths: the whole of it brings back part of the terraces where
-  /// the voxels are fine against the shape (a 20 mm ball at 1 mm); with four fifths the fewest
-  /// figures of the label surface bench go to VTK (docs/scene/label-surfaces.md).
-  double twicing_share = 0.8;
+  /// twicing), in [0, 2], set per vertex by how sharply the surface bends there against its
+  /// sampling after the first round: the largest turn of its normal to a neighbour per
+  /// millimetre, times its mean edge length, averaged over its neighbourhood. Where that bend
+  /// is twicing_bend_flat or less (a wide curve over many samples) the residual is mostly the
+  /// staircase, and adding it back brings back part of the terraces: twicing_share_flat. From
+  /// twicing_bend_sharp on (a thin tube or a rounded end over a few samples) it is mostly shape
+  /// the filter took away: twicing_share. Linear between. Equal shares: one share everywhere.
+  double twicing_share = 1.0;
+  double twicing_share_flat = 0.3;
+  double twicing_bend_flat = 0.1;
+  double twicing_bend_sharp = 0.4;
   /// Sweeps that move each vertex along the smooth normals of its faces until the faces lie
   /// across them (the vertex update of Sun, Rosin, Martin and Langbein 2007), each followed by
   /// the band constraint: thin triangles spanning a slice no longer tilt with their corners'
