@@ -365,6 +365,18 @@ class BandTest {
   const Grid<float>& f_;
 };
 
+/// Each vertex's unit normal: the sum of its faces' area vectors, normalised (0 where they
+/// cancel).
+void vertex_normals(std::span<const Vec3> pos, const Neighbours& nb, std::vector<Vec3>& normal) {
+  for (std::size_t v = 0; v < pos.size(); ++v) {
+    Vec3 sum(0.0);
+    for (std::uint32_t k = nb.offsets[v]; k < nb.offsets[v + 1]; ++k)
+      sum += glm::cross(pos[nb.adjacency[k]] - pos[v], pos[nb.before[k]] - pos[v]);
+    const double length = glm::length(sum);
+    normal[v] = length > 0.0 ? sum / length : Vec3(0.0);
+  }
+}
+
 /// Sun, Rosin, Martin and Langbein, "Fast and effective feature-preserving mesh denoising"
 /// (2007), section 3.2: each vertex moves along its faces' smooth normals by the mean of its
 /// distances to their planes, so each face comes to lie across its smooth normal. The smooth
@@ -376,13 +388,7 @@ void fit_to_smooth_normals(std::span<Vec3> pos, const Neighbours& nb, std::size_
   const std::size_t n = pos.size();
   std::vector<Vec3> normal(n), moved(n);
   for (std::size_t sweep = 0; sweep < sweeps; ++sweep) {
-    for (std::size_t v = 0; v < n; ++v) {
-      Vec3 sum(0.0);
-      for (std::uint32_t k = nb.offsets[v]; k < nb.offsets[v + 1]; ++k)
-        sum += glm::cross(pos[nb.adjacency[k]] - pos[v], pos[nb.before[k]] - pos[v]);
-      const double length = glm::length(sum);
-      normal[v] = length > 0.0 ? sum / length : Vec3(0.0);
-    }
+    vertex_normals(pos, nb, normal);
     for (std::size_t v = 0; v < n; ++v) {
       const std::uint32_t b = nb.offsets[v], e = nb.offsets[v + 1];
       Vec3 move(0.0);
@@ -409,13 +415,7 @@ std::vector<double> twicing_shares(std::span<const Vec3> pos, const Neighbours& 
   constexpr int kAveragingSweeps = 5;
   const std::size_t n = pos.size();
   std::vector<Vec3> normal(n);
-  for (std::size_t v = 0; v < n; ++v) {
-    Vec3 sum(0.0);
-    for (std::uint32_t k = nb.offsets[v]; k < nb.offsets[v + 1]; ++k)
-      sum += glm::cross(pos[nb.adjacency[k]] - pos[v], pos[nb.before[k]] - pos[v]);
-    const double length = glm::length(sum);
-    normal[v] = length > 0.0 ? sum / length : Vec3(0.0);
-  }
+  vertex_normals(pos, nb, normal);
   std::vector<double> bend(n, 0.0), averaged(n, 0.0);
   for (std::size_t v = 0; v < n; ++v) {
     const std::uint32_t b = nb.offsets[v], e = nb.offsets[v + 1];
