@@ -234,7 +234,8 @@ int main(int argc, char** argv) {
     if (a == "--help" || a == "-h") {
       std::printf(
           "label_surface_bench [--repeats N] [--iterations N] [--pass-band K] [--rounds N]\n"
-          "                    [--twicing-share W] [--fit-sweeps N] [--spacing X,Y,Z]...\n"
+          "                    [--twicing-share W] [--twicing-shares FLAT,SHARP]\n"
+          "                    [--twicing-bends FLAT,SHARP] [--fit-sweeps N] [--spacing X,Y,Z]...\n"
           "                    [--json FILE]\n"
           "                    [--list-far MM]\n"
           "  surfaces of voxelised analytic solids against the true shape: marching cubes,\n"
@@ -242,7 +243,8 @@ int main(int argc, char** argv) {
           "  each --spacing (mm) replaces the default 0.6,0.6,1.3 and 1,1,3; --list-far writes\n"
           "  each vertex further than MM from the true surface to stderr, before its row;\n"
           "  --twicing-share W adds back one share W everywhere instead of the one the\n"
-          "  surface's bend sets\n");
+          "  surface's bend sets; --twicing-shares and --twicing-bends set the shares at\n"
+          "  and the bends of a flat and a sharply bent surface\n");
       return 0;
     }
     if (a == "--repeats" && i + 1 < argc) {
@@ -255,6 +257,18 @@ int main(int argc, char** argv) {
       constrained.rounds = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
     } else if (a == "--twicing-share" && i + 1 < argc) {
       constrained.twicing_share = constrained.twicing_share_flat = std::atof(argv[++i]);
+    } else if ((a == "--twicing-shares" || a == "--twicing-bends") && i + 1 < argc) {
+      double flat = 0.0, sharp = 0.0;
+      char tail = 0;
+      if (std::sscanf(argv[++i], "%lf,%lf%c", &flat, &sharp, &tail) != 2) {
+        std::fprintf(stderr, "label_surface_bench: %s wants FLAT,SHARP, got '%s'\n", a.c_str(),
+                     argv[i]);
+        return 2;
+      }
+      (a == "--twicing-shares" ? constrained.twicing_share_flat : constrained.twicing_bend_flat) =
+          flat;
+      (a == "--twicing-shares" ? constrained.twicing_share : constrained.twicing_bend_sharp) =
+          sharp;
     } else if (a == "--fit-sweeps" && i + 1 < argc) {
       constrained.normal_fit_sweeps = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
     } else if (a == "--list-far" && i + 1 < argc) {
