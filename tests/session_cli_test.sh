@@ -21,8 +21,8 @@ case "$mode" in
     ls "$work/run/frames/"*.png > /dev/null 2>&1 || fail "no PNG frames"
     for key in haptic_period_ms haptic_period_error_ms step_ms cut_step_ms frame_ms \
                motion_to_photon_ms action_to_response_ms haptic_wake_late_us haptic_spin_us \
-               '"p50"' '"p95"' '"p99"' '"max"' overruns missed_deadlines \
-               clamped_forces dropped_frames '"events"' final_state_hash render_fps; do
+               '"p50"' '"p95"' '"p99"' '"max"' overruns missed_deadlines missed_before_cut \
+               missed_after_cut clamped_forces dropped_frames '"events"' final_state_hash render_fps; do
       grep -q "$key" "$work/run/report.json" || fail "report.json has no $key"
     done
     grep -q '"kind": "contact"' "$work/run/report.json" || fail "no contact event in one second"

@@ -11,6 +11,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -381,6 +382,41 @@ TEST(HapticLoop, ALostHeadTrackerLeavesTheTicksRunning) {
   EXPECT_GE(rig.loop->counters().head_lost_s, 0.0);
   EXPECT_FALSE(rig.loop->device_lost());
   EXPECT_EQ(rig.loop->counters().ticks, 200u);
+}
+
+TEST(Session, MissedDeadlinesAreSplitAtTheFirstCut) {
+  SessionReport report;
+  report.ticks = 3000;
+  report.missed_deadlines = 4;
+  report.missed_deadline_ticks = {5, 999, 1000, 2500};
+  report.first_cut_tick = 1000;
+  MissedAroundCut around = missed_around_first_cut(report);
+  EXPECT_EQ(around.before, 2u);
+  EXPECT_EQ(around.after, 2u);
+  EXPECT_EQ(around.ticks_before, 1000u);
+  EXPECT_EQ(around.ticks_after, 2000u);
+  report.first_cut_tick = -1;  // no cut: all before
+  around = missed_around_first_cut(report);
+  EXPECT_EQ(around.before, 4u);
+  EXPECT_EQ(around.ticks_after, 0u);
+  report.first_cut_tick = 1000;
+  report.missed_deadlines = 6;  // two past the room kept: counted with the last ones
+  EXPECT_EQ(missed_around_first_cut(report).after, 4u);
+
+  // A live default session: its procedure cuts, and every missed deadline is kept in order.
+  SessionOptions options;
+  options.duration_s = 2.0;
+  options.openxr = false;
+  options.eye_width = options.eye_height = 64;
+  const SessionReport r = run_session(default_scene(), options);
+  ASSERT_EQ(r.ending, "completed");
+  EXPECT_GT(r.first_cut_tick, 0);
+  EXPECT_LT(r.first_cut_tick, static_cast<std::int64_t>(r.ticks));
+  EXPECT_EQ(r.missed_deadline_ticks.size(), r.missed_deadlines);
+  EXPECT_TRUE(std::is_sorted(r.missed_deadline_ticks.begin(), r.missed_deadline_ticks.end()));
+  const MissedAroundCut live = missed_around_first_cut(r);
+  EXPECT_EQ(live.before + live.after, r.missed_deadlines);
+  EXPECT_EQ(live.ticks_before + live.ticks_after, r.ticks);
 }
 
 TEST(Session, AFailedTraceWriteStopsTheRecordingNotTheSession) {

@@ -270,6 +270,7 @@ int run_run(const RunOptions& options) {
   sigaction(SIGINT, &old_int, nullptr);
   sigaction(SIGTERM, &old_term, nullptr);
   line.clear();
+  const runtime::MissedAroundCut around = runtime::missed_around_first_cut(r);
 
   // Plots.
   const auto hist = [&](const char* file, const char* title, const runtime::TimingRecorder& t) {
@@ -446,6 +447,10 @@ int run_run(const RunOptions& options) {
        {{"overruns", r.overruns},
         {"missed_deadlines", r.missed_deadlines},
         {"missed_by_late_wakeup", r.missed_by_late_wakeup},
+        {"missed_before_cut", around.before},
+        {"missed_after_cut", around.after},
+        {"ticks_before_cut", around.ticks_before},
+        {"ticks_after_cut", around.ticks_after},
         {"skipped_ticks", r.skipped_ticks},
         {"late_ticks", r.late_ticks},
         {"max_tissue_backlog", r.max_tissue_backlog},
@@ -507,7 +512,9 @@ int run_run(const RunOptions& options) {
               << "  haptic period error p99 " << p.p99 << " ms, max " << p.max << " ms; "
               << r.missed_deadlines << " missed deadlines (" << r.missed_by_late_wakeup
               << " woken late, spinning " << r.haptic_spin_us.summary().p50
-              << " us before a tick at the median), " << r.overruns << " overruns; step p99 "
+              << " us before a tick at the median; " << around.before << " in "
+              << around.ticks_before << " ticks before the first cut, " << around.after << " in "
+              << around.ticks_after << " from it), " << r.overruns << " overruns; step p99 "
               << r.step_ms.summary().p99 << " ms" << cut_note.str() << ", " << r.late_ticks
               << " late ticks; tissue at " << r.haptic_hz / r.tissue_ticks_per_step << " Hz ("
               << (r.adaptive_tissue_rate ? "adaptive, " : "fixed, ") << r.tissue_rate_changes

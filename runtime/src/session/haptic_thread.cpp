@@ -93,6 +93,9 @@ void run_haptic_thread(HapticLoop& loop, devices::Clock& clock, const HapticPaci
     next += period;
     if (end > next) {
       ++report.missed_deadlines;
+      // Kept up to the room reserved before the session: nothing is allocated here.
+      if (report.missed_deadline_ticks.size() < report.missed_deadline_ticks.capacity())
+        report.missed_deadline_ticks.push_back(k);
       // The tick's own work took under half a period: the thread was started late (the OS, or
       // on a virtual machine the hypervisor, had the core), not slowed by its work.
       if (end - start < period / 2) ++report.missed_by_late_wakeup;

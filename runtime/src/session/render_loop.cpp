@@ -566,6 +566,8 @@ void run_render_loop(const RenderLoopContext& c) {
         }
       }
     }
+    if (incisions_seen == 0 && !s.incisions.empty())
+      report.first_cut_tick = static_cast<std::int64_t>(s.tick);
     incisions_seen = s.incisions.size();
     for (std::size_t k = 0; k < inner_ids.size(); ++k) {
       DrawnSurface& in = *(*c.inner)[k].surface;

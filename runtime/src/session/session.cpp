@@ -534,6 +534,8 @@ SessionReport run_session(const SceneDescription& scene, const SessionOptions& o
   const Nanoseconds period{static_cast<std::int64_t>(std::llround(1e9 / scene.rates.haptic_hz))};
   const Nanoseconds spin{static_cast<std::int64_t>(options.spin_us * 1e3)};
   report.force.reserve(static_cast<std::size_t>(report.duration_s * 200.0) + 16);
+  report.missed_deadline_ticks.reserve(
+      static_cast<std::size_t>(report.duration_s * scene.rates.haptic_hz / 10.0) + 16);
   LiveTickSteps steps(tissue, options.adaptive_tissue_rate,
                       TissueRateController(first_ticks_per_step, options.max_tissue_ticks_per_step,
                                            ms(period), options.tissue_max_load));

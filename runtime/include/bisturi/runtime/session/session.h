@@ -271,6 +271,12 @@ struct SessionReport {
   /// Missed deadlines of ticks whose own work took under half a period: the thread was woken
   /// late (compare tools/bench/timer_bench: the machine's own floor).
   std::uint64_t missed_by_late_wakeup = 0;
+  /// The tick of each missed deadline, in order (kept up to the room reserved before the
+  /// session: a tenth of its ticks), and the tick of the step that made the first cut (-1: no
+  /// cut): the deadlines missed before the cut and after it (missed_around_first_cut), with
+  /// and without the bleeding that follows a cut in one run.
+  std::vector<std::uint64_t> missed_deadline_ticks;
+  std::int64_t first_cut_tick = -1;
   std::uint64_t skipped_ticks = 0;   ///< periods dropped when the loop fell behind
   std::uint64_t clamped_forces = 0;  ///< force guard clamps
   std::uint64_t rate_limited_forces = 0;
@@ -345,6 +351,16 @@ std::uint32_t auto_tissue_threads(std::size_t simulated_vertices, unsigned cores
 /// TraceError (a device or the trace cannot be opened). Once the session runs, every ending
 /// returns a whole report (see SessionReport::ending).
 SessionReport run_session(const SceneDescription& scene, const SessionOptions& options);
+
+/// A report's missed deadlines before its first cut and from it on (all before when there was
+/// no cut), from the ticks it kept (SessionReport::missed_deadline_ticks).
+struct MissedAroundCut {
+  std::uint64_t before = 0;
+  std::uint64_t after = 0;
+  std::uint64_t ticks_before = 0;  ///< haptic ticks before the cut
+  std::uint64_t ticks_after = 0;
+};
+MissedAroundCut missed_around_first_cut(const SessionReport& report);
 
 /// The configuration a session writes into its trace (JSON): the force guard's settings and the
 /// scene's TOML text, so a replay rebuilds the same session from the trace alone. The first
