@@ -59,7 +59,7 @@ struct LabelSurfaceOptions {
   double twicing_share = 1.0;
   double twicing_share_flat = 0.3;
   double twicing_bend_flat = 0.1;
-  double twicing_bend_sharp = 0.4;
+  double twicing_bend_sharp = 0.3;
   /// Sweeps that move each vertex along the smooth normals of its faces until the faces lie
   /// across them (the vertex update of Sun, Rosin, Martin and Langbein 2007), each followed by
   /// the band constraint: thin triangles spanning a slice no longer tilt with their corners'
