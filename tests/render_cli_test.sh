@@ -1,7 +1,8 @@
 #!/bin/sh
 # bisturi render SCENE as a user runs it: the liver scene's lesion and vein are culled as hidden
 # inside the closed liver (occlusion) and, with the procedure's incision, as seen through no
-# opening in the frames where the incision does not face the eyes (portal), never both.
+# opening in the frames where the incision does not face the eyes (portal), never both; with
+# --occlusion the depth test only adds to what is culled.
 # $1: bisturi, $2: work folder, $3: the liver scene.
 set -u
 bisturi=$1
@@ -19,6 +20,15 @@ awk -v o="$(culled "$work/closed.json" occlusion)" -v p="$(culled "$work/closed.
   'BEGIN { exit !(o > 0 && p == 0) }' || fail "closed: occlusion $(culled "$work/closed.json" occlusion), portal $(culled "$work/closed.json" portal)"
 awk -v o="$(culled "$work/cut.json" occlusion)" -v p="$(culled "$work/cut.json" portal)" \
   'BEGIN { exit !(o == 0 && p > 0) }' || fail "cut: occlusion $(culled "$work/cut.json" occlusion), portal $(culled "$work/cut.json" portal)"
+# With the depth test too (--occlusion) the same levels are drawn: it can only move triangles
+# from submitted to culled by occlusion.
+"$bisturi" render "$scene" --occlusion --out "$work/depth" --frames 8 --eye-width 64 \
+  --eye-height 64 --json > "$work/depth.json" || fail "bisturi render --occlusion exited with $?"
+awk -v a="$(culled "$work/depth.json" occlusion)" -v b="$(culled "$work/closed.json" occlusion)" \
+  -v ta="$(culled "$work/depth.json" triangles_per_frame)" \
+  -v tb="$(culled "$work/closed.json" triangles_per_frame)" \
+  'BEGIN { exit !(a >= b && ta + a == tb + b) }' ||
+  fail "--occlusion: $(culled "$work/depth.json" triangles_per_frame) submitted and $(culled "$work/depth.json" occlusion) hidden, against $(culled "$work/closed.json" triangles_per_frame) and $(culled "$work/closed.json" occlusion)"
 "$bisturi" render --phantom sphere --incision --out "$work/x" > "$work/bad.txt" 2>&1 &&
   fail "--incision on a phantom was taken"
 grep -q "scene files" "$work/bad.txt" || { cat "$work/bad.txt"; fail "--incision on a phantom: no reason given"; }
