@@ -169,19 +169,16 @@ void OccluderDepth::add_to(Eye& eye, std::span<const float> vertices, std::size_
   }
   int x0 = 0, y0 = 0, x1 = 0, y1 = 0;
   if (!cell_span(lo.x, lo.y, hi.x, hi.y, columns_, rows_, x0, y0, x1, y1)) return;
-  for (int y = y0; y <= y1; ++y) {
-    const std::size_t row = static_cast<std::size_t>(y) * columns_;
-    std::fill(
-        centred_.begin() + static_cast<std::ptrdiff_t>(row + static_cast<std::size_t>(x0)),
-        centred_.begin() + static_cast<std::ptrdiff_t>(row + static_cast<std::size_t>(x1) + 1), 0);
-    std::fill(
-        crossed_.begin() + static_cast<std::ptrdiff_t>(row + static_cast<std::size_t>(x0)),
-        crossed_.begin() + static_cast<std::ptrdiff_t>(row + static_cast<std::size_t>(x1) + 1), 0);
-    std::fill(
-        farthest_.begin() + static_cast<std::ptrdiff_t>(row + static_cast<std::size_t>(x0)),
-        farthest_.begin() + static_cast<std::ptrdiff_t>(row + static_cast<std::size_t>(x1) + 1),
-        -kNone);
-  }
+  // This surface's scratch, over the cells its triangles span.
+  const auto clear = [&](auto& per_cell, auto value) {
+    for (int y = y0; y <= y1; ++y) {
+      const auto row = per_cell.begin() + static_cast<std::ptrdiff_t>(y) * columns_;
+      std::fill(row + x0, row + x1 + 1, value);
+    }
+  };
+  clear(centred_, std::uint8_t{0});
+  clear(crossed_, std::uint8_t{0});
+  clear(farthest_, -kNone);
 
   // Drawn triangles: the cells whose centres they hold, and their farthest corner in each cell
   // they touch (separating axes: the span's box axes, then the three edges' normals).
