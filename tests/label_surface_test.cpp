@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include <glm/gtc/matrix_transform.hpp>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -318,6 +320,35 @@ TEST(LabelSurface, AnEndBesideAnotherObjectIsACapToo) {
               right_top - (right.z + 8.0));
   EXPECT_NEAR(left_top, left.z + 8.0, 0.3);
   EXPECT_NEAR(right_top, right.z + 8.0, 0.3);
+}
+
+TEST(LabelSurface, AnEndLiesWhereTheAreasOfTheLastSlicesPutIt) {
+  // A tilted ellipsoid (semi-axes 25, 15 and 10 mm) in 3 x 1 x 1 mm slices along x, placed two
+  // ways on the grid. The slices' areas narrow towards an end as an ellipsoid's do. Fitted to
+  // the slices' largest in-slice distances instead (whole-sample steps, a fifth of the radius
+  // here), the caps ended 0.62 and 0.40 mm past the tips; 0.28 mm at most when written.
+  const glm::dmat3 turn = glm::dmat3(glm::rotate(glm::dmat4(1.0), 0.35, dvec3(0, 0, 1))) *
+                          glm::dmat3(glm::rotate(glm::dmat4(1.0), 0.52, dvec3(1, 0, 0)));
+  const dvec3 semi(25.0, 15.0, 10.0), centre(0.37, -0.21, 0.53);
+  const Distance ellipsoid = [&](const dvec3& p) {  // not a distance, but its sign is right
+    const dvec3 q = glm::transpose(turn) * (p - centre) / semi;
+    return glm::length(q) - 1.0;
+  };
+  // The extent along x: the semi-axes' reach along x, summed in quadrature.
+  const double reach = glm::length(semi * dvec3(turn[0][0], turn[1][0], turn[2][0]));
+  for (const double shift : {0.0, 1.1}) {
+    const dvec3 moved = centre + dvec3(shift, 0.0, 0.0);
+    const Distance at = [&](const dvec3& p) { return ellipsoid(p - moved + centre); };
+    const PolygonMesh m = extract_label_surface_mesh(voxelise(at, {3.0, 1.0, 1.0}, 34.0), kLabel);
+    double low = 1e9, high = -1e9;
+    for (const auto& p : m.positions) {
+      low = std::min(low, p.x);
+      high = std::max(high, p.x);
+    }
+    const double below = low - (moved.x - reach), above = high - (moved.x + reach);
+    std::printf("shifted %.1f mm: the ends %.2f and %.2f mm off\n", shift, below, above);
+    EXPECT_LT(std::max(std::abs(below), std::abs(above)), 0.35);
+  }
 }
 
 TEST(LabelSurface, ARingsTubeEndsUnderItsOwnWidth) {

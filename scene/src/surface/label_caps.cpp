@@ -13,15 +13,19 @@ namespace bisturi {
 namespace {
 
 /// A region's radius (its largest in-slice distance) in its last slice and in the two slices
-/// before it, over the same samples (0 where there is no such slice).
+/// before it, over the same samples (0 where there is no such slice). Where the label ends over
+/// the region, also its area (in samples) in those slices: the area of the region in the last
+/// slice and of the inside samples joined to it in the slices before.
 struct Radii {
   float last = -1.0F, before = 0.0F, before2 = 0.0F;
   /// No sample of the region is inside in the slice beyond it: the label ends over it.
   bool ends = true;
+  float area_last = 0.0F, area_before = 0.0F, area_before2 = 0.0F;
 };
 
 /// The 4-connected inside regions of one slice, flooded as they are asked for, with their radii
-/// in it and in the two slices before it (away from the slice beyond).
+/// (and areas, where the label ends over them) in it and in the two slices before it (away from
+/// the slice beyond).
 class SliceRegions {
  public:
   explicit SliceRegions(const Grid<float>& field)
@@ -30,7 +34,8 @@ class SliceRegions {
         ny_(field.geometry.dims[1]),
         nz_(field.geometry.dims[2]),
         radii_(static_cast<std::size_t>(nx_ * ny_)),
-        stamp_(static_cast<std::size_t>(nx_ * ny_), -1) {}
+        stamp_(static_cast<std::size_t>(nx_ * ny_), -1),
+        joined_stamp_(static_cast<std::size_t>(nx_ * ny_), 0) {}
 
   /// Looks at slice k, the slice beyond it k + step.
   void look_at(std::int64_t k, std::int64_t step) {
@@ -78,54 +83,114 @@ class SliceRegions {
         stack_.push_back(n);
       }
     }
+    if (most.ends) {
+      most.area_last = static_cast<float>(members_.size());
+      std::vector<std::int64_t>& inner_members = joined_;
+      most.area_before = static_cast<float>(join(inner, members_, inner_members));
+      if (!inner_members.empty()) {
+        std::vector<std::int64_t> seeds(inner_members);
+        most.area_before2 = static_cast<float>(join(inner2, seeds, inner_members));
+      }
+    }
     for (const std::int64_t m : members_)
       radii_[static_cast<std::size_t>(m)] = most;
+  }
+
+  /// Floods the inside samples of `slice` (may be null) joined to `seeds` (4-connected, starting
+  /// from the seeds inside there) into `joined`; returns how many.
+  std::size_t join(const float* slice, const std::vector<std::int64_t>& seeds,
+                   std::vector<std::int64_t>& joined) {
+    joined.clear();
+    if (slice == nullptr) return 0;
+    ++join_generation_;
+    stack_.clear();
+    for (const std::int64_t s : seeds) {
+      if (slice[s] <= 0.0F || joined_stamp_[static_cast<std::size_t>(s)] == join_generation_)
+        continue;
+      joined_stamp_[static_cast<std::size_t>(s)] = join_generation_;
+      stack_.push_back(s);
+    }
+    while (!stack_.empty()) {
+      const std::int64_t s = stack_.back();
+      stack_.pop_back();
+      joined.push_back(s);
+      const std::int64_t x = s % nx_, y = s / nx_;
+      const std::int64_t next[4] = {x > 0 ? s - 1 : -1, x + 1 < nx_ ? s + 1 : -1,
+                                    y > 0 ? s - nx_ : -1, y + 1 < ny_ ? s + nx_ : -1};
+      for (const std::int64_t n : next) {
+        if (n < 0 || slice[n] <= 0.0F ||
+            joined_stamp_[static_cast<std::size_t>(n)] == join_generation_)
+          continue;
+        joined_stamp_[static_cast<std::size_t>(n)] = join_generation_;
+        stack_.push_back(n);
+      }
+    }
+    return joined.size();
   }
 
   const Grid<float>& field_;
   std::int64_t nx_, ny_, nz_;
   std::int64_t k_ = 0, step_ = 1, generation_ = -1;
   std::vector<Radii> radii_;
-  std::vector<std::int64_t> stamp_;  ///< the look a sample's radii were found in
-  std::vector<std::int64_t> stack_, members_;
+  std::vector<std::int64_t> stamp_;         ///< the look a sample's radii were found in
+  std::vector<std::int64_t> joined_stamp_;  ///< the join that reached a sample last
+  std::int64_t join_generation_ = 0;
+  std::vector<std::int64_t> stack_, members_, joined_;
 };
 
-/// How far past the last slice (in slice spacings) the end lies above a sample `rho` from its
-/// region's middle. The region's radius over depth D below the end is fitted as an ellipsoid's,
-/// r^2 = alpha D - beta D^2, through its radii in the last three slices (exact for the end of an
-/// ellipsoid or a ball; beta 0 is a paraboloid); with two, or where that puts the end a spacing
-/// or more away, a paraboloid through both outlines; where the region does not narrow towards
-/// the end (a flat end), a paraboloid half a spacing high, where such an end lies on average.
-double cap_height(double rho, const Radii& r, double dz) {
-  const double r1 = r.last, r2 = r.before, r3 = r.before2;
+/// A region's size in its last three slices, as squares of a width: its radius squared, or its
+/// area (both change as alpha D - beta D^2 over depth D under an ellipsoid's or a ball's end).
+struct SquaredSizes {
+  double last = 0.0, before = 0.0, before2 = 0.0;
+};
+
+/// How far past the last slice (in slice spacings) the end lies above a sample at `u` (its
+/// distance from its region's middle over the region's radius, 0 to 1). The region's squared
+/// size over depth D below the end is fitted as an ellipsoid's, alpha D - beta D^2, through the
+/// last three slices (exact for the end of an ellipsoid or a ball; beta 0 is a paraboloid); with
+/// two, or where that puts the end a spacing or more away, a paraboloid through both outlines;
+/// where the region does not narrow towards the end (a flat end), a paraboloid half a spacing
+/// high, where such an end lies on average. The sample lies on the outline of the section whose
+/// size is u times the last one's.
+double cap_height(double u, const SquaredSizes& s, double dz) {
+  const double s1 = s.last, s2 = s.before, s3 = s.before2;
+  const double own = u * u * s1;  // the squared size of the section through the sample
   const auto height = [&](double alpha, double beta, double depth) {
-    // The depth below the end where the radius is rho: beta D^2 - alpha D + rho^2 = 0.
-    const double disc = alpha * alpha - 4.0 * beta * rho * rho;
-    const double d = std::abs(beta) < 1e-12
-                         ? rho * rho / alpha
+    // The depth below the end where the squared size is own: beta D^2 - alpha D + own = 0.
+    const double disc = alpha * alpha - 4.0 * beta * own;
+    const double d = std::abs(beta) < 1e-12 * alpha * alpha / std::max(s1, 1e-30)
+                         ? own / alpha
                          : (alpha - std::sqrt(std::max(disc, 0.0))) / (2.0 * beta);
     return (depth - d) / dz;
   };
-  if (r2 > r1 && r3 > r2) {
-    const double d1 = r2 * r2 - r1 * r1, d2 = r3 * r3 - r2 * r2;
+  if (s2 > s1 && s3 > s2) {
+    const double d1 = s2 - s1, d2 = s3 - s2;
     const double beta = (d1 - d2) / (2.0 * dz * dz);
     const double a = (d1 + beta * dz * dz) / dz;  // alpha - 2 beta h
-    // beta h^2 + a h - r1^2 = 0 for the last slice's depth h.
+    // beta h^2 + a h - s1 = 0 for the last slice's depth h.
+    const bool linear = std::abs(beta) * s1 < 1e-12 * a * a;
     const double h =
-        std::abs(beta) < 1e-12
-            ? r1 * r1 / a
-            : (-a + std::sqrt(std::max(a * a + 4.0 * beta * r1 * r1, 0.0))) / (2.0 * beta);
+        linear ? s1 / a : (-a + std::sqrt(std::max(a * a + 4.0 * beta * s1, 0.0))) / (2.0 * beta);
     if (a > 0.0 && h > 0.0 && h < dz) {
       return height(a + 2.0 * beta * h, beta, h);
     }
   }
-  const double u = rho / r1;
-  if (r2 > r1) {
-    // A paraboloid (r^2 = 2 R D) through both outlines: its end r1^2 / (r2^2 - r1^2) spacings
-    // past the last slice, at most 0.7 (a paraboloid's end lies further than a flatter end's).
-    return std::clamp(r1 * r1 / (r2 * r2 - r1 * r1), 0.1, 0.7) * (1.0 - u * u);
+  if (s2 > s1) {
+    // A paraboloid (r^2 = 2 R D) through both outlines: its end s1 / (s2 - s1) spacings past
+    // the last slice, at most 0.7 (a paraboloid's end lies further than a flatter end's).
+    return std::clamp(s1 / (s2 - s1), 0.1, 0.7) * (1.0 - u * u);
   }
   return 0.5 * (1.0 - u * u);
+}
+
+/// A region's radius squared in its last three slices.
+SquaredSizes squared_radii(const Radii& r) {
+  return {double(r.last) * r.last, double(r.before) * r.before, double(r.before2) * r.before2};
+}
+
+/// A region's area in its last three slices.
+SquaredSizes areas(const Radii& r) {
+  return {r.area_last, r.area_before, r.area_before2};
 }
 
 /// A sample whose local radius is under this share of its region's is on a part of the region
@@ -249,10 +314,11 @@ void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<fl
       double t = 0.0;
       if (const float local = narrow_part_end_radius(field, i, j, last, r, inside, outside);
           local > 0.0F) {
-        t = cap_height(std::max(local - inside, 0.0),
-                       local_radii(field, i, j, last, local, rising ? 1 : -1), g.spacing.z);
+        t = cap_height(std::max(local - inside, 0.0) / local,
+                       squared_radii(local_radii(field, i, j, last, local, rising ? 1 : -1)),
+                       g.spacing.z);
       } else if (r.ends) {
-        t = cap_height(rho, r, g.spacing.z);
+        t = cap_height(rho / r.last, areas(r), g.spacing.z);
       } else {
         // The region goes on narrowing into the slice beyond: its width there at the sample's
         // place is rho + outside. The square of a width, not the width, changes evenly from

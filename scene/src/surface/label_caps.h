@@ -7,8 +7,8 @@
 // to the slice beyond, and two objects one empty slice apart bulge towards each other across it.
 // Instead, each vertex on a crossed edge from such a region to the slice beyond goes where a
 // cap over the region puts it, by the sample's in-slice distance to the outline against the
-// largest in its region (the region's "radius") and by how the radius narrows over the last
-// three slices (label_caps.cpp, cap_height). It meets the sides at the outline and is highest
+// largest in its region (the region's "radius") and by how the region's area narrows over the
+// last three slices (label_caps.cpp, cap_height). It meets the sides at the outline and is highest
 // over the region's middle, as a convex end is. A part of a region narrower than its middle (a
 // crescent's arm, the top of a ring's tube, a saddle where the slice beyond holds the region on
 // either side but not over it) ends under a cap of its own width: the radius of the widest
