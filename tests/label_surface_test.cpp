@@ -301,6 +301,31 @@ TEST(LabelSurface, AnEndOverAnEmptySliceIsACapNotABulge) {
   EXPECT_EQ(st.parts.size(), 2u);
 }
 
+TEST(LabelSurface, ASolidThreeSlicesHighEndsWhereItsWidestSliceSaysItNarrows) {
+  // Two ellipsoids 12 mm high (semi-axes 16, 11 and 6 mm) in 1.2 x 1.2 x 4 mm slices, 4.8 mm
+  // apart with a slice between them: each holds three slices, its middle one the widest, so
+  // the slices' areas rise and fall. Fitted through all three, each end facing the gap lies
+  // near the true one; a paraboloid through the last two put it 1.3 mm into the gap.
+  const double half_gap = 2.4;
+  const dvec3 semi(16.0, 11.0, 6.0);
+  const Distance ellipsoids = [&](const dvec3& p) {  // not a distance, but its sign is right
+    const dvec3 lower = (p - dvec3(0.3, -0.2, -half_gap - semi.z)) / semi;
+    const dvec3 upper = (p - dvec3(0.3, -0.2, half_gap + semi.z)) / semi;
+    return std::min(glm::length(lower), glm::length(upper)) - 1.0;
+  };
+  const Grid<float> labels = voxelise(ellipsoids, {1.2, 1.2, 4.0}, 24.0);
+  ASSERT_NEAR(std::fmod(labels.geometry.origin.z, 4.0), 0.0, 1e-9);  // a slice at z = 0
+  const PolygonMesh m = extract_label_surface_mesh(labels, kLabel);
+  double lower_top = -1e9, upper_bottom = 1e9;
+  for (const auto& p : m.positions) {
+    if (p.z < 0.0) lower_top = std::max(lower_top, p.z);
+    if (p.z > 0.0) upper_bottom = std::min(upper_bottom, p.z);
+  }
+  std::printf("ends %.2f and %.2f mm off\n", lower_top + half_gap, half_gap - upper_bottom);
+  EXPECT_NEAR(lower_top, -half_gap, 0.3);  // 0.06 mm off when written
+  EXPECT_NEAR(upper_bottom, half_gap, 0.3);
+}
+
 TEST(LabelSurface, AnEndBesideAnotherObjectIsACapToo) {
   // Two balls of 8 mm side by side (1 x 1 x 3 mm), the right one 5.6 mm higher: the slices over
   // the left one's top still hold the right one, so no slice beyond it is empty, yet the left

@@ -147,7 +147,8 @@ struct SquaredSizes {
 /// How far past the last slice (in slice spacings) the end lies above a sample at `u` (its
 /// distance from its region's middle over the region's radius, 0 to 1). The region's squared
 /// size over depth D below the end is fitted as an ellipsoid's, alpha D - beta D^2, through the
-/// last three slices (exact for the end of an ellipsoid or a ball; beta 0 is a paraboloid); with
+/// last three slices (exact for the end of an ellipsoid or a ball; beta 0 is a paraboloid), also
+/// where the middle one is the widest (a solid three slices high, whose far end is near); with
 /// two, or where that puts the end a spacing or more away, a paraboloid through both outlines;
 /// where the region does not narrow towards the end (a flat end), a paraboloid half a spacing
 /// high, where such an end lies on average. The sample lies on the outline of the section whose
@@ -163,7 +164,7 @@ double cap_height(double u, const SquaredSizes& s, double dz) {
                          : (alpha - std::sqrt(std::max(disc, 0.0))) / (2.0 * beta);
     return (depth - d) / dz;
   };
-  if (s2 > s1 && s3 > s2) {
+  if (s2 > s1 && s3 > 0.0) {
     const double d1 = s2 - s1, d2 = s3 - s2;
     const double beta = (d1 - d2) / (2.0 * dz * dz);
     const double a = (d1 + beta * dz * dz) / dz;  // alpha - 2 beta h
