@@ -326,6 +326,38 @@ TEST(LabelSurface, ASolidThreeSlicesHighEndsWhereItsWidestSliceSaysItNarrows) {
   EXPECT_NEAR(upper_bottom, half_gap, 0.3);
 }
 
+TEST(LabelSurface, BothEndsOfASolidTwoSlicesHighShareTheSpacingBeyondIt) {
+  // Two ellipsoids 12 mm high (semi-axes 16, 11 and 6 mm) in 1 x 1 x 5 mm slices, one empty
+  // slice between them: each holds two slices, 1 and 4 mm from its middle, so its ends lie 2
+  // and 5 mm past them. Two slices say only how the solid narrows from one to the other; a
+  // solid as high as it is likely to be (twice the spacing, its ends sharing the spacing beyond
+  // its slices) puts the ends 1.5 and 3.5 mm past them. Taken as a flat end and as a paraboloid
+  // through both outlines, they lay 2.5 and 3.5 mm past them: 2.48 mm off at worst, against 1.43
+  // when written.
+  const dvec3 semi(16.0, 11.0, 6.0);
+  const double lower_z = -9.0, upper_z = 9.0;        // the slices at -10, -5, 5 and 10 are inside
+  const Distance ellipsoids = [&](const dvec3& p) {  // not a distance, but its sign is right
+    const dvec3 lower = (p - dvec3(0.3, -0.2, lower_z)) / semi;
+    const dvec3 upper = (p - dvec3(0.3, -0.2, upper_z)) / semi;
+    return std::min(glm::length(lower), glm::length(upper)) - 1.0;
+  };
+  const Grid<float> labels = voxelise(ellipsoids, {1.0, 1.0, 5.0}, 25.0);
+  ASSERT_NEAR(std::fmod(labels.geometry.origin.z, 5.0), 0.0, 1e-9);  // a slice at z = 0
+  const PolygonMesh m = extract_label_surface_mesh(labels, kLabel);
+  double ends[4] = {1e9, -1e9, 1e9, -1e9};  // lowest and highest z of each
+  for (const auto& p : m.positions) {
+    double* e = p.z < 0.0 ? ends : ends + 2;
+    e[0] = std::min(e[0], p.z);
+    e[1] = std::max(e[1], p.z);
+  }
+  const double truth[4] = {lower_z - 6.0, lower_z + 6.0, upper_z - 6.0, upper_z + 6.0};
+  double worst = 0.0;
+  for (int i = 0; i < 4; ++i)
+    worst = std::max(worst, std::abs(ends[i] - truth[i]));
+  std::printf("ends %.2f mm off at worst\n", worst);
+  EXPECT_LT(worst, 2.0);
+}
+
 TEST(LabelSurface, AnEndBesideAnotherObjectIsACapToo) {
   // Two balls of 8 mm side by side (1 x 1 x 3 mm), the right one 5.6 mm higher: the slices over
   // the left one's top still hold the right one, so no slice beyond it is empty, yet the left

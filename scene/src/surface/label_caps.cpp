@@ -142,17 +142,20 @@ class SliceRegions {
 /// area (both change as alpha D - beta D^2 over depth D under an ellipsoid's or a ball's end).
 struct SquaredSizes {
   double last = 0.0, before = 0.0, before2 = 0.0;
+  /// The solid is these two slices high: nothing lies beyond the one before the last either.
+  bool two_slices_high = false;
 };
 
 /// How far past the last slice (in slice spacings) the end lies above a sample at `u` (its
 /// distance from its region's middle over the region's radius, 0 to 1). The region's squared
 /// size over depth D below the end is fitted as an ellipsoid's, alpha D - beta D^2, through the
 /// last three slices (exact for the end of an ellipsoid or a ball; beta 0 is a paraboloid), also
-/// where the middle one is the widest (a solid three slices high, whose far end is near); with
-/// two, or where that puts the end a spacing or more away, a paraboloid through both outlines;
-/// where the region does not narrow towards the end (a flat end), a paraboloid half a spacing
-/// high, where such an end lies on average. The sample lies on the outline of the section whose
-/// size is u times the last one's.
+/// where the middle one is the widest (a solid three slices high, whose far end is near). A solid
+/// only two slices high has its two ends share the spacing beyond them. Otherwise, or where the
+/// fit puts the end a spacing or more away, it is a paraboloid through both outlines; where the
+/// region does not narrow towards the end (a flat end), a paraboloid half a spacing high, where
+/// such an end lies on average. The sample lies on the outline of the section whose size is u
+/// times the last one's.
 double cap_height(double u, const SquaredSizes& s, double dz) {
   const double s1 = s.last, s2 = s.before, s3 = s.before2;
   const double own = u * u * s1;  // the squared size of the section through the sample
@@ -164,6 +167,20 @@ double cap_height(double u, const SquaredSizes& s, double dz) {
                          : (alpha - std::sqrt(std::max(disc, 0.0))) / (2.0 * beta);
     return (depth - d) / dz;
   };
+  if (s.two_slices_high && s2 > 0.0) {
+    // Both ends of a solid two slices high lie between them and the slices beyond, as far as a
+    // solid of twice the spacing, its size D (2 dz - D) at depth D under the end, puts them:
+    // the last slice at depth h where h (2 dz - h) / ((dz + h) (dz - h)) = s1 / s2.
+    const double ratio = s1 / s2;
+    double lo = 0.0, hi = dz;
+    for (int it = 0; it < 40; ++it) {
+      const double h = 0.5 * (lo + hi);
+      (h * (2.0 * dz - h) < ratio * (dz + h) * (dz - h) ? lo : hi) = h;
+    }
+    const double h = 0.5 * (lo + hi);
+    const double d = dz - std::sqrt(std::max(dz * dz - u * u * h * (2.0 * dz - h), 0.0));
+    return (h - d) / dz;
+  }
   if (s2 > s1 && s3 > 0.0) {
     const double d1 = s2 - s1, d2 = s3 - s2;
     const double beta = (d1 - d2) / (2.0 * dz * dz);
@@ -191,7 +208,8 @@ SquaredSizes squared_radii(const Radii& r) {
 
 /// A region's area in its last three slices.
 SquaredSizes areas(const Radii& r) {
-  return {r.area_last, r.area_before, r.area_before2};
+  return {r.area_last, r.area_before, r.area_before2,
+          r.area_before > 0.0F && r.area_before2 == 0.0F};
 }
 
 /// A sample whose local radius is under this share of its region's is on a part of the region
