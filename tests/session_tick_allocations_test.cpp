@@ -2,7 +2,8 @@
 // the calls made on a thread while it is marked, and a live-shaped session's ticks (the tissue on
 // its own thread, the arm and head tracker through their real drivers and twins) are marked
 // through its degraded paths: contact, late steps, a hung tissue fading the force, a device gone
-// silent, the display held.
+// silent, the display held. The tissue thread's haptic proxy keeps its contact patch in buffers
+// of its own, so it allocates nothing in contact either.
 
 #include <gtest/gtest.h>
 
@@ -10,13 +11,17 @@
 
 #include <array>
 #include <atomic>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <new>
 #include <string>
 #include <thread>
 
+#include "bisturi/sim/collision.h"
+#include "bisturi/sim/haptic.h"
 #include "haptic_rig.h"
+#include "sim_test_shapes.h"
 
 namespace {
 
@@ -154,6 +159,40 @@ TEST(HapticTick, AllocatesNothingOnItsPaths) {
   EXPECT_GT(rig.loop->counters().hands[0].silent_ticks, 100u);
   rig.arm_muted = false;
   EXPECT_EQ(paced_ticks(rig, 200), 0u) << "back" << sites();
+}
+
+TEST(HapticProxy, AProbeInContactAllocatesNothingAfterItsFirstTouch) {
+  // The tissue thread's proxy: the contact patch's triangles, vertices and weights go into
+  // buffers the proxy keeps, so a probe moving over and into a tube allocates nothing once its
+  // first contacts have sized them.
+  sim::SoftBody tube(build_oriented_manifold(tube_mesh(6.0, 60.0, 16, 4)),
+                     sim::testing::firm_material());
+  const sim::CollisionDevice device;
+  const sim::SurfaceBvh bvh(device, tube);
+  sim::HapticOptions options;
+  options.probe_radius_m = 0.0015;
+  sim::HapticProxy proxy(options);
+  const sim::TouchTarget target{&tube, &bvh};
+  const auto press = [&](int step) {  // along the tube's side, 0.2 to 0.8 mm deep
+    const double depth = 0.0002 + 0.0006 * (0.5 + 0.5 * std::sin(0.1 * step));
+    return glm::dvec3(0.006 + 0.0015 - depth, 0.0, 0.020 + 0.00005 * step);
+  };
+  (void)proxy.update(glm::dvec3(0.010, 0.0, 0.020), {&target, 1}, 0.001);
+  // Each step clears the forces the last one left on the tissue, as the world's step does.
+  for (int step = 0; step < 50; ++step) {
+    tube.clear_forces();
+    ASSERT_TRUE(proxy.update(press(step), {&target, 1}, 0.001).contact) << "step " << step;
+  }
+  const std::uint64_t before = g_allocations.load();
+  g_counting = true;
+  bool contact = true;
+  for (int step = 0; step < 50; ++step) {
+    tube.clear_forces();
+    contact = proxy.update(press(step), {&target, 1}, 0.001).contact && contact;
+  }
+  g_counting = false;
+  EXPECT_TRUE(contact);
+  EXPECT_EQ(g_allocations.load() - before, 0u) << sites();
 }
 
 }  // namespace

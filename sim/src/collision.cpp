@@ -673,14 +673,14 @@ struct NearQueryData {
   const SurfaceBvh::Impl* bvh;
   glm::dvec3 p;
   double radius;
-  std::vector<std::uint32_t> found;
+  std::vector<std::uint32_t>* found;
 };
 
 bool near_query(RTCPointQueryFunctionArguments* args) {
   auto* d = static_cast<NearQueryData*>(args->userPtr);
   const HitPoint h = closest_on_hit(*d->bvh, *d->body, args, d->p);
   if (h.triangle == kDeadTriangle) return false;
-  if (glm::length(h.point - d->p) <= d->radius) d->found.push_back(h.triangle);
+  if (glm::length(h.point - d->p) <= d->radius) d->found->push_back(h.triangle);
   return false;  // keep the radius: every triangle within it is wanted
 }
 
@@ -688,7 +688,15 @@ bool near_query(RTCPointQueryFunctionArguments* args) {
 
 std::vector<std::uint32_t> SurfaceBvh::triangles_near(const SoftBody& body, const glm::dvec3& p,
                                                       double radius_m) const {
-  NearQueryData data{&body, impl_.get(), p, radius_m, {}};
+  std::vector<std::uint32_t> found;
+  triangles_near(body, p, radius_m, found);
+  return found;
+}
+
+void SurfaceBvh::triangles_near(const SoftBody& body, const glm::dvec3& p, double radius_m,
+                                std::vector<std::uint32_t>& found) const {
+  found.clear();
+  NearQueryData data{&body, impl_.get(), p, radius_m, &found};
   RTCPointQuery q;
   q.x = static_cast<float>(p.x);
   q.y = static_cast<float>(p.y);
@@ -698,9 +706,8 @@ std::vector<std::uint32_t> SurfaceBvh::triangles_near(const SoftBody& body, cons
   RTCPointQueryContext ctx;
   rtcInitPointQueryContext(&ctx);
   rtcPointQuery(impl_->scene, &q, &ctx, &near_query, &data);
-  std::sort(data.found.begin(), data.found.end());
-  data.found.erase(std::unique(data.found.begin(), data.found.end()), data.found.end());
-  return std::move(data.found);
+  std::sort(found.begin(), found.end());
+  found.erase(std::unique(found.begin(), found.end()), found.end());
 }
 
 SurfacePoint SurfaceBvh::ray(const SoftBody& body, const glm::dvec3& from,

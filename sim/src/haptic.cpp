@@ -12,8 +12,8 @@ namespace {
 /// The contact patch around a surface point: its area-weighted outward normal and its vertices
 /// with the weights the reaction is shared by.
 glm::dvec3 contact_patch(const SoftBody& body, const SurfaceBvh& bvh, const SurfacePoint& at,
-                         double probe_radius_m, std::vector<std::uint32_t>& vertices,
-                         std::vector<double>& weights) {
+                         double probe_radius_m, std::vector<std::uint32_t>& tris,
+                         std::vector<std::uint32_t>& vertices, std::vector<double>& weights) {
   const auto& x = body.positions();
   const auto& idx = body.triangles().indices;
   const std::uint32_t* hit = &idx[3 * std::size_t{at.triangle}];
@@ -31,7 +31,7 @@ glm::dvec3 contact_patch(const SoftBody& body, const SurfaceBvh& bvh, const Surf
   }
   const double radius = probe_radius_m + std::min(longest, 2.0 * shortest);
   const double reach = probe_radius_m + longest;
-  const std::vector<std::uint32_t> tris = bvh.triangles_near(body, at.point_m, radius);
+  bvh.triangles_near(body, at.point_m, radius, tris);
   glm::dvec3 normal(0.0);
   vertices.clear();
   for (std::uint32_t t : tris) {
@@ -149,7 +149,7 @@ HapticOutput HapticProxy::update(const glm::dvec3& device, std::span<const Touch
   glm::dvec3 n(0.0);
   if (best.found && glm::dot(device - best.point_m, best.normal) < 2.0 * r) {
     const TouchTarget& t = targets[static_cast<std::size_t>(best_body)];
-    n = contact_patch(*t.body, *t.bvh, best, r, patch_, weights_);
+    n = contact_patch(*t.body, *t.bvh, best, r, near_, patch_, weights_);
     const double signed_distance = glm::dot(device - best.point_m, n);
     if (signed_distance < r) {
       contact = true;

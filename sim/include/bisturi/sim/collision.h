@@ -87,6 +87,9 @@ class SurfaceBvh {
   [[nodiscard]] std::vector<std::uint32_t> triangles_near(const SoftBody& body,
                                                           const glm::dvec3& p_m,
                                                           double radius_m) const;
+  /// The same into `found` (cleared first), which keeps its capacity from call to call.
+  void triangles_near(const SoftBody& body, const glm::dvec3& p_m, double radius_m,
+                      std::vector<std::uint32_t>& found) const;
   /// First hit of the segment from -> to (found = false when none).
   [[nodiscard]] SurfacePoint ray(const SoftBody& body, const glm::dvec3& from_m,
                                  const glm::dvec3& to_m) const;

@@ -111,7 +111,7 @@ class HapticProxy {
   glm::dvec3 contact_normal_{0.0};  ///< and its patch normal
   double contact_depth_ = 0.0;      ///< and how deep the device was
   glm::dvec3 last_device_{0.0};
-  std::vector<std::uint32_t> patch_;  // scratch
+  std::vector<std::uint32_t> near_, patch_;  // scratch, kept from tick to tick
   std::vector<double> weights_;
 };
 
