@@ -145,6 +145,20 @@ Shape torus(double big, double small) {
           }};
 }
 
+/// A vessel lying across the slices: a capsule (radius r, its axis 2 half_length long) turned
+/// 30 deg within the slices and tilted 8 deg out of them.
+Shape lying_vessel(double r, double half_length) {
+  const glm::dmat3 turn = rotation(0.0, 30.0);
+  const dvec3 axis = turn * glm::normalize(dvec3(1.0, 0.0, std::tan(glm::radians(8.0))));
+  const auto closest_on_axis = [=](const dvec3& p) {
+    const double t = std::clamp(glm::dot(p - kCentre, axis), -half_length, half_length);
+    return kCentre + t * axis;
+  };
+  return {"vessel r3 lying", half_length + r,
+          [=](const dvec3& p) { return glm::length(p - closest_on_axis(p)) - r; },
+          [=](const dvec3& p) { return glm::normalize(p - closest_on_axis(p)); }};
+}
+
 Grid<float> voxelise(const Shape& s, const dvec3& spacing) {
   Grid<float> g;
   const double half = s.bound + 3.0 * std::max({spacing.x, spacing.y, spacing.z});
@@ -229,6 +243,7 @@ int main(int argc, char** argv) {
   std::string json_path;
   bisturi::LabelSurfaceOptions constrained;  // the defaults unless given
   std::vector<std::pair<std::string, dvec3>> spacings;
+  bool with_vessel = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") {
@@ -237,14 +252,15 @@ int main(int argc, char** argv) {
           "                    [--twicing-share W] [--twicing-shares FLAT,SHARP]\n"
           "                    [--twicing-bends FLAT,SHARP] [--fit-sweeps N] [--spacing X,Y,Z]...\n"
           "                    [--json FILE]\n"
-          "                    [--list-far MM]\n"
+          "                    [--list-far MM] [--vessel]\n"
           "  surfaces of voxelised analytic solids against the true shape: marching cubes,\n"
           "  constrained smoothing and (when built with VTK) 3D Slicer's VTK pipeline;\n"
           "  each --spacing (mm) replaces the default 0.6,0.6,1.3 and 1,1,3; --list-far writes\n"
           "  each vertex further than MM from the true surface to stderr, before its row;\n"
           "  --twicing-share W adds back one share W everywhere instead of the one the\n"
           "  surface's bend sets; --twicing-shares and --twicing-bends set the shares at\n"
-          "  and the bends of a flat and a sharply bent surface\n");
+          "  and the bends of a flat and a sharply bent surface; --vessel adds a vessel (a\n"
+          "  capsule 3 mm in radius) lying across the slices\n");
       return 0;
     }
     if (a == "--repeats" && i + 1 < argc) {
@@ -271,6 +287,8 @@ int main(int argc, char** argv) {
           sharp;
     } else if (a == "--fit-sweeps" && i + 1 < argc) {
       constrained.normal_fit_sweeps = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
+    } else if (a == "--vessel") {
+      with_vessel = true;
     } else if (a == "--list-far" && i + 1 < argc) {
       list_far_mm = std::atof(argv[++i]);
     } else if (a == "--spacing" && i + 1 < argc) {
@@ -298,9 +316,9 @@ int main(int argc, char** argv) {
   std::printf("%-20s %-12s %-13s %9s %9s %9s %9s %9s %8s\n", "shape", "spacing", "method", "rms_mm",
               "max_mm", "n_rms_deg", "n_max_deg", "ms", "tris");
   for (const auto& [sname, spacing] : spacings) {
-    const std::vector<Shape> shapes = {sphere(20.0), ellipsoid({25.0, 15.0, 10.0}),
-                                       torus(16.0, 6.0),
-                                       two_ellipsoids({16.0, 11.0, 6.0}, spacing)};
+    std::vector<Shape> shapes = {sphere(20.0), ellipsoid({25.0, 15.0, 10.0}), torus(16.0, 6.0),
+                                 two_ellipsoids({16.0, 11.0, 6.0}, spacing)};
+    if (with_vessel) shapes.push_back(lying_vessel(3.0, 15.0));
     for (const Shape& s : shapes) {
       const Grid<float> labels = voxelise(s, spacing);
       std::vector<dvec3> pts;
