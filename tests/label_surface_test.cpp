@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <utility>
 
 #include "bisturi/scene/dlfl_queries.h"
 #include "bisturi/scene/dlfl_validate.h"
@@ -272,6 +273,17 @@ TEST(LabelSurface, RepeatedSlicesAreInterpolatedNotTerraced) {
   EXPECT_EQ(s.parts[0].genus, 0);
 }
 
+// The highest vertex below z = 0 and the lowest above it: the ends of two solids facing a gap
+// round z = 0.
+std::pair<double, double> ends_facing_the_gap(const PolygonMesh& m) {
+  double lower_top = -1e9, upper_bottom = 1e9;
+  for (const auto& p : m.positions) {
+    if (p.z < 0.0) lower_top = std::max(lower_top, p.z);
+    if (p.z > 0.0) upper_bottom = std::min(upper_bottom, p.z);
+  }
+  return {lower_top, upper_bottom};
+}
+
 TEST(LabelSurface, AnEndOverAnEmptySliceIsACapNotABulge) {
   // Two balls of 8 mm stacked along the slices (1 x 1 x 3 mm), one empty slice between them: the
   // slice at z = 0 lies in a gap of 3.6 mm, the slices at -3 and +3 mm inside one ball each.
@@ -287,11 +299,7 @@ TEST(LabelSurface, AnEndOverAnEmptySliceIsACapNotABulge) {
   const Grid<float> labels = voxelise(balls, {1.0, 1.0, 3.0}, 21.0);
   ASSERT_NEAR(std::fmod(labels.geometry.origin.z, 3.0), 0.0, 1e-9);  // a slice at z = 0
   const PolygonMesh m = extract_label_surface_mesh(labels, kLabel);
-  double lower_top = -1e9, upper_bottom = 1e9;
-  for (const auto& p : m.positions) {
-    if (p.z < 0.0) lower_top = std::max(lower_top, p.z);
-    if (p.z > 0.0) upper_bottom = std::min(upper_bottom, p.z);
-  }
+  const auto [lower_top, upper_bottom] = ends_facing_the_gap(m);
   // The ends within 0.3 mm of the true ones (0.17 and 0.21 mm when written; the shape
   // interpolation alone left them 0.48 and 0.52 mm into the gap).
   EXPECT_NEAR(lower_top, -half_gap, 0.3);
@@ -316,11 +324,7 @@ TEST(LabelSurface, ASolidThreeSlicesHighEndsWhereItsWidestSliceSaysItNarrows) {
   const Grid<float> labels = voxelise(ellipsoids, {1.2, 1.2, 4.0}, 24.0);
   ASSERT_NEAR(std::fmod(labels.geometry.origin.z, 4.0), 0.0, 1e-9);  // a slice at z = 0
   const PolygonMesh m = extract_label_surface_mesh(labels, kLabel);
-  double lower_top = -1e9, upper_bottom = 1e9;
-  for (const auto& p : m.positions) {
-    if (p.z < 0.0) lower_top = std::max(lower_top, p.z);
-    if (p.z > 0.0) upper_bottom = std::min(upper_bottom, p.z);
-  }
+  const auto [lower_top, upper_bottom] = ends_facing_the_gap(m);
   std::printf("ends %.2f and %.2f mm off\n", lower_top + half_gap, half_gap - upper_bottom);
   EXPECT_NEAR(lower_top, -half_gap, 0.3);  // 0.06 mm off when written
   EXPECT_NEAR(upper_bottom, half_gap, 0.3);

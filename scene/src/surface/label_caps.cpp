@@ -3,6 +3,7 @@
 #include "label_caps.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -56,6 +57,13 @@ class SliceRegions {
     return k >= 0 && k < nz_ ? &field_.values[field_.geometry.linear_index(0, 0, k)] : nullptr;
   }
 
+  /// The 4-neighbours of sample s in the slice (-1 past its edge).
+  [[nodiscard]] std::array<std::int64_t, 4> neighbours(std::int64_t s) const {
+    const std::int64_t x = s % nx_, y = s / nx_;
+    return {x > 0 ? s - 1 : -1, x + 1 < nx_ ? s + 1 : -1, y > 0 ? s - nx_ : -1,
+            y + 1 < ny_ ? s + nx_ : -1};
+  }
+
   void flood(std::int64_t seed) {
     const float* here = slice(k_);
     const float* beyond = slice(k_ + step_);
@@ -73,10 +81,7 @@ class SliceRegions {
       if (inner != nullptr) most.before = std::max(most.before, inner[s]);
       if (inner2 != nullptr) most.before2 = std::max(most.before2, inner2[s]);
       if (beyond != nullptr && beyond[s] > 0.0F) most.ends = false;
-      const std::int64_t x = s % nx_, y = s / nx_;
-      const std::int64_t next[4] = {x > 0 ? s - 1 : -1, x + 1 < nx_ ? s + 1 : -1,
-                                    y > 0 ? s - nx_ : -1, y + 1 < ny_ ? s + nx_ : -1};
-      for (const std::int64_t n : next) {
+      for (const std::int64_t n : neighbours(s)) {
         if (n < 0 || here[n] <= 0.0F || stamp_[static_cast<std::size_t>(n)] == generation_)
           continue;
         stamp_[static_cast<std::size_t>(n)] = generation_;
@@ -85,19 +90,15 @@ class SliceRegions {
     }
     if (most.ends) {
       most.area_last = static_cast<float>(members_.size());
-      std::vector<std::int64_t>& inner_members = joined_;
-      most.area_before = static_cast<float>(join(inner, members_, inner_members));
-      if (!inner_members.empty()) {
-        std::vector<std::int64_t> seeds(inner_members);
-        most.area_before2 = static_cast<float>(join(inner2, seeds, inner_members));
-      }
+      most.area_before = static_cast<float>(join(inner, members_, joined_));
+      most.area_before2 = static_cast<float>(join(inner2, joined_, joined2_));
     }
     for (const std::int64_t m : members_)
       radii_[static_cast<std::size_t>(m)] = most;
   }
 
   /// Floods the inside samples of `slice` (may be null) joined to `seeds` (4-connected, starting
-  /// from the seeds inside there) into `joined`; returns how many.
+  /// from the seeds inside there) into `joined` (not `seeds`); returns how many.
   std::size_t join(const float* slice, const std::vector<std::int64_t>& seeds,
                    std::vector<std::int64_t>& joined) {
     joined.clear();
@@ -114,10 +115,7 @@ class SliceRegions {
       const std::int64_t s = stack_.back();
       stack_.pop_back();
       joined.push_back(s);
-      const std::int64_t x = s % nx_, y = s / nx_;
-      const std::int64_t next[4] = {x > 0 ? s - 1 : -1, x + 1 < nx_ ? s + 1 : -1,
-                                    y > 0 ? s - nx_ : -1, y + 1 < ny_ ? s + nx_ : -1};
-      for (const std::int64_t n : next) {
+      for (const std::int64_t n : neighbours(s)) {
         if (n < 0 || slice[n] <= 0.0F ||
             joined_stamp_[static_cast<std::size_t>(n)] == join_generation_)
           continue;
@@ -135,7 +133,7 @@ class SliceRegions {
   std::vector<std::int64_t> stamp_;         ///< the look a sample's radii were found in
   std::vector<std::int64_t> joined_stamp_;  ///< the join that reached a sample last
   std::int64_t join_generation_ = 0;
-  std::vector<std::int64_t> stack_, members_, joined_;
+  std::vector<std::int64_t> stack_, members_, joined_, joined2_;
 };
 
 /// A region's size in its last three slices, as squares of a width: its radius squared, or its
