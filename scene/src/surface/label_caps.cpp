@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <optional>
 #include <vector>
 
 namespace bisturi {
@@ -142,6 +143,9 @@ struct SquaredSizes {
   double last = 0.0, before = 0.0, before2 = 0.0;
   /// The solid is these two slices high: nothing lies beyond the one before the last either.
   bool two_slices_high = false;
+  /// The sizes are squared radii (mm^2), which go as 2 R D - D^2 over depth D under a round
+  /// section's top: two slices place it.
+  bool radii = false;
 };
 
 /// How far past the last slice (in slice spacings) the end lies above a sample at `u` (its
@@ -149,7 +153,8 @@ struct SquaredSizes {
 /// size over depth D below the end is fitted as an ellipsoid's, alpha D - beta D^2, through the
 /// last three slices (exact for the end of an ellipsoid or a ball; beta 0 is a paraboloid), also
 /// where the middle one is the widest (a solid three slices high, whose far end is near). A solid
-/// only two slices high has its two ends share the spacing beyond them. Otherwise, or where the
+/// only two slices high has its two ends share the spacing beyond them; a tube's local radii
+/// through only two slices place its top as a round section's. Otherwise, or where the
 /// fit puts the end a spacing or more away, it is a paraboloid through both outlines; where the
 /// region does not narrow towards the end (a flat end), a paraboloid half a spacing high, where
 /// such an end lies on average. The sample lies on the outline of the section whose size is u
@@ -179,6 +184,13 @@ double cap_height(double u, const SquaredSizes& s, double dz) {
     const double d = dz - std::sqrt(std::max(dz * dz - u * u * h * (2.0 * dz - h), 0.0));
     return (h - d) / dz;
   }
+  if (s.radii && s2 > 0.0 && s3 == 0.0) {
+    // A round section (a tube lying along the slices, two slices high) through both outlines:
+    // its centre c below the last slice, where s1 = R^2 - c^2 and s2 = R^2 - (dz - c)^2.
+    const double c = (dz * dz - s1 + s2) / (2.0 * dz);
+    const double radius = std::sqrt(s1 + c * c);
+    if (radius - c < dz) return (std::sqrt(std::max(radius * radius - own, 0.0)) - c) / dz;
+  }
   if (s2 > s1 && s3 > 0.0) {
     const double d1 = s2 - s1, d2 = s3 - s2;
     const double beta = (d1 - d2) / (2.0 * dz * dz);
@@ -201,7 +213,8 @@ double cap_height(double u, const SquaredSizes& s, double dz) {
 
 /// A region's radius squared in its last three slices.
 SquaredSizes squared_radii(const Radii& r) {
-  return {double(r.last) * r.last, double(r.before) * r.before, double(r.before2) * r.before2};
+  return {double(r.last) * r.last, double(r.before) * r.before, double(r.before2) * r.before2,
+          false, true};
 }
 
 /// A region's area in its last three slices.
@@ -294,6 +307,23 @@ Radii local_radii(const Grid<float>& field, std::int64_t i, std::int64_t j, std:
   return r;
 }
 
+/// Over sample (i, j) of slice `last` of a region that goes on into the slice beyond only
+/// further along (a tube lying across the slices, rising into it elsewhere, whose top runs
+/// along the last slice), how far past the slice (in spacings) the top lies: from the round
+/// section through the local widths in the last slice and the one before, where the tube is
+/// only those two slices high there. None otherwise (step 1's place is kept): where the slice
+/// beyond's outline reaches over the sample's local middle, or the tube is higher.
+std::optional<double> tube_top_height(const Grid<float>& field, std::int64_t i, std::int64_t j,
+                                      std::int64_t last, double inside, double outside,
+                                      std::int64_t step) {
+  const float local = local_radius(field, i, j, last);
+  if (!(local > 0.0F) || local - inside + outside > 0.0) return std::nullopt;
+  const Radii r = local_radii(field, i, j, last, local, step);
+  if (!(r.before > 0.0F) || r.before2 > 0.0F) return std::nullopt;
+  return cap_height(std::max(local - inside, 0.0) / local, squared_radii(r),
+                    field.geometry.spacing.z);
+}
+
 }  // namespace
 
 void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<float>& field) {
@@ -343,8 +373,15 @@ void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<fl
         // passes the sample where the squared width is rho^2. On a wide region that is where
         // the distances interpolated linearly put it.
         const double wide = r.last, narrow = rho + outside;
-        if (!(narrow > 0.0 && narrow < wide)) continue;
-        t = (wide * wide - rho * rho) / (wide * wide - narrow * narrow);
+        if (narrow > 0.0) {
+          if (!(narrow < wide)) continue;
+          t = (wide * wide - rho * rho) / (wide * wide - narrow * narrow);
+        } else if (const std::optional<double> top =
+                       tube_top_height(field, i, j, last, inside, outside, rising ? 1 : -1)) {
+          t = *top;
+        } else {
+          continue;
+        }
       }
       // Kept strictly inside the edge, as marching cubes keeps its vertices.
       t = std::clamp(t, 1e-3, 1.0 - 1e-3);
