@@ -436,8 +436,9 @@ TEST(LabelSurface, ATubeLyingAcrossThickSlicesKeepsItsRoundTop) {
   // along the slices and into the next one further along. Kept where step 1's distances put
   // them (linear between a near outline and one far along the tube), the top and bottom lay
   // flattened towards the slices: 0.60 mm RMS over the top and bottom, 0.55 mm over the whole
-  // (VTK's Slicer pipeline: 0.49). Through both slices' widths as a round section: 0.36 and
-  // 0.41 mm when written.
+  // (VTK's Slicer pipeline: 0.49). Through both slices' widths as a round section, at the
+  // higher end's top too (where the region's areas follow the tube's length): 0.28 and 0.36 mm
+  // when written, the furthest top vertex 0.90 mm off (1.30 with the end capped by areas).
   const dvec3 axis = glm::dmat3(glm::rotate(glm::dmat4(1.0), glm::radians(30.0), dvec3(0, 0, 1))) *
                      glm::normalize(dvec3(1.0, 0.0, std::tan(glm::radians(8.0))));
   const dvec3 centre(0.31, -0.17, 0.44);
@@ -461,8 +462,9 @@ TEST(LabelSurface, ATubeLyingAcrossThickSlicesKeepsItsRoundTop) {
   const double top_rms = std::sqrt(sum2 / static_cast<double>(n));
   std::printf("RMS %.3f mm; top and bottom: RMS %.3f mm, furthest %.2f mm (%zu vertices)\n",
               f.rms_mm, top_rms, worst, n);
-  EXPECT_LT(top_rms, 0.45);
-  EXPECT_LT(f.rms_mm, 0.47);
+  EXPECT_LT(top_rms, 0.4);
+  EXPECT_LT(f.rms_mm, 0.45);
+  EXPECT_LT(worst, 1.1);
 }
 
 TEST(LabelSurface, DownsampledLabelMapsGiveAClosedCoarseSurface) {

@@ -307,12 +307,18 @@ Radii local_radii(const Grid<float>& field, std::int64_t i, std::int64_t j, std:
   return r;
 }
 
+/// A region whose area is more than this many times its widest disc's is long (a band, a tube
+/// lying along the slice) rather than round.
+constexpr double kLongerThanRound = 2.0;
+constexpr double kPi = 3.14159265358979323846;
+
 /// Over sample (i, j) of slice `last` of a region that goes on into the slice beyond only
-/// further along (a tube lying across the slices, rising into it elsewhere, whose top runs
-/// along the last slice), how far past the slice (in spacings) the top lies: from the round
-/// section through the local widths in the last slice and the one before, where the tube is
-/// only those two slices high there. None otherwise (step 1's place is kept): where the slice
-/// beyond's outline reaches over the sample's local middle, or the tube is higher.
+/// further along (a tube lying across the slices, rising into it elsewhere, whose top runs along
+/// the last slice), or of a long region that ends there (the tube's higher end): how far past
+/// the slice (in spacings) the top lies, from the round section through the sample's local
+/// widths in the last slice and the one before, where the tube is only those two slices high.
+/// None where the slice beyond's outline reaches over the sample's local middle or the tube is
+/// higher there.
 std::optional<double> tube_top_height(const Grid<float>& field, std::int64_t i, std::int64_t j,
                                       std::int64_t last, double inside, double outside,
                                       std::int64_t step) {
@@ -365,7 +371,12 @@ void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<fl
                        squared_radii(local_radii(field, i, j, last, local, rising ? 1 : -1)),
                        g.spacing.z);
       } else if (r.ends) {
-        t = cap_height(rho / r.last, areas(r), g.spacing.z);
+        // A long region's areas follow its length, not how its section narrows (the top of a
+        // tube lying along the last slice): its local widths place the end where they can.
+        std::optional<double> top;
+        if (r.area_last * g.spacing.x * g.spacing.y > kLongerThanRound * kPi * r.last * r.last)
+          top = tube_top_height(field, i, j, last, inside, outside, rising ? 1 : -1);
+        t = top ? *top : cap_height(rho / r.last, areas(r), g.spacing.z);
       } else {
         // The region goes on narrowing into the slice beyond: its width there at the sample's
         // place is rho + outside. The square of a width, not the width, changes evenly from
