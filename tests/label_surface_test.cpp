@@ -430,41 +430,65 @@ TEST(LabelSurface, ARingsTubeEndsUnderItsOwnWidth) {
   EXPECT_LT(f.rms_mm, 0.22);
 }
 
-TEST(LabelSurface, ATubeLyingAcrossThickSlicesKeepsItsRoundTop) {
-  // A vessel (a capsule 3 mm in radius) turned 30 deg within 1 x 1 x 3 mm slices and tilted 8 deg
-  // out of them: over most of its length it is two slices high, its top and bottom running
-  // along the slices and into the next one further along. Kept where step 1's distances put
-  // them (linear between a near outline and one far along the tube), the top and bottom lay
-  // flattened towards the slices: 0.60 mm RMS over the top and bottom, 0.55 mm over the whole
-  // (VTK's Slicer pipeline: 0.49). Through both slices' widths as a round section, at the
-  // higher end's top too (where the region's areas follow the tube's length): 0.28 and 0.36 mm
-  // when written, the furthest top vertex 0.90 mm off (1.30 with the end capped by areas).
+// A vessel (a capsule 3 mm in radius, 36 mm long) turned 30 deg within the slices and tilted 8
+// deg out of them.
+struct TubeFit {
+  double rms_mm = 0;      // all vertices
+  double top_rms_mm = 0;  // where the true surface faces up or down: the top and bottom
+  double top_worst_mm = 0;
+};
+
+TubeFit lying_tube_fit(const dvec3& spacing) {
   const dvec3 axis = glm::dmat3(glm::rotate(glm::dmat4(1.0), glm::radians(30.0), dvec3(0, 0, 1))) *
                      glm::normalize(dvec3(1.0, 0.0, std::tan(glm::radians(8.0))));
   const dvec3 centre(0.31, -0.17, 0.44);
-  const Distance vessel = [&](const dvec3& p) {
-    const double t = std::clamp(glm::dot(p - centre, axis), -15.0, 15.0);
-    return glm::length(p - centre - t * axis) - 3.0;
+  const auto on_axis = [&](const dvec3& p) {
+    return centre + std::clamp(glm::dot(p - centre, axis), -15.0, 15.0) * axis;
   };
-  const PolygonMesh m = extract_label_surface_mesh(voxelise(vessel, {1.0, 1.0, 3.0}, 24.0), kLabel);
-  const Fit f = fit(m, vessel);
-  // The top and bottom: where the true surface faces up or down.
-  double sum2 = 0.0, worst = 0.0;
+  const Distance vessel = [&](const dvec3& p) { return glm::length(p - on_axis(p)) - 3.0; };
+  const PolygonMesh m = extract_label_surface_mesh(voxelise(vessel, spacing, 24.0), kLabel);
+  TubeFit f;
+  f.rms_mm = fit(m, vessel).rms_mm;
+  double sum2 = 0.0;
   std::size_t n = 0;
   for (const auto& p : m.positions) {
-    const double t = std::clamp(glm::dot(p - centre, axis), -15.0, 15.0);
-    const dvec3 out = glm::normalize(p - centre - t * axis);
-    if (std::abs(out.z) < 0.8) continue;
+    if (std::abs(glm::normalize(p - on_axis(p)).z) < 0.8) continue;
     sum2 += vessel(p) * vessel(p);
-    worst = std::max(worst, std::abs(vessel(p)));
+    f.top_worst_mm = std::max(f.top_worst_mm, std::abs(vessel(p)));
     ++n;
   }
-  const double top_rms = std::sqrt(sum2 / static_cast<double>(n));
+  f.top_rms_mm = std::sqrt(sum2 / static_cast<double>(n));
   std::printf("RMS %.3f mm; top and bottom: RMS %.3f mm, furthest %.2f mm (%zu vertices)\n",
-              f.rms_mm, top_rms, worst, n);
-  EXPECT_LT(top_rms, 0.4);
-  EXPECT_LT(f.rms_mm, 0.45);
-  EXPECT_LT(worst, 1.1);
+              f.rms_mm, f.top_rms_mm, f.top_worst_mm, n);
+  return f;
+}
+
+TEST(LabelSurface, ATubeLyingAcrossThickSlicesKeepsItsRoundTop) {
+  // In 1 x 1 x 3 mm slices the vessel is two slices high over most of its length, its top and
+  // bottom running along the slices and into the next one further along. Kept where step 1's
+  // distances put them (linear between a near outline and one far along the tube), the top and
+  // bottom lay flattened towards the slices: 0.60 mm RMS over the top and bottom, 0.55 mm over
+  // the whole (VTK's Slicer pipeline: 0.49). Through both slices' widths as a round section, at
+  // the higher end's top too (where the region's areas follow the tube's length), and round
+  // about the slice where it is one slice high: 0.21 and 0.32 mm when written, the furthest top
+  // vertex 0.64 mm off (0.90 with only the first, 1.30 with the end capped by areas too).
+  const TubeFit f = lying_tube_fit({1.0, 1.0, 3.0});
+  EXPECT_LT(f.top_rms_mm, 0.27);
+  EXPECT_LT(f.rms_mm, 0.38);
+  EXPECT_LT(f.top_worst_mm, 0.8);
+}
+
+TEST(LabelSurface, ATubeOneSliceHighIsRoundAboutItsSlice) {
+  // In 1.2 x 1.2 x 4 mm slices the vessel is one slice high along much of its length, where
+  // nothing says how far its middle lies from the slice. Kept where step 1's distances put them,
+  // its top and bottom there lay flattened towards the slice: 1.14 mm RMS over the top and
+  // bottom, 1.18 mm over the whole, the furthest 2.57 mm off. Round about the slice, as wide as
+  // the slice shows it there (a slice through a tube on average passes its middle): 0.71,
+  // 0.87 and 1.96 mm when written.
+  const TubeFit f = lying_tube_fit({1.2, 1.2, 4.0});
+  EXPECT_LT(f.top_rms_mm, 0.9);
+  EXPECT_LT(f.rms_mm, 1.0);
+  EXPECT_LT(f.top_worst_mm, 2.3);
 }
 
 TEST(LabelSurface, DownsampledLabelMapsGiveAClosedCoarseSurface) {

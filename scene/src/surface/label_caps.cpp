@@ -315,19 +315,27 @@ constexpr double kPi = 3.14159265358979323846;
 /// Over sample (i, j) of slice `last` of a region that goes on into the slice beyond only
 /// further along (a tube lying across the slices, rising into it elsewhere, whose top runs along
 /// the last slice), or of a long region that ends there (the tube's higher end): how far past
-/// the slice (in spacings) the top lies, from the round section through the sample's local
-/// widths in the last slice and the one before, where the tube is only those two slices high.
-/// None where the slice beyond's outline reaches over the sample's local middle or the tube is
-/// higher there.
+/// the slice (in spacings) the top lies: from the round section through the sample's local
+/// widths in the last slice and the one before, where the tube is only those two slices high,
+/// or about the last slice, where the tube is only that slice high. None where the slice
+/// beyond's outline reaches over the sample's local middle or the tube is higher there.
 std::optional<double> tube_top_height(const Grid<float>& field, std::int64_t i, std::int64_t j,
                                       std::int64_t last, double inside, double outside,
                                       std::int64_t step) {
   const float local = local_radius(field, i, j, last);
   if (!(local > 0.0F) || local - inside + outside > 0.0) return std::nullopt;
   const Radii r = local_radii(field, i, j, last, local, step);
-  if (!(r.before > 0.0F) || r.before2 > 0.0F) return std::nullopt;
-  return cap_height(std::max(local - inside, 0.0) / local, squared_radii(r),
-                    field.geometry.spacing.z);
+  const double dz = field.geometry.spacing.z;
+  const double u = std::max(local - inside, 0.0) / local;
+  if (!(r.before > 0.0F)) {
+    // Only the last slice holds the tube here: nothing says where its section's middle lies,
+    // and a slice through it on average passes its middle, so the section is round about the
+    // slice, its radius the local width.
+    const double top = local * std::sqrt(std::max(1.0 - u * u, 0.0));
+    return top > 0.0 && top < dz ? std::optional<double>(top / dz) : std::nullopt;
+  }
+  if (r.before2 > 0.0F) return std::nullopt;
+  return cap_height(u, squared_radii(r), dz);
 }
 
 }  // namespace
