@@ -146,15 +146,18 @@ Shape torus(double big, double small) {
 }
 
 /// A vessel lying across the slices: a capsule (radius r, its axis 2 half_length long) turned
-/// 30 deg within the slices and tilted 8 deg out of them.
-Shape lying_vessel(double r, double half_length) {
+/// 30 deg within the slices and tilted `tilt_deg` out of them.
+Shape lying_vessel(double r, double half_length, double tilt_deg) {
   const glm::dmat3 turn = rotation(0.0, 30.0);
-  const dvec3 axis = turn * glm::normalize(dvec3(1.0, 0.0, std::tan(glm::radians(8.0))));
+  const dvec3 axis = turn * glm::normalize(dvec3(1.0, 0.0, std::tan(glm::radians(tilt_deg))));
   const auto closest_on_axis = [=](const dvec3& p) {
     const double t = std::clamp(glm::dot(p - kCentre, axis), -half_length, half_length);
     return kCentre + t * axis;
   };
-  return {"vessel r3 lying", half_length + r,
+  char name[48];
+  std::snprintf(name, sizeof name, tilt_deg == 8.0 ? "vessel r%g lying" : "vessel r%g tilt %g", r,
+                tilt_deg);
+  return {name, half_length + r,
           [=](const dvec3& p) { return glm::length(p - closest_on_axis(p)) - r; },
           [=](const dvec3& p) { return glm::normalize(p - closest_on_axis(p)); }};
 }
@@ -244,6 +247,7 @@ int main(int argc, char** argv) {
   bisturi::LabelSurfaceOptions constrained;  // the defaults unless given
   std::vector<std::pair<std::string, dvec3>> spacings;
   bool with_vessel = false;
+  double vessel_radius = 3.0, vessel_tilt = 8.0;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") {
@@ -252,7 +256,8 @@ int main(int argc, char** argv) {
           "                    [--twicing-share W] [--twicing-shares FLAT,SHARP]\n"
           "                    [--twicing-bends FLAT,SHARP] [--fit-sweeps N] [--spacing X,Y,Z]...\n"
           "                    [--json FILE]\n"
-          "                    [--list-far MM] [--vessel]\n"
+          "                    [--list-far MM] [--vessel] [--vessel-radius MM]\n"
+          "                    [--vessel-tilt DEG]\n"
           "  surfaces of voxelised analytic solids against the true shape: marching cubes,\n"
           "  constrained smoothing and (when built with VTK) 3D Slicer's VTK pipeline;\n"
           "  each --spacing (mm) replaces the default 0.6,0.6,1.3 and 1,1,3; --list-far writes\n"
@@ -260,7 +265,8 @@ int main(int argc, char** argv) {
           "  --twicing-share W adds back one share W everywhere instead of the one the\n"
           "  surface's bend sets; --twicing-shares and --twicing-bends set the shares at\n"
           "  and the bends of a flat and a sharply bent surface; --vessel adds a vessel (a\n"
-          "  capsule 3 mm in radius) lying across the slices\n");
+          "  capsule 3 mm in radius, 36 mm long) lying across the slices, tilted 8 deg out of\n"
+          "  them; --vessel-radius and --vessel-tilt change those (and imply --vessel)\n");
       return 0;
     }
     if (a == "--repeats" && i + 1 < argc) {
@@ -288,6 +294,16 @@ int main(int argc, char** argv) {
     } else if (a == "--fit-sweeps" && i + 1 < argc) {
       constrained.normal_fit_sweeps = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
     } else if (a == "--vessel") {
+      with_vessel = true;
+    } else if ((a == "--vessel-radius" || a == "--vessel-tilt") && i + 1 < argc) {
+      const double value = std::atof(argv[++i]);
+      const bool radius = a == "--vessel-radius";
+      if (!(value > 0.0) || (!radius && value >= 90.0)) {
+        std::fprintf(stderr, "label_surface_bench: %s wants %s, got '%s'\n", a.c_str(),
+                     radius ? "a radius in mm above 0" : "an angle in degrees in (0, 90)", argv[i]);
+        return 2;
+      }
+      (radius ? vessel_radius : vessel_tilt) = value;
       with_vessel = true;
     } else if (a == "--list-far" && i + 1 < argc) {
       list_far_mm = std::atof(argv[++i]);
@@ -318,7 +334,7 @@ int main(int argc, char** argv) {
   for (const auto& [sname, spacing] : spacings) {
     std::vector<Shape> shapes = {sphere(20.0), ellipsoid({25.0, 15.0, 10.0}), torus(16.0, 6.0),
                                  two_ellipsoids({16.0, 11.0, 6.0}, spacing)};
-    if (with_vessel) shapes.push_back(lying_vessel(3.0, 15.0));
+    if (with_vessel) shapes.push_back(lying_vessel(vessel_radius, 15.0, vessel_tilt));
     for (const Shape& s : shapes) {
       const Grid<float> labels = voxelise(s, spacing);
       std::vector<dvec3> pts;
