@@ -12,7 +12,10 @@
 // over the region's middle, as a convex end is. A part of a region narrower than its middle (a
 // crescent's arm, the top of a ring's tube, a saddle where the slice beyond holds the region on
 // either side but not over it) ends under a cap of its own width: the radius of the widest
-// in-slice disc round the sample, found by walking up the distance from the sample.
+// in-slice disc round the sample, found by walking up the distance from the sample. A tube
+// lying across the slices, whose top runs along the last slice and rises into the slice beyond
+// only further along, has its top over a sample placed by its local widths: a round section
+// through its last two slices, or about its one slice where it is only that high.
 
 #include <span>
 
