@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <numbers>
 #include <optional>
 #include <vector>
 
@@ -213,14 +214,18 @@ double cap_height(double u, const SquaredSizes& s, double dz) {
 
 /// A region's radius squared in its last three slices.
 SquaredSizes squared_radii(const Radii& r) {
-  return {double(r.last) * r.last, double(r.before) * r.before, double(r.before2) * r.before2,
-          false, true};
+  return {.last = double(r.last) * r.last,
+          .before = double(r.before) * r.before,
+          .before2 = double(r.before2) * r.before2,
+          .radii = true};
 }
 
 /// A region's area in its last three slices.
 SquaredSizes areas(const Radii& r) {
-  return {r.area_last, r.area_before, r.area_before2,
-          r.area_before > 0.0F && r.area_before2 == 0.0F};
+  return {.last = r.area_last,
+          .before = r.area_before,
+          .before2 = r.area_before2,
+          .two_slices_high = r.area_before > 0.0F && r.area_before2 == 0.0F};
 }
 
 /// A sample whose local radius is under this share of its region's is on a part of the region
@@ -310,7 +315,6 @@ Radii local_radii(const Grid<float>& field, std::int64_t i, std::int64_t j, std:
 /// A region whose area is more than this many times its widest disc's is long (a band, a tube
 /// lying along the slice) rather than round.
 constexpr double kLongerThanRound = 2.0;
-constexpr double kPi = 3.14159265358979323846;
 
 /// Over sample (i, j) of slice `last` of a region that goes on into the slice beyond only
 /// further along (a tube lying across the slices, rising into it elsewhere, whose top runs along
@@ -367,7 +371,7 @@ void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<fl
       const float below = field.at(i, j, k), above = field.at(i, j, k + 1);
       const bool rising = below > 0.0F && above <= 0.0F;
       if (!rising && !(above > 0.0F && below <= 0.0F)) continue;
-      const std::int64_t last = rising ? k : k + 1;
+      const std::int64_t last = rising ? k : k + 1, outward = rising ? 1 : -1;
       const Radii& r = rising ? up.at(i, j) : down.at(i, j);
       if (r.last <= 0.0F) continue;
       const double inside = rising ? below : above, outside = rising ? above : below;
@@ -376,14 +380,14 @@ void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<fl
       if (const float local = narrow_part_end_radius(field, i, j, last, r, inside, outside);
           local > 0.0F) {
         t = cap_height(std::max(local - inside, 0.0) / local,
-                       squared_radii(local_radii(field, i, j, last, local, rising ? 1 : -1)),
-                       g.spacing.z);
+                       squared_radii(local_radii(field, i, j, last, local, outward)), g.spacing.z);
       } else if (r.ends) {
         // A long region's areas follow its length, not how its section narrows (the top of a
         // tube lying along the last slice): its local widths place the end where they can.
         std::optional<double> top;
-        if (r.area_last * g.spacing.x * g.spacing.y > kLongerThanRound * kPi * r.last * r.last)
-          top = tube_top_height(field, i, j, last, inside, outside, rising ? 1 : -1);
+        if (r.area_last * g.spacing.x * g.spacing.y >
+            kLongerThanRound * std::numbers::pi * r.last * r.last)
+          top = tube_top_height(field, i, j, last, inside, outside, outward);
         t = top ? *top : cap_height(rho / r.last, areas(r), g.spacing.z);
       } else {
         // The region goes on narrowing into the slice beyond: its width there at the sample's
@@ -396,7 +400,7 @@ void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<fl
           if (!(narrow < wide)) continue;
           t = (wide * wide - rho * rho) / (wide * wide - narrow * narrow);
         } else if (const std::optional<double> top =
-                       tube_top_height(field, i, j, last, inside, outside, rising ? 1 : -1)) {
+                       tube_top_height(field, i, j, last, inside, outside, outward)) {
           t = *top;
         } else {
           continue;
