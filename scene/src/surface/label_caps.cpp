@@ -344,15 +344,19 @@ std::optional<double> tube_top_height(const Grid<float>& field, std::int64_t i, 
 
 }  // namespace
 
-void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<float>& field) {
+void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<float>& field,
+                                  AcrossSlices which) {
+  const bool ends_only = which == AcrossSlices::EndsFurtherOut;
   const VolumeGeometry& g = field.geometry;
   const std::int64_t nz = g.dims[2];
   if (nz < 2 || positions.empty()) return;
-  // The vertices on k-edges, by the slice their edge starts at.
+  // The vertices on k-edges, by the slice their edge starts at. Those the caps moved along another
+  // axis keep a thousandth of a spacing from the samples; vertices on edges of this axis are
+  // on the samples' lines.
   std::vector<std::vector<std::size_t>> on_edge(static_cast<std::size_t>(nz));
   for (std::size_t v = 0; v < positions.size(); ++v) {
     const glm::dvec3 c = g.world_to_index(positions[v]);
-    if (std::abs(c.x - std::round(c.x)) > 1e-3 || std::abs(c.y - std::round(c.y)) > 1e-3) continue;
+    if (std::abs(c.x - std::round(c.x)) > 1e-4 || std::abs(c.y - std::round(c.y)) > 1e-4) continue;
     const auto k = static_cast<std::int64_t>(std::floor(c.z));
     if (k < 0 || k + 1 >= nz) continue;
     on_edge[static_cast<std::size_t>(k)].push_back(v);
@@ -377,7 +381,8 @@ void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<fl
       const double inside = rising ? below : above, outside = rising ? above : below;
       const double rho = std::max(static_cast<double>(r.last) - inside, 0.0);
       double t = 0.0;
-      if (const float local = narrow_part_end_radius(field, i, j, last, r, inside, outside);
+      if (const float local =
+              ends_only ? 0.0F : narrow_part_end_radius(field, i, j, last, r, inside, outside);
           local > 0.0F) {
         t = cap_height(std::max(local - inside, 0.0) / local,
                        squared_radii(local_radii(field, i, j, last, local, outward)), g.spacing.z);
@@ -390,6 +395,7 @@ void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<fl
           top = tube_top_height(field, i, j, last, inside, outside, outward);
         t = top ? *top : cap_height(rho / r.last, areas(r), g.spacing.z);
       } else {
+        if (ends_only) continue;  // the field holds distances only about the ends
         // The region goes on narrowing into the slice beyond: its width there at the sample's
         // place is rho + outside. The square of a width, not the width, changes evenly from
         // slice to slice over a rounded end (r^2 = 2 R D under a sphere's top), so the outline
@@ -406,6 +412,7 @@ void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<fl
           continue;
         }
       }
+      if (ends_only) t = std::max(t, std::abs(c.z - static_cast<double>(last)));
       // Kept strictly inside the edge, as marching cubes keeps its vertices.
       t = std::clamp(t, 1e-3, 1.0 - 1e-3);
       c.z = static_cast<double>(last) + (rising ? t : -t);

@@ -24,11 +24,24 @@
 
 namespace bisturi {
 
+/// Which vertices on crossed k-edges place_vertices_across_slices moves.
+enum class AcrossSlices {
+  /// Out of a region's (or a narrow part's) last slice, to the cap above; out of a region that
+  /// narrows into the slice beyond, to where its squared width reaches the sample.
+  All,
+  /// Only out of a region's last slice (the whole region ends there), and only where the cap
+  /// lies further out than the vertex does: the tip of a shape along an axis sampled as finely
+  /// as the slices bulges past the midpoint marching cubes puts its vertex at. The field need
+  /// hold distances only in the two slices either side of such ends.
+  EndsFurtherOut,
+};
+
 /// Moves the vertices of a surface extracted from `field` (in-slice signed distances, positive
 /// inside, slices along k) that lie on crossed k-edges: out of a region's last slice, to the cap
 /// above; out of a region that narrows into the slice beyond, to where its squared width (not
 /// its width, as the linear interpolation of the distances has it) reaches the sample, as under
 /// a rounded end.
-void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<float>& field);
+void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<float>& field,
+                                  AcrossSlices which = AcrossSlices::All);
 
 }  // namespace bisturi
