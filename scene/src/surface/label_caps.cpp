@@ -312,6 +312,20 @@ Radii local_radii(const Grid<float>& field, std::int64_t i, std::int64_t j, std:
   return r;
 }
 
+/// How far a sample `inside` deep in its region lies from the region's middle towards its
+/// outline, as a share of the way (0 to 1): it lies on the outline of the region shrunk by that
+/// share about its middle, the region taken as an ellipse whose minor radius is the region's
+/// radius and whose half-width at the sample is the sample's local radius `local`. A point y off
+/// the long axis, where the half-width is w, lies on the ellipse shrunk by u where
+/// u^2 = 1 - (w^2 - y^2) / radius^2, and y = w - inside. Exact for a round region (local =
+/// radius: u = 1 - inside / radius) and across a band (a tube's section: the same); along an
+/// ellipse's long axis, where the radius alone puts a sample nearer the middle than it is, it
+/// moves the sample out (halfway along a section twice as long as wide: u 0.5, not 0.18).
+double section_share(double inside, double local, double radius) {
+  const double w = std::clamp(local, inside, radius);
+  return std::sqrt(std::max(1.0 - (2.0 * w * inside - inside * inside) / (radius * radius), 0.0));
+}
+
 /// A region whose area is more than this many times its widest disc's is long (a band, a tube
 /// lying along the slice) rather than round.
 constexpr double kLongerThanRound = 2.0;
@@ -393,7 +407,17 @@ void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<fl
         if (r.area_last * g.spacing.x * g.spacing.y >
             kLongerThanRound * std::numbers::pi * r.last * r.last)
           top = tube_top_height(field, i, j, last, inside, outside, outward);
-        t = top ? *top : cap_height(rho / r.last, areas(r), g.spacing.z);
+        if (top) {
+          t = *top;
+        } else {
+          // The sections of most ends shrink alike towards the end (an ellipsoid's); the sample
+          // lies on the one through it. A tip's regions along a finely sampled axis are a few
+          // samples across, too few for a local width to say more than the radius.
+          const double u = ends_only
+                               ? rho / r.last
+                               : section_share(inside, local_radius(field, i, j, last), r.last);
+          t = cap_height(u, areas(r), g.spacing.z);
+        }
       } else {
         if (ends_only) continue;  // the field holds distances only about the ends
         // The region goes on narrowing into the slice beyond: its width there at the sample's

@@ -6,13 +6,14 @@
 // empty, so the middle of a wide last slice (far inside its outline) is carried most of the way
 // to the slice beyond, and two objects one empty slice apart bulge towards each other across it.
 // Instead, each vertex on a crossed edge from such a region to the slice beyond goes where a
-// cap over the region puts it, by the sample's in-slice distance to the outline against the
-// largest in its region (the region's "radius") and by how the region's area narrows over the
-// last three slices (label_caps.cpp, cap_height). It meets the sides at the outline and is highest
-// over the region's middle, as a convex end is. A part of a region narrower than its middle (a
-// crescent's arm, the top of a ring's tube, a saddle where the slice beyond holds the region on
-// either side but not over it) ends under a cap of its own width: the radius of the widest
-// in-slice disc round the sample, found by walking up the distance from the sample. A tube
+// cap over the region puts it, by where the sample lies between the region's middle and its
+// outline (its in-slice distance to the outline, against the largest in its region, the
+// region's "radius", and its own local width: label_caps.cpp, section_share) and by how the
+// region's area narrows over the last three slices (cap_height). It meets the sides at the outline
+// and is highest over the region's middle, as a convex end is. A part of a region narrower than its
+// middle (a crescent's arm, the top of a ring's tube, a saddle where the slice beyond holds the
+// region on either side but not over it) ends under a cap of its own width: the radius of the
+// widest in-slice disc round the sample, found by walking up the distance from the sample. A tube
 // lying across the slices, whose top runs along the last slice and rises into the slice beyond
 // only further along, has its top over a sample placed by its local widths: a round section
 // through its last two slices, or about its one slice where it is only that high.
