@@ -336,11 +336,11 @@ constexpr double kLongerThanRound = 2.0;
 /// the slice (in spacings) the top lies: from the round section through the sample's local
 /// widths in the last slice and the one before, where the tube is only those two slices high,
 /// or about the last slice, where the tube is only that slice high. None where the slice
-/// beyond's outline reaches over the sample's local middle or the tube is higher there.
+/// beyond's outline reaches over the sample's local middle or the tube is higher there. `local`
+/// is the sample's local radius in the last slice.
 std::optional<double> tube_top_height(const Grid<float>& field, std::int64_t i, std::int64_t j,
-                                      std::int64_t last, double inside, double outside,
+                                      std::int64_t last, float local, double inside, double outside,
                                       std::int64_t step) {
-  const float local = local_radius(field, i, j, last);
   if (!(local > 0.0F) || local - inside + outside > 0.0) return std::nullopt;
   const Radii r = local_radii(field, i, j, last, local, step);
   const double dz = field.geometry.spacing.z;
@@ -403,19 +403,18 @@ void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<fl
       } else if (r.ends) {
         // A long region's areas follow its length, not how its section narrows (the top of a
         // tube lying along the last slice): its local widths place the end where they can.
+        const float width_here = local_radius(field, i, j, last);
         std::optional<double> top;
         if (r.area_last * g.spacing.x * g.spacing.y >
             kLongerThanRound * std::numbers::pi * r.last * r.last)
-          top = tube_top_height(field, i, j, last, inside, outside, outward);
+          top = tube_top_height(field, i, j, last, width_here, inside, outside, outward);
         if (top) {
           t = *top;
         } else {
           // The sections of most ends shrink alike towards the end (an ellipsoid's); the sample
           // lies on the one through it. A tip's regions along a finely sampled axis are a few
           // samples across, too few for a local width to say more than the radius.
-          const double u = ends_only
-                               ? rho / r.last
-                               : section_share(inside, local_radius(field, i, j, last), r.last);
+          const double u = ends_only ? rho / r.last : section_share(inside, width_here, r.last);
           t = cap_height(u, areas(r), g.spacing.z);
         }
       } else {
@@ -430,7 +429,8 @@ void place_vertices_across_slices(std::span<Dlfl::Vec3> positions, const Grid<fl
           if (!(narrow < wide)) continue;
           t = (wide * wide - rho * rho) / (wide * wide - narrow * narrow);
         } else if (const std::optional<double> top =
-                       tube_top_height(field, i, j, last, inside, outside, outward)) {
+                       tube_top_height(field, i, j, last, local_radius(field, i, j, last), inside,
+                                       outside, outward)) {
           t = *top;
         } else {
           continue;

@@ -703,9 +703,12 @@ namespace {
 struct LabelIndicator {
   Grid<float> field;
   Grid<float> band;
-  /// The map read with its thickest axis as k (slices_across_k), where that is not k already.
+  /// The map read with its thickest axis as k (slices_across_k), where that is not k already;
+  /// empty where it is.
   Grid<float> turned;
-  bool is_turned = false;
+  [[nodiscard]] const Grid<float>& sliced(const Grid<float>& labels) const {
+    return turned.values.empty() ? labels : turned;
+  }
 };
 
 /// Samples further apart along one axis than along another by this factor or more are thicker.
@@ -781,9 +784,7 @@ LabelIndicator label_indicator(const Grid<float>& labels, float label,
   check_options(options);
   const auto t = Clock::now();
   LabelIndicator out;
-  const Grid<float>& sliced = slices_across_k(labels, out.turned);
-  out.is_turned = &sliced != &labels;
-  out.field = label_field(sliced, label, s.label_voxels, out.band);
+  out.field = label_field(slices_across_k(labels, out.turned), label, s.label_voxels, out.band);
   s.indicator_seconds = seconds_since(t);
   return out;
 }
@@ -799,8 +800,8 @@ PolygonMesh extract_label_surface_mesh(const Grid<float>& labels, float label,
   const Grid<float>& band = in.band;
   PolygonMesh mesh = extract_isosurface_mesh(in.field, iso_options(options), &s.extraction);
   place_vertices_across_slices({mesh.positions.data(), mesh.positions.size()}, in.field);
-  place_ends_across_other_axes({mesh.positions.data(), mesh.positions.size()},
-                               in.is_turned ? in.turned : labels, label);
+  place_ends_across_other_axes({mesh.positions.data(), mesh.positions.size()}, in.sliced(labels),
+                               label);
   if (options.iterations > 0 && options.rounds > 0 && !mesh.positions.empty()) {
     smooth_in_band({mesh.positions.data(), mesh.positions.size()}, neighbours_of(mesh), band,
                    options, s);
@@ -816,8 +817,8 @@ Dlfl extract_label_surface(const Grid<float>& labels, float label,
   const Grid<float>& band = in.band;
   Dlfl mesh = extract_isosurface(in.field, iso_options(options), &s.extraction);
   place_vertices_across_slices({mesh.positions().data(), mesh.vertex_capacity()}, in.field);
-  place_ends_across_other_axes({mesh.positions().data(), mesh.vertex_capacity()},
-                               in.is_turned ? in.turned : labels, label);
+  place_ends_across_other_axes({mesh.positions().data(), mesh.vertex_capacity()}, in.sliced(labels),
+                               label);
   if (options.iterations > 0 && options.rounds > 0 && mesh.vertex_capacity() > 0) {
     auto& pos = mesh.positions();
     smooth_in_band({pos.data(), mesh.vertex_capacity()}, neighbours_of(mesh), band, options, s);
