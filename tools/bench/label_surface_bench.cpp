@@ -204,6 +204,7 @@ Errors measure(const Shape& s, const std::vector<dvec3>& pts,
   }
   e.rms_mm = std::sqrt(sum2 / static_cast<double>(pts.size()));
   double area = 0, angle2 = 0;
+  dvec3 worst_face(0.0);
   for (std::size_t t = 0; t + 2 < tris.size(); t += 3) {
     const dvec3 a = pts[tris[t]], b = pts[tris[t + 1]], c = pts[tris[t + 2]];
     const dvec3 n = glm::cross(b - a, c - a);
@@ -213,9 +214,15 @@ Errors measure(const Shape& s, const std::vector<dvec3>& pts,
     const double deg = glm::degrees(std::acos(cosine));
     angle2 += 0.5 * len * deg * deg;
     area += 0.5 * len;
+    if (deg > e.normal_max_deg) worst_face = (a + b + c) / 3.0;
     e.normal_max_deg = std::max(e.normal_max_deg, deg);
   }
   e.normal_rms_deg = std::sqrt(angle2 / area);
+  if (list_far_mm >= 0.0 && area > 0.0) {
+    const dvec3 at = worst_face - kCentre, n = s.normal(worst_face);
+    std::fprintf(stderr, "  worst normal %.1f deg at (%.2f %.2f %.2f), normal (%.2f %.2f %.2f)\n",
+                 e.normal_max_deg, at.x, at.y, at.z, n.x, n.y, n.z);
+  }
   e.triangles = tris.size() / 3;
   return e;
 }
@@ -254,14 +261,17 @@ int main(int argc, char** argv) {
       std::printf(
           "label_surface_bench [--repeats N] [--iterations N] [--pass-band K] [--rounds N]\n"
           "                    [--twicing-share W] [--twicing-shares FLAT,SHARP]\n"
-          "                    [--twicing-bends FLAT,SHARP] [--fit-sweeps N] [--spacing X,Y,Z]...\n"
+          "                    [--twicing-bends FLAT,SHARP] [--fit-sweeps N] [--tangential-sweeps "
+          "N]\n"
+          "                    [--spacing X,Y,Z]...\n"
           "                    [--json FILE]\n"
           "                    [--list-far MM] [--vessel] [--vessel-radius MM]\n"
           "                    [--vessel-tilt DEG]\n"
           "  surfaces of voxelised analytic solids against the true shape: marching cubes,\n"
           "  constrained smoothing and (when built with VTK) 3D Slicer's VTK pipeline;\n"
           "  each --spacing (mm) replaces the default 0.6,0.6,1.3 and 1,1,3; --list-far writes\n"
-          "  each vertex further than MM from the true surface to stderr, before its row;\n"
+          "  each vertex further than MM from the true surface to stderr, before its row,\n"
+          "  and the face whose normal is furthest off;\n"
           "  --twicing-share W adds back one share W everywhere instead of the one the\n"
           "  surface's bend sets; --twicing-shares and --twicing-bends set the shares at\n"
           "  and the bends of a flat and a sharply bent surface; --vessel adds a vessel (a\n"
@@ -291,6 +301,8 @@ int main(int argc, char** argv) {
           flat;
       (a == "--twicing-shares" ? constrained.twicing_share : constrained.twicing_bend_sharp) =
           sharp;
+    } else if (a == "--tangential-sweeps" && i + 1 < argc) {
+      constrained.tangential_sweeps = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
     } else if (a == "--fit-sweeps" && i + 1 < argc) {
       constrained.normal_fit_sweeps = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
     } else if (a == "--vessel") {

@@ -470,6 +470,38 @@ void fit_to_smooth_normals(std::span<Vec3> pos, const Neighbours& nb, std::size_
   }
 }
 
+/// Tangential relaxation, as in isotropic remeshing (Botsch and Kobbelt, "A remeshing approach
+/// to multiresolution modeling", 2004): each vertex moves to the centroid of its faces' centres,
+/// weighted by their areas, less the part of that move along its normal. The shape stays (to
+/// second order in the move) while the thin triangles that the caps and the band leave where a
+/// thin part ends in a slice even out, and their normals, mostly their corners' small errors,
+/// with them. Where the surface is too coarse for a tangent plane to stand for it (`coarse`,
+/// too_coarse_shares) the vertices move less, none where it is wholly so. `keep(p, v)` is where
+/// vertex v may go when it would go to p.
+template <class Keep>
+void relax_along_surface(std::span<Vec3> pos, const Neighbours& nb, std::size_t sweeps,
+                         const std::vector<double>& coarse, Keep&& keep) {
+  const std::size_t n = pos.size();
+  std::vector<Vec3> normal(n), moved(n);
+  for (std::size_t sweep = 0; sweep < sweeps; ++sweep) {
+    vertex_normals(pos, nb, normal);
+    for (std::size_t v = 0; v < n; ++v) {
+      Vec3 centre(0.0);
+      double area = 0.0;
+      for (std::uint32_t k = nb.offsets[v]; k < nb.offsets[v + 1]; ++k) {
+        const Vec3 x = pos[nb.adjacency[k]], y = pos[nb.before[k]];
+        const double a = glm::length(glm::cross(x - pos[v], y - pos[v]));
+        centre += a * (pos[v] + x + y) / 3.0;
+        area += a;
+      }
+      const Vec3 move = area > 0.0 ? centre / area - pos[v] : Vec3(0.0);
+      moved[v] = pos[v] + (1.0 - coarse[v]) * (move - glm::dot(move, normal[v]) * normal[v]);
+    }
+    for (std::size_t v = 0; v < n; ++v)
+      pos[v] = keep(moved[v], v);
+  }
+}
+
 /// Each vertex's value averaged with its neighbours', `sweeps` times.
 void average_over_neighbours(std::vector<double>& value, const Neighbours& nb, int sweeps) {
   std::vector<double> averaged(value.size());
@@ -526,21 +558,24 @@ std::vector<double> twicing_shares(const std::vector<double>& bend, const LabelS
 /// three samples across: a vessel at 3 mm samples), its samples are too few for a low-pass to
 /// tell the shape from the staircase, and the filter draws it in towards its axis (a capsule 3
 /// mm in radius at 3 x 3 x 3 mm lay 2.3 mm off RMS, as VTK's does); twicing brings nothing back,
-/// since the residual is as sharp. There the vertices go back towards their places from steps
-/// 1 and 2, fully from a bend of 2, none under 1, the share averaged over the neighbourhood so
-/// the surface does not crease where it changes.
-template <typename Keep>
-void keep_where_too_coarse(std::span<Vec3> pos, std::span<const Vec3> home,
-                           const std::vector<double>& bend, const Neighbours& nb,
-                           const Keep& kept_in_band) {
+/// since the residual is as sharp. Each vertex's share of too coarse: 1 from a bend of 2, none
+/// under 1, averaged over the neighbourhood so the surface does not crease where it changes.
+std::vector<double> too_coarse_shares(const std::vector<double>& bend, const Neighbours& nb) {
   constexpr double kFilteredUpTo = 1.0, kKeptFrom = 2.0;
   constexpr int kSpreadSweeps = 3;
-  std::vector<double> back(bend.size());
+  std::vector<double> share(bend.size());
   for (std::size_t v = 0; v < bend.size(); ++v)
-    back[v] = std::clamp((bend[v] - kFilteredUpTo) / (kKeptFrom - kFilteredUpTo), 0.0, 1.0);
-  average_over_neighbours(back, nb, kSpreadSweeps);
-  for (std::size_t v = 0; v < bend.size(); ++v)
-    if (back[v] > 0.0) pos[v] = kept_in_band(pos[v] + back[v] * (home[v] - pos[v]), v);
+    share[v] = std::clamp((bend[v] - kFilteredUpTo) / (kKeptFrom - kFilteredUpTo), 0.0, 1.0);
+  average_over_neighbours(share, nb, kSpreadSweeps);
+  return share;
+}
+
+/// Where too coarse, the vertices go back towards their places from steps 1 and 2 by that share.
+template <typename Keep>
+void keep_where_too_coarse(std::span<Vec3> pos, std::span<const Vec3> home,
+                           const std::vector<double>& coarse, const Keep& kept_in_band) {
+  for (std::size_t v = 0; v < coarse.size(); ++v)
+    if (coarse[v] > 0.0) pos[v] = kept_in_band(pos[v] + coarse[v] * (home[v] - pos[v]), v);
 }
 
 void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>& field,
@@ -640,7 +675,12 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
     }
     if (o.smooth_progress) o.smooth_progress(round + 1, o.rounds);
   }
-  if (!bend.empty()) keep_where_too_coarse(pos, home, bend, nb, kept_in_band);
+  std::vector<double> coarse(n, 0.0);
+  if (!bend.empty()) {
+    coarse = too_coarse_shares(bend, nb);
+    keep_where_too_coarse(pos, home, coarse, kept_in_band);
+  }
+  relax_along_surface(pos, nb, o.tangential_sweeps, coarse, kept_in_band);
   fit_to_smooth_normals(pos, nb, o.normal_fit_sweeps, kept_in_band);
   stats.clamped_last = clamped;
   stats.smooth_seconds = seconds_since(start);
