@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -129,6 +130,27 @@ SimWorld weightless_sphere_world() {
   SimWorld world(options);
   world.add_body(SoftBody(testing::sphere(56, 25.0), Material{}));
   return world;
+}
+
+TEST(SimBvhPatches, ATriangleWithoutAreaHasAClosestPointOnItsSides) {
+  // A tissue pressed flat or cut can leave a triangle whose corners lie on one line, or two of
+  // them on one point; the region tests divided by zero there, and the blood's collisions took
+  // the NaN for a surface point.
+  const glm::dvec3 a(0.0, 0.0, 0.0), b(1.0, 0.0, 0.0), c(3.0, 0.0, 0.0), p(2.0, 1.0, 0.5);
+  for (const auto& [x, y, z] :
+       {std::array{a, b, c}, std::array{a, a, c}, std::array{c, b, c}, std::array{a, a, a}}) {
+    glm::dvec3 bc;
+    const glm::dvec3 q = closest_point_on_triangle(p, x, y, z, bc);
+    const auto finite = [](const glm::dvec3& v) {
+      return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+    };
+    ASSERT_TRUE(finite(q) && finite(bc));
+    EXPECT_NEAR(glm::length(bc.x * x + bc.y * y + bc.z * z - q), 0.0, 1e-12);
+    EXPECT_NEAR(bc.x + bc.y + bc.z, 1.0, 1e-12);
+    const bool a_point = x == y && y == z;
+    EXPECT_NEAR(q.x, a_point ? 0.0 : 2.0, 1e-12);  // the foot of p on the line, or the point
+    EXPECT_NEAR(q.y, 0.0, 1e-12);
+  }
 }
 
 TEST(SimBvhPatches, QueriesMatchBruteForceOnEveryPatch) {

@@ -28,10 +28,40 @@ CollisionDevice::~CollisionDevice() {
   rtcReleaseDevice(static_cast<RTCDevice>(device_));
 }
 
+namespace {
+
+/// The closest point to p on segment [a, b] (a where the two coincide), and its share t of b.
+glm::dvec3 closest_on_segment(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
+                              double& t) {
+  const glm::dvec3 ab = b - a;
+  const double length2 = glm::dot(ab, ab);
+  t = length2 > 0.0 ? std::clamp(glm::dot(p - a, ab) / length2, 0.0, 1.0) : 0.0;
+  return a + t * ab;
+}
+
+/// A triangle without area (its corners on one line, or two of them one point): the closest
+/// point on its three sides. The region tests below would divide by zero there.
+glm::dvec3 closest_on_flat_triangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
+                                    const glm::dvec3& c, glm::dvec3& bc) {
+  double t = 0.0;
+  glm::dvec3 best = closest_on_segment(p, a, b, t);
+  bc = {1 - t, t, 0};
+  const glm::dvec3 on_bc = closest_on_segment(p, b, c, t);
+  if (glm::length(p - on_bc) < glm::length(p - best)) best = on_bc, bc = {0, 1 - t, t};
+  const glm::dvec3 on_ca = closest_on_segment(p, c, a, t);
+  if (glm::length(p - on_ca) < glm::length(p - best)) best = on_ca, bc = {t, 0, 1 - t};
+  return best;
+}
+
+}  // namespace
+
 glm::dvec3 closest_point_on_triangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
                                      const glm::dvec3& c, glm::dvec3& bc) {
   // Ericson, Real-Time Collision Detection, 5.1.5 (region tests on the barycentric coordinates).
   const glm::dvec3 ab = b - a, ac = c - a, ap = p - a;
+  const glm::dvec3 area = glm::cross(ab, ac);
+  if (!(glm::dot(area, area) > 1e-24 * glm::dot(ab, ab) * glm::dot(ac, ac)))
+    return closest_on_flat_triangle(p, a, b, c, bc);
   const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
   if (d1 <= 0.0 && d2 <= 0.0) return bc = {1, 0, 0}, a;
   const glm::dvec3 bp = p - b;
