@@ -16,7 +16,8 @@
 // widest in-slice disc round the sample, found by walking up the distance from the sample. A tube
 // lying across the slices, whose top runs along the last slice and rises into the slice beyond
 // only further along, has its top over a sample placed by its local widths: a round section
-// through its last two slices, or about its one slice where it is only that high.
+// through its last two slices, or about its one slice where it is only that high, or fitted
+// over its last three where it is higher (the top of a ring's tube at even sampling).
 
 #include <span>
 
