@@ -28,27 +28,26 @@ CollisionDevice::~CollisionDevice() {
   rtcReleaseDevice(static_cast<RTCDevice>(device_));
 }
 
-namespace {
-
-/// The closest point to p on segment [a, b] (a where the two coincide), and its share t of b.
-glm::dvec3 closest_on_segment(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
-                              double& t) {
+glm::dvec3 closest_point_on_segment(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
+                                    double& t) {
   const glm::dvec3 ab = b - a;
   const double length2 = glm::dot(ab, ab);
   t = length2 > 0.0 ? std::clamp(glm::dot(p - a, ab) / length2, 0.0, 1.0) : 0.0;
   return a + t * ab;
 }
 
+namespace {
+
 /// A triangle without area (its corners on one line, or two of them one point): the closest
 /// point on its three sides. The region tests below would divide by zero there.
 glm::dvec3 closest_on_flat_triangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
                                     const glm::dvec3& c, glm::dvec3& bc) {
   double t = 0.0;
-  glm::dvec3 best = closest_on_segment(p, a, b, t);
+  glm::dvec3 best = closest_point_on_segment(p, a, b, t);
   bc = {1 - t, t, 0};
-  const glm::dvec3 on_bc = closest_on_segment(p, b, c, t);
+  const glm::dvec3 on_bc = closest_point_on_segment(p, b, c, t);
   if (glm::length(p - on_bc) < glm::length(p - best)) best = on_bc, bc = {0, 1 - t, t};
-  const glm::dvec3 on_ca = closest_on_segment(p, c, a, t);
+  const glm::dvec3 on_ca = closest_point_on_segment(p, c, a, t);
   if (glm::length(p - on_ca) < glm::length(p - best)) best = on_ca, bc = {t, 0, 1 - t};
   return best;
 }
@@ -59,16 +58,15 @@ glm::dvec3 closest_point_on_triangle(const glm::dvec3& p, const glm::dvec3& a, c
                                      const glm::dvec3& c, glm::dvec3& bc) {
   // Ericson, Real-Time Collision Detection, 5.1.5 (region tests on the barycentric coordinates).
   const glm::dvec3 ab = b - a, ac = c - a, ap = p - a;
-  const glm::dvec3 area = glm::cross(ab, ac);
-  if (!(glm::dot(area, area) > 1e-24 * glm::dot(ab, ab) * glm::dot(ac, ac)))
-    return closest_on_flat_triangle(p, a, b, c, bc);
   const double d1 = glm::dot(ab, ap), d2 = glm::dot(ac, ap);
   if (d1 <= 0.0 && d2 <= 0.0) return bc = {1, 0, 0}, a;
   const glm::dvec3 bp = p - b;
   const double d3 = glm::dot(ab, bp), d4 = glm::dot(ac, bp);
   if (d3 >= 0.0 && d4 <= d3) return bc = {0, 1, 0}, b;
   const double vc = d1 * d4 - d3 * d2;
+  // Each division below is by zero only on a triangle without area: then its sides answer.
   if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+    if (d1 == d3) return closest_on_flat_triangle(p, a, b, c, bc);
     const double v = d1 / (d1 - d3);
     bc = {1 - v, v, 0};
     return a + v * ab;
@@ -78,16 +76,19 @@ glm::dvec3 closest_point_on_triangle(const glm::dvec3& p, const glm::dvec3& a, c
   if (d6 >= 0.0 && d5 <= d6) return bc = {0, 0, 1}, c;
   const double vb = d5 * d2 - d1 * d6;
   if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+    if (d2 == d6) return closest_on_flat_triangle(p, a, b, c, bc);
     const double w = d2 / (d2 - d6);
     bc = {1 - w, 0, w};
     return a + w * ac;
   }
   const double va = d3 * d6 - d5 * d4;
   if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+    if (d4 - d3 + d5 - d6 == 0.0) return closest_on_flat_triangle(p, a, b, c, bc);
     const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
     bc = {0, 1 - w, w};
     return b + w * (c - b);
   }
+  if (!(va + vb + vc > 0.0)) return closest_on_flat_triangle(p, a, b, c, bc);
   const double denom = 1.0 / (va + vb + vc);
   const double v = vb * denom, w = vc * denom;
   bc = {1 - v - w, v, w};

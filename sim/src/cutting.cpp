@@ -38,10 +38,8 @@ bool has_real_face(const Dlfl& mesh, VertexId v) {
 }
 
 double point_segment_distance(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b) {
-  const glm::dvec3 ab = b - a;
-  const double l2 = glm::dot(ab, ab);
-  const double t = l2 > 0.0 ? std::clamp(glm::dot(p - a, ab) / l2, 0.0, 1.0) : 0.0;
-  return glm::length(p - (a + t * ab));
+  double t = 0.0;
+  return glm::length(p - closest_point_on_segment(p, a, b, t));
 }
 
 /// The vertices a cut may start, end or turn at (alive, with a real face), in a uniform grid:

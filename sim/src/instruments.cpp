@@ -1,16 +1,14 @@
 #include "bisturi/sim/instruments.h"
 
-#include <algorithm>
-
 #include <glm/geometric.hpp>
+
+#include "bisturi/sim/collision.h"
 
 namespace bisturi::sim {
 
 double capsule_distance(const Capsule& c, const glm::dvec3& p) {
-  const glm::dvec3 ab = c.b_m - c.a_m;
-  const double l2 = glm::dot(ab, ab);
-  const double t = l2 > 0.0 ? std::clamp(glm::dot(p - c.a_m, ab) / l2, 0.0, 1.0) : 0.0;
-  return glm::length(p - (c.a_m + t * ab)) - c.radius_m;
+  double t = 0.0;
+  return glm::length(p - closest_point_on_segment(p, c.a_m, c.b_m, t)) - c.radius_m;
 }
 
 }  // namespace bisturi::sim

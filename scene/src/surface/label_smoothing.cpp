@@ -9,6 +9,8 @@
 #include <span>
 #include <vector>
 
+#include "elapsed.h"
+
 namespace bisturi {
 
 // In a triangle the corner after v names one neighbour; around a closed manifold vertex these
@@ -67,9 +69,7 @@ namespace {
 using Vec3 = Dlfl::Vec3;
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
+using surface::seconds_since;
 
 /// The windowed-sinc low-pass filter of Taubin, Zhang and Golub ("Optimal surface smoothing as
 /// filter design", 1996) as weights a_i of the Chebyshev terms T_i(1 - k/2), k a frequency of the

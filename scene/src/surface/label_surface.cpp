@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "bisturi/scene/errors.h"
+#include "elapsed.h"
 #include "label_caps.h"
 #include "label_field.h"
 #include "label_smoothing.h"
@@ -23,9 +24,7 @@ namespace {
 using Vec3 = Dlfl::Vec3;
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
+using surface::seconds_since;
 
 void check_options(const LabelSurfaceOptions& o) {
   if (o.iterations == 1 || !(o.pass_band > 0.0 && o.pass_band < 2.0)) {

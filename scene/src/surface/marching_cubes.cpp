@@ -17,6 +17,7 @@
 #include "surface/cube_cases.h"
 #include "surface/edge_placement.h"
 #include "surface/edge_vertices.h"
+#include "surface/elapsed.h"
 #include "surface/extraction_sinks.h"
 #include "surface/index_span.h"
 #include "surface/sign_planes.h"
@@ -63,9 +64,7 @@ using surface::VisitedCells;
 
 using Clock = std::chrono::steady_clock;
 
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using surface::seconds_since;
 
 void check_input(const Grid<float>& volume, const IsoSurfaceOptions& options) {
   const VolumeGeometry& g = volume.geometry;

@@ -107,7 +107,12 @@ class SurfaceBvh {
   std::unique_ptr<Impl> impl_;
 };
 
-/// Closest point on triangle (a, b, c) to p, with its barycentric coordinates in bc.
+/// Closest point on segment [a, b] to p (a where the two coincide), with its share of b in t.
+glm::dvec3 closest_point_on_segment(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
+                                    double& t);
+
+/// Closest point on triangle (a, b, c) to p, with its barycentric coordinates in bc; on a
+/// triangle without area, the closest point on its sides.
 glm::dvec3 closest_point_on_triangle(const glm::dvec3& p, const glm::dvec3& a, const glm::dvec3& b,
                                      const glm::dvec3& c, glm::dvec3& bc);
 
