@@ -5,6 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
 
 #include <glm/geometric.hpp>
 
@@ -141,6 +144,28 @@ TEST(Blood, TwoThreadsGiveTheSameParticlesAsOne) {
   for (std::size_t i = 0; i < one.final_positions.size(); ++i)
     EXPECT_EQ(one.final_positions[i], two.final_positions[i]) << i;
   EXPECT_EQ(two.steps_with_a_particle_inside, 0);
+}
+
+TEST(Blood, AnOpeningWithNoPlaceOrDirectionEmitsNothing) {
+  // An opening cut down to nothing gives a source with no direction, or no place at all: it is
+  // passed over, the good source bleeds on, and every particle stays a number.
+  Blood blood;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const std::array<BloodSource, 3> sources{BloodSource{{nan, 0.0, 0.0}, {0.0, 0.0, 1.0}},
+                                           BloodSource{{0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}},
+                                           BloodSource{{0.0, 0.0, 0.01}, {0.0, 0.0, 1.0}}};
+  std::size_t made = 0;
+  for (int s = 0; s < 20; ++s) {
+    made += blood.emit(sources, 2e-5, 0.1, 0.002);
+    blood.step(0.002, {});
+  }
+  EXPECT_GT(made, 10u);
+  for (const glm::dvec3& p : blood.positions())
+    EXPECT_TRUE(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z));
+  const BloodCounts& c = blood.counts();
+  EXPECT_EQ(c.emitted, c.in_flight + c.pooled + c.drained + c.recycled);
+  const std::array<BloodSource, 1> broken{sources[1]};
+  EXPECT_EQ(blood.emit(broken, 2e-5, 0.1, 0.002), 0u);
 }
 
 }  // namespace

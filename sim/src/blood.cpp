@@ -19,6 +19,13 @@ namespace {
 
 constexpr double kPi = 3.141592653589793;
 
+bool usable(const BloodSource& s) {
+  const auto finite = [](const glm::dvec3& v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+  };
+  return finite(s.point_m) && finite(s.direction) && glm::length2(s.direction) > 1e-24;
+}
+
 /// Mueller, Charypar and Gross 2003: poly6 for densities, the spiky kernel's gradient for
 /// pressure (it does not vanish as particles close in); their constants for a kernel radius h.
 struct Kernels {
@@ -149,6 +156,17 @@ std::size_t Blood::emit(std::span<const BloodSource> sources, double flow_m3_s, 
   }
   std::size_t made = 0;
   while (pending_m3_ >= particle_volume_m3_ && x_.size() < options_.max_particles) {
+    // A source with no place or no direction (an opening cut down to nothing) emits nothing: its
+    // particles would be no numbers, and would stop the neighbour search.
+    std::size_t tried = 0;
+    while (tried < sources.size() && !usable(sources[next_source_ % sources.size()])) {
+      ++next_source_;
+      ++tried;
+    }
+    if (tried == sources.size()) {
+      pending_m3_ = 0.0;
+      break;
+    }
     pending_m3_ -= particle_volume_m3_;
     const BloodSource& s = sources[next_source_ % sources.size()];
     // Spread over the opening by the golden angle, so particles never start on one another.
@@ -355,8 +373,12 @@ void Blood::remove_drained() {
   remove_.assign(x_.size(), 0);
   for (std::size_t i = 0; i < x_.size(); ++i) {
     const glm::dvec3& x = x_[i];
-    if (x.x < options_.field_min_m.x || x.y < options_.field_min_m.y ||
-        x.x > options_.field_max_m.x || x.y > options_.field_max_m.y) {
+    // Written as "not inside" so a particle whose position is no number drains as well.
+    const bool inside = x.x >= options_.field_min_m.x && x.y >= options_.field_min_m.y &&
+                        x.x <= options_.field_max_m.x && x.y <= options_.field_max_m.y &&
+                        std::isfinite(x.z) && std::isfinite(v_[i].x) && std::isfinite(v_[i].y) &&
+                        std::isfinite(v_[i].z);
+    if (!inside) {
       remove_[i] = 1;
       ++counts_.drained;
     }
