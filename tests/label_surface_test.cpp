@@ -113,7 +113,7 @@ TEST(LabelSurface, TorusAtThickSlicesIsSmoothClosedAndKeepsItsGenus) {
     // The fit to smooth normals turns the thin triangles across the slices, the worst faces
     // without it, and moves the vertices little.
     LabelSurfaceOptions unfitted_options;
-    unfitted_options.normal_fit_sweeps = 0;
+    unfitted_options.normal_fit_sweeps = unfitted_options.normal_fit_sweeps_thick = 0;
     const Fit unfitted = fit(extract_label_surface_mesh(labels, kLabel, unfitted_options), torus);
     std::printf("worst face normal %.1f deg (%.1f unfitted), RMS %.3f mm (%.3f unfitted)\n",
                 after.normal_max_deg, unfitted.normal_max_deg, after.rms_mm, unfitted.rms_mm);

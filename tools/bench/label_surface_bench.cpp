@@ -260,7 +260,7 @@ int main(int argc, char** argv) {
     if (a == "--help" || a == "-h") {
       std::printf(
           "label_surface_bench [--repeats N] [--iterations N] [--pass-band K] [--rounds N]\n"
-          "                    [--sharp-rounds N]\n"
+          "                    [--sharp-rounds N] [--fit-sweeps-thick N]\n"
           "                    [--twicing-share W] [--twicing-shares FLAT,SHARP]\n"
           "                    [--twicing-bends FLAT,SHARP] [--fit-sweeps N] [--tangential-sweeps "
           "N]\n"
@@ -277,6 +277,7 @@ int main(int argc, char** argv) {
           "  surface's bend sets; --twicing-shares and --twicing-bends set the shares at\n"
           "  and the bends of a flat and a sharply bent surface; --sharp-rounds N sets the\n"
           "  rounds that add back only where it bends sharply (at thick slices);\n"
+          "  --fit-sweeps-thick N the fit's sweeps there (--fit-sweeps: elsewhere);\n"
           "  --vessel adds a vessel (a\n"
           "  capsule 3 mm in radius, 36 mm long) lying across the slices, tilted 8 deg out of\n"
           "  them; --vessel-radius and --vessel-tilt change those (and imply --vessel)\n");
@@ -310,6 +311,9 @@ int main(int argc, char** argv) {
       constrained.tangential_sweeps = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
     } else if (a == "--fit-sweeps" && i + 1 < argc) {
       constrained.normal_fit_sweeps = static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
+    } else if (a == "--fit-sweeps-thick" && i + 1 < argc) {
+      constrained.normal_fit_sweeps_thick =
+          static_cast<std::size_t>(std::max(0, std::atoi(argv[++i])));
     } else if (a == "--vessel") {
       with_vessel = true;
     } else if ((a == "--vessel-radius" || a == "--vessel-tilt") && i + 1 < argc) {

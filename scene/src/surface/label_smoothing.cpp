@@ -415,7 +415,9 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
     keep_where_too_coarse(pos, home, coarse, kept_in_band);
   }
   relax_along_surface(pos, nb, o.tangential_sweeps, coarse, kept_in_band);
-  fit_to_smooth_normals(pos, nb, o.normal_fit_sweeps, kept_in_band);
+  fit_to_smooth_normals(
+      pos, nb, thick_slices(field.geometry) ? o.normal_fit_sweeps_thick : o.normal_fit_sweeps,
+      kept_in_band);
   stats.clamped_last = clamped;
   stats.smooth_seconds = seconds_since(start);
 }
