@@ -19,10 +19,11 @@ namespace {
 
 constexpr double kPi = 3.141592653589793;
 
+bool finite(const glm::dvec3& v) {
+  return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
 bool usable(const BloodSource& s) {
-  const auto finite = [](const glm::dvec3& v) {
-    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
-  };
   return finite(s.point_m) && finite(s.direction) && glm::length2(s.direction) > 1e-24;
 }
 
@@ -373,11 +374,10 @@ void Blood::remove_drained() {
   remove_.assign(x_.size(), 0);
   for (std::size_t i = 0; i < x_.size(); ++i) {
     const glm::dvec3& x = x_[i];
-    // Written as "not inside" so a particle whose position is no number drains as well.
+    // A particle whose position or velocity is no number drains as well.
     const bool inside = x.x >= options_.field_min_m.x && x.y >= options_.field_min_m.y &&
                         x.x <= options_.field_max_m.x && x.y <= options_.field_max_m.y &&
-                        std::isfinite(x.z) && std::isfinite(v_[i].x) && std::isfinite(v_[i].y) &&
-                        std::isfinite(v_[i].z);
+                        finite(x) && finite(v_[i]);
     if (!inside) {
       remove_[i] = 1;
       ++counts_.drained;

@@ -11,6 +11,12 @@
 
 namespace bisturi {
 
+/// Samples further apart along one axis than along another by this factor or more are thicker:
+/// the slices are taken across the thickest axis (label_surface.cpp), and maps whose slices are
+/// thicker than their in-slice samples get the sharp rounds and more fit sweeps
+/// (label_smoothing.cpp).
+constexpr double kThicker = 1.2;
+
 /// Each sample's signed in-slice distance (mm) to the outline of `mask`'s inside, positive
 /// inside. A slice without inside (or outside) samples, or one `wanted` (if given) does not
 /// hold, counts as one slice spacing away; slices of one kind (most of a map around a label)

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "elapsed.h"
+#include "label_field.h"
 
 namespace bisturi {
 
@@ -279,7 +280,6 @@ std::vector<double> twicing_shares(const std::vector<double>& bend, const LabelS
 /// more against the finer of the two: there a solid only a few slices high keeps its rim
 /// (LabelSurfaceOptions::sharp_rounds).
 bool thick_slices(const VolumeGeometry& g) {
-  constexpr double kThicker = 1.2;
   return g.spacing.z > kThicker * std::min(g.spacing.x, g.spacing.y);
 }
 
@@ -362,8 +362,8 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
   const auto kept_in_band = [&](const Vec3& p, std::size_t v) {
     return in_band(p) ? p : towards_in_band(home[v], p);
   };
-  const std::size_t rounds =
-      o.rounds + (o.rounds > 0 && thick_slices(field.geometry) ? o.sharp_rounds : 0);
+  const bool thick = thick_slices(field.geometry);
+  const std::size_t rounds = o.rounds + (o.rounds > 0 && thick ? o.sharp_rounds : 0);
   for (std::size_t round = 0; round < rounds; ++round) {
     // Round 0 filters the positions; each later one filters what is left between them and the
     // marching-cubes ones and adds a share w of it back (Tukey's twicing, gain (1 + w)F - wF^2
@@ -415,9 +415,8 @@ void smooth_in_band(std::span<Vec3> pos, const Neighbours& nb, const Grid<float>
     keep_where_too_coarse(pos, home, coarse, kept_in_band);
   }
   relax_along_surface(pos, nb, o.tangential_sweeps, coarse, kept_in_band);
-  fit_to_smooth_normals(
-      pos, nb, thick_slices(field.geometry) ? o.normal_fit_sweeps_thick : o.normal_fit_sweeps,
-      kept_in_band);
+  fit_to_smooth_normals(pos, nb, thick ? o.normal_fit_sweeps_thick : o.normal_fit_sweeps,
+                        kept_in_band);
   stats.clamped_last = clamped;
   stats.smooth_seconds = seconds_since(start);
 }

@@ -109,9 +109,6 @@ struct LabelIndicator {
   }
 };
 
-/// Samples further apart along one axis than along another by this factor or more are thicker.
-constexpr double kThicker = 1.2;
-
 /// `labels` read with index axis `axis` and k swapped (every sample keeps its world position):
 /// its geometry into `turned`, and each sample as `value` makes it into `out`.
 template <typename T, typename Value>
